@@ -1,0 +1,1 @@
+"""The ``posekit`` command: one sub-command group per system."""

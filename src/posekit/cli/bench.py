@@ -1,0 +1,51 @@
+"""``posekit bench NAME``: run a benchmark script of ``benchmarks/`` against its peer."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+from ..errors import ConfigError
+
+__all__ = ["add_parser", "BENCHMARKS"]
+
+BENCHMARKS = ("profiler",)
+PLANNED = ("ceiling", "seam")
+
+
+def add_parser(sub):
+    p = sub.add_parser("bench", help="time a system against the peer a user would otherwise pick")
+    p.add_argument("name", choices=[*BENCHMARKS, *PLANNED, "all"], help="which benchmark")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.add_argument("--count", type=int, default=None, help="number of samples (benchmark's default)")
+    p.set_defaults(func=run)
+
+
+def _benchmarks_dir() -> Path:
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent / "benchmarks"
+        if (cand / "profiler.py").is_file():
+            return cand
+    raise ConfigError("benchmarks/ not found: `posekit bench` runs from a source checkout "
+                      "(pip install -e . in a clone of posekit)")
+
+
+def _load(name: str):
+    path = _benchmarks_dir() / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"posekit_bench_{name}", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def run(args) -> int:
+    if args.name in PLANNED:
+        raise ConfigError(f"benchmark '{args.name}' does not exist yet: its system is not implemented; "
+                          f"available: {', '.join(BENCHMARKS)}")
+    names = BENCHMARKS if args.name == "all" else (args.name,)
+    for name in names:
+        results = _load(name).run(count=args.count, verbose=not args.json)
+        if args.json:
+            for row in results:
+                print(json.dumps(row))
+    return 0

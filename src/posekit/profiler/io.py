@@ -1,0 +1,207 @@
+"""Reading laser profiles and writing pose records (DESIGN.md contracts).
+
+Inputs: CSV with header ``x,z`` (mm, scan order, an empty cell or ``nan`` = no return),
+``.npy`` of shape (N, 2), or ``.npz`` with ``profiles`` of shape (K, N, 2) for batches.
+"""
+
+import csv
+import json
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputFileError
+
+__all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "record_to_json", "read_truth_csv",
+           "write_truth_csv", "TRUTH_COLUMNS"]
+
+RECORD_CSV_COLUMNS = ["index", "status", "tx", "ty", "tz", "qw", "qx", "qy", "qz", "reprojection_um", "error"]
+TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
+
+
+def _read_csv(path: Path) -> np.ndarray:
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except UnicodeDecodeError:
+        raise InputFileError(f"{path}: not a text CSV file; expected a header 'x,z' and rows of mm values") from None
+    rows = [r for r in rows if any(cell.strip() for cell in r)]
+    if not rows:
+        raise InputFileError(f"{path}: file is empty; expected a CSV with header 'x,z'")
+    header = [c.strip().lower() for c in rows[0]]
+    if header != ["x", "z"]:
+        raise InputFileError(f"{path}: line 1: expected header 'x,z', got '{','.join(rows[0])}'")
+    if len(rows) == 1:
+        raise InputFileError(f"{path}: no data rows after the header 'x,z'")
+    out = np.empty((len(rows) - 1, 2))
+    for i, row in enumerate(rows[1:]):
+        if len(row) != 2:
+            raise InputFileError(f"{path}: line {i + 2}: expected 2 values (x,z), got {len(row)}")
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell == "" or cell.lower() == "nan":
+                out[i, j] = np.nan
+                continue
+            try:
+                out[i, j] = float(cell)
+            except ValueError:
+                raise InputFileError(f"{path}: line {i + 2}: '{cell}' is not a number (mm) or empty/nan") from None
+            if math.isinf(out[i, j]):
+                raise InputFileError(f"{path}: line {i + 2}: infinite value; use an empty cell or nan for no return")
+    return out[None]
+
+
+def _check_array(arr, path: Path, what: str) -> np.ndarray:
+    if not np.issubdtype(arr.dtype, np.number):
+        raise InputFileError(f"{path}: {what} must hold numbers, got dtype {arr.dtype}")
+    arr = np.asarray(arr, dtype=np.float64)
+    if np.any(np.isinf(arr)):
+        raise InputFileError(f"{path}: {what} holds infinite values; use NaN for no return")
+    return arr
+
+
+def read_profiles(path) -> np.ndarray:
+    """Read one profile or a batch from a CSV, .npy or .npz file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    profiles : ndarray, shape (K, N, 2)
+        Points (x, z) in the profiler frame F, mm; NaN = no return. K = 1 for a CSV or
+        .npy file.
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing, empty, malformed or has the wrong shape; the message
+        names the file (and line for a CSV).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputFileError(f"{path}: is a folder; expected a .csv, .npy or .npz profile file")
+    suffix = path.suffix.lower()
+    if path.stat().st_size == 0:
+        raise InputFileError(f"{path}: file is empty; expected a .csv (header 'x,z'), .npy or .npz profile file")
+    if suffix == ".csv":
+        return _read_csv(path)
+    if suffix == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise InputFileError(f"{path}: not a valid .npy file ({exc})") from None
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise InputFileError(f"{path}: expected an array of shape (N, 2) of (x, z) in mm, got {arr.shape}")
+        return _check_array(arr, path, "profile")[None]
+    if suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if "profiles" not in data.files:
+                    raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
+                                         f"found {', '.join(data.files) or 'no arrays'}")
+                arr = data["profiles"]
+        except (ValueError, OSError, zipfile.BadZipFile) as exc:
+            raise InputFileError(f"{path}: not a valid .npz file ({exc})") from None
+        if arr.ndim != 3 or arr.shape[2] != 2:
+            raise InputFileError(f"{path}: expected 'profiles' of shape (K, N, 2), got {arr.shape}")
+        if arr.shape[0] == 0:
+            raise InputFileError(f"{path}: 'profiles' holds no profile (K = 0)")
+        return _check_array(arr, path, "'profiles'")
+    raise InputFileError(f"{path}: unknown file type '{path.suffix}'; expected .csv, .npy or .npz")
+
+
+def _num(v):
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def record_to_json(rec: dict) -> str:
+    """One JSON line of a pose record (NaN written as null)."""
+    def clean(v):
+        if isinstance(v, float):
+            return _num(v)
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    return json.dumps({k: clean(v) for k, v in rec.items()})
+
+
+class RecordWriter:
+    """Streams pose records as JSON lines or CSV (DESIGN.md fields and columns).
+
+    Parameters
+    ----------
+    out : path or None
+        File to write; None writes to ``stream``.
+    fmt : {'jsonl', 'csv'} or None
+        None: from the suffix of ``out`` (``.csv`` → CSV), JSON lines otherwise.
+    stream : text stream, optional
+        Where to write when ``out`` is None (e.g. ``sys.stdout``).
+
+    Records are dicts with keys ``index, status, t_mm, q_wxyz, reprojection_um,
+    corners_mm, std_t_um, std_rot_deg, error``.
+    """
+
+    def __init__(self, out=None, fmt=None, stream=None):
+        if fmt is None:
+            fmt = "csv" if out is not None and str(out).lower().endswith(".csv") else "jsonl"
+        if fmt not in ("jsonl", "csv"):
+            raise InputFileError(f"unknown output format '{fmt}'; expected jsonl or csv")
+        self.fmt = fmt
+        self._own = out is not None
+        try:
+            self._fh = open(out, "w", newline="") if out is not None else stream
+        except OSError as exc:
+            raise InputFileError(f"{out}: cannot write ({exc.strerror or exc})") from None
+        self._csv = csv.writer(self._fh) if fmt == "csv" else None
+        if self._csv is not None:
+            self._csv.writerow(RECORD_CSV_COLUMNS)
+
+    def write(self, rec: dict) -> None:
+        if self._csv is None:
+            self._fh.write(record_to_json(rec) + "\n")
+            return
+        t = rec["t_mm"] or [None] * 3
+        q = rec["q_wxyz"] or [None] * 4
+        vals = [rec["index"], rec["status"], *t, *q, rec["reprojection_um"], rec["error"] or ""]
+        self._csv.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v) for v in vals])
+
+    def close(self) -> None:
+        if self._own:
+            self._fh.close()
+        else:
+            self._fh.flush()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def write_truth_csv(path, Ts_G_F, q_wxyz):
+    """Write ``index,tx,ty,tz,qw,qx,qy,qz`` for poses ``T_G_F`` (mm)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(TRUTH_COLUMNS)
+        for i, (T, q) in enumerate(zip(Ts_G_F, q_wxyz)):
+            w.writerow([i, *(repr(float(v)) for v in T[:3, 3]), *(repr(float(v)) for v in q)])
+
+
+def read_truth_csv(path):
+    """Read a truth CSV; returns (index (K,), t (K, 3) mm, q_wxyz (K, 4))."""
+    path = Path(path)
+    try:
+        data = np.genfromtxt(path, delimiter=",", names=True)
+    except (OSError, ValueError) as exc:
+        raise InputFileError(f"{path}: cannot read truth CSV ({exc})") from None
+    if data.dtype.names is None or list(data.dtype.names) != TRUTH_COLUMNS:
+        raise InputFileError(f"{path}: expected columns {','.join(TRUTH_COLUMNS)}")
+    data = np.atleast_1d(data)
+    return (data["index"].astype(int), np.stack([data["tx"], data["ty"], data["tz"]], 1),
+            np.stack([data["qw"], data["qx"], data["qy"], data["qz"]], 1))

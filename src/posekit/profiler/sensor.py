@@ -1,0 +1,238 @@
+"""Simulated 2D laser profiler (a Keyence LJ-X8400-like line scanner) looking at a gauge.
+
+Frame F (the profiler frame), mm: the laser fan lies in F's x–z plane, z is the depth
+along the line of sight, x runs along the laser line. The fan leaves the emitter at
+``(0, 0, z_apex)``; the measuring range is the trapezoid between depths ``z_near`` and
+``z_far`` whose width grows linearly from ``width_near`` to ``width_far`` (so the fan's
+edges meet at the apex). A profile is ``n_points`` rays evenly spaced across the far
+width, each returning the first gauge face it hits (ray casting, so faces turned away
+from the emitter self-occlude) or NaN: no face, a face outside the block's footprint,
+or a hit outside the measuring range.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import ConfigError
+from ..geometry import transform_from
+from .gauge import Gauge
+
+__all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose",
+           "sample_poses", "render_profiles"]
+
+
+@dataclass(frozen=True)
+class ProfilerModel:
+    """Geometry of a 2D laser profiler; defaults are those of the Keyence LJ-X8400.
+
+    Attributes are in mm; ``n_points`` rays per profile.
+    """
+
+    n_points: int = 3200
+    z_near: float = 285.0
+    z_far: float = 600.0
+    width_near: float = 163.0
+    width_far: float = 320.0
+
+    @property
+    def z_apex(self) -> float:
+        """Depth of the fan's apex (the emitter) in F, mm."""
+        slope = (self.width_far - self.width_near) / (2.0 * (self.z_far - self.z_near))
+        return self.z_near - 0.5 * self.width_near / slope
+
+    @property
+    def z_mid(self) -> float:
+        """Middle of the depth range, mm: the natural stand-off."""
+        return 0.5 * (self.z_near + self.z_far)
+
+    def half_width(self, z):
+        """Half width of the measuring range at depth z, mm."""
+        return 0.5 * self.width_near + (np.asarray(z) - self.z_near) * (
+            (self.width_far - self.width_near) / (2.0 * (self.z_far - self.z_near)))
+
+    def ray_directions(self) -> np.ndarray:
+        """Unnormalised ray directions in F, shape (n_points, 3), with unit z-component."""
+        x_far = np.linspace(-0.5 * self.width_far, 0.5 * self.width_far, self.n_points)
+        d = np.zeros((self.n_points, 3))
+        d[:, 0] = x_far / (self.z_far - self.z_apex)
+        d[:, 2] = 1.0
+        return d
+
+
+LJ_X8400 = ProfilerModel()
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Measurement errors of the profiler.
+
+    Attributes
+    ----------
+    sigma_x_um, sigma_z_um : float
+        Standard deviation of the Gaussian noise along x and z of F, µm
+        (LJ-X8400 repeatability: 10 µm in x, 5 µm in z).
+    outlier_rate : float
+        Fraction of returns replaced by a spike of ±0.3–3 mm in z.
+    dropouts_per_profile : float
+        Mean number (Poisson) of runs of 5–40 consecutive missing returns.
+    """
+
+    sigma_x_um: float = 10.0
+    sigma_z_um: float = 5.0
+    outlier_rate: float = 0.0
+    dropouts_per_profile: float = 0.0
+
+    def __post_init__(self):
+        for key in ("sigma_x_um", "sigma_z_um", "outlier_rate", "dropouts_per_profile"):
+            v = getattr(self, key)
+            if not np.isfinite(v) or v < 0:
+                raise ConfigError(f"noise: '{key}' must be a finite number >= 0, got {v}")
+        if self.outlier_rate > 0.5:
+            raise ConfigError(f"noise: 'outlier_rate' must be <= 0.5, got {self.outlier_rate}")
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Where poses are sampled: uniform offsets from the nominal pose.
+
+    Attributes
+    ----------
+    translation_mm : tuple of 3 float
+        Half-ranges of the uniform offset along x, y, z of G, mm.
+    rotation_deg : tuple of 3 float
+        Half-ranges of a uniform rotation vector about x, y, z of F (applied in F, about
+        the point at the stand-off depth on F's z-axis), deg.
+    standoff_mm : float or None
+        Depth of the gauge below the sensor at the nominal pose, mm (None: mid-range).
+    """
+
+    translation_mm: tuple[float, float, float] = (10.0, 10.0, 40.0)
+    rotation_deg: tuple[float, float, float] = (4.0, 4.0, 8.0)
+    standoff_mm: float | None = None
+
+    def __post_init__(self):
+        for key in ("translation_mm", "rotation_deg"):
+            v = np.asarray(getattr(self, key), dtype=float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(v < 0):
+                raise ConfigError(f"workspace: '{key}' must be 3 finite numbers >= 0, got {getattr(self, key)}")
+
+
+def nominal_pose(gauge: Gauge, model: ProfilerModel = LJ_X8400, standoff_mm: float | None = None) -> np.ndarray:
+    """Sensor pose ``T_G_F`` straight above the gauge's centre, shape (4, 4), mm.
+
+    F's x runs along G's x (the laser crosses the faces in file order), F's z looks
+    down (-z of G), and the gauge's mean ridge height sits at the stand-off depth.
+    """
+    standoff = model.z_mid if standoff_mm is None else standoff_mm
+    R = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    cx = 0.5 * (gauge.ridge_q[0, 0] + gauge.ridge_q[-1, 0])
+    z = float(np.mean(gauge.ridge_q[:, 2])) + standoff
+    return transform_from(R, np.array([cx, 0.0, z]))
+
+
+def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Workspace(),
+                 model: ProfilerModel = LJ_X8400) -> np.ndarray:
+    """Random sensor poses ``T_G_F`` around the nominal pose.
+
+    Parameters
+    ----------
+    gauge : Gauge
+    count : int
+    rng : numpy.random.Generator or int or None
+    workspace : Workspace
+    model : ProfilerModel
+
+    Returns
+    -------
+    Ts_G_F : ndarray, shape (count, 4, 4)
+        Poses of F in G, mm.
+    """
+    rng = np.random.default_rng(rng)
+    T0 = nominal_pose(gauge, model, workspace.standoff_mm)
+    standoff = model.z_mid if workspace.standoff_mm is None else workspace.standoff_mm
+    dt = rng.uniform(-1, 1, (count, 3)) * np.asarray(workspace.translation_mm)
+    rv = np.radians(rng.uniform(-1, 1, (count, 3)) * np.asarray(workspace.rotation_deg))
+    R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
+    # Rotate about the pivot where the laser meets the gauge, not about the sensor
+    # (a 4 deg tilt about the sensor would sweep the line 30 mm over the gauge).
+    pivot_F = np.array([0.0, 0.0, standoff])
+    pivot_G = T0[:3, :3] @ pivot_F + T0[:3, 3]
+    t = pivot_G - R @ pivot_F + dt
+    return transform_from(R, t)
+
+
+def _cast(gauge: Gauge, Ts_G_F: np.ndarray, model: ProfilerModel) -> np.ndarray:
+    """Noise-free first-hit ray casting; (K, n_points, 2) points (x, z) in F or NaN."""
+    d_F = model.ray_directions()                       # (N, 3)
+    o_F = np.array([0.0, 0.0, model.z_apex])
+    R = Ts_G_F[:, :3, :3]
+    t = Ts_G_F[:, :3, 3]
+    o_G = R @ o_F + t                                   # (K, 3)
+    d_G = np.einsum("kij,nj->kni", R, d_F)              # (K, N, 3)
+    best = np.full(d_G.shape[:2], np.inf)
+    nrm = gauge.normals
+    for f in range(nrm.shape[0]):
+        denom = d_G @ nrm[f]                            # (K, N)
+        lam = (gauge.offsets[f] - o_G @ nrm[f])[:, None] / np.where(denom < 0, denom, -1.0)
+        front = denom < 0                               # the ray meets the face's outside
+        p = o_G[:, None, :] + lam[..., None] * d_G
+        rx = gauge.ridge_q[:, 0] + gauge.ridge_s[:, 0] * p[..., 1:2]   # (K, N, n)
+        lo = rx[..., f - 1] if f > 0 else np.full(lam.shape, gauge.x_range[0])
+        hi = rx[..., f] if f < gauge.n_corners else np.full(lam.shape, gauge.x_range[1])
+        lo = np.maximum(lo, gauge.x_range[0])
+        hi = np.minimum(hi, gauge.x_range[1])
+        ok = (front & (lam > 0) & (p[..., 0] >= lo) & (p[..., 0] <= hi)
+              & (p[..., 1] >= gauge.y_range[0]) & (p[..., 1] <= gauge.y_range[1]))
+        best = np.where(ok & (lam < best), lam, best)
+    hit = np.isfinite(best)
+    lam = np.where(hit, best, np.nan)
+    x = lam * d_F[:, 0]
+    z = model.z_apex + lam
+    in_range = (z >= model.z_near) & (z <= model.z_far)
+    return np.stack([np.where(in_range, x, np.nan), np.where(in_range, z, np.nan)], axis=-1)
+
+
+def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=None,
+                    model: ProfilerModel = LJ_X8400, chunk: int = 64) -> np.ndarray:
+    """Simulate the profiles the sensor measures at the given poses.
+
+    Parameters
+    ----------
+    gauge : Gauge
+    Ts_G_F : array_like, shape (K, 4, 4) or (4, 4)
+        Sensor poses in G, mm.
+    noise : NoiseModel
+    rng : numpy.random.Generator or int or None
+        Same seed, same profiles.
+    model : ProfilerModel
+    chunk : int
+        Poses cast at once (bounds memory).
+
+    Returns
+    -------
+    profiles : ndarray, shape (K, n_points, 2) (or (n_points, 2) for one pose)
+        Points (x, z) in F in scan order, mm; NaN where there is no return.
+    """
+    rng = np.random.default_rng(rng)
+    Ts = np.asarray(Ts_G_F, dtype=np.float64)
+    single = Ts.ndim == 2
+    Ts = Ts.reshape(-1, 4, 4)
+    out = np.empty((Ts.shape[0], model.n_points, 2))
+    for i in range(0, Ts.shape[0], chunk):
+        out[i:i + chunk] = _cast(gauge, Ts[i:i + chunk], model)
+    valid = np.isfinite(out[..., 0])
+    out[..., 0] += rng.normal(0.0, noise.sigma_x_um * 1e-3, valid.shape)
+    out[..., 1] += rng.normal(0.0, noise.sigma_z_um * 1e-3, valid.shape)
+    if noise.outlier_rate > 0:
+        spike = valid & (rng.random(valid.shape) < noise.outlier_rate)
+        mag = rng.uniform(0.3, 3.0, valid.shape) * rng.choice([-1.0, 1.0], valid.shape)
+        out[..., 1] += np.where(spike, mag, 0.0)
+    if noise.dropouts_per_profile > 0:
+        counts = rng.poisson(noise.dropouts_per_profile, Ts.shape[0])
+        for k in np.flatnonzero(counts):
+            for _ in range(counts[k]):
+                start = rng.integers(0, model.n_points)
+                out[k, start:start + rng.integers(5, 41)] = np.nan
+    return out[0] if single else out
