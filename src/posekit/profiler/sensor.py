@@ -20,7 +20,7 @@ from ..geometry import transform_from
 from .gauge import Gauge
 
 __all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose",
-           "sample_poses", "render_profiles"]
+           "sample_poses", "visible_mask", "render_profiles"]
 
 
 @dataclass(frozen=True)
@@ -132,8 +132,60 @@ def nominal_pose(gauge: Gauge, model: ProfilerModel = LJ_X8400, standoff_mm: flo
     return transform_from(R, np.array([cx, 0.0, z]))
 
 
+def visible_mask(gauge: Gauge, Ts_G_F, model: ProfilerModel = LJ_X8400, margin_mm: float = 3.0) -> np.ndarray:
+    """Which poses see every corner of the gauge, shape (K,) bool.
+
+    A pose qualifies when, in the laser plane, every ridge's piercing point and the middle
+    of each outer face lie inside the measuring range by ``margin_mm`` and inside the
+    block's y-extent, and every face is lit from its outside (no self-occlusion: the
+    paper's α < β, §III-D).
+
+    Parameters
+    ----------
+    gauge : Gauge
+    Ts_G_F : array_like, shape (K, 4, 4)
+    model : ProfilerModel
+    margin_mm : float
+    """
+    Ts = np.asarray(Ts_G_F, dtype=np.float64).reshape(-1, 4, 4)
+    R = Ts[:, :3, :3]
+    t = Ts[:, :3, 3]
+    # Laser plane in G: normal = F's y axis, through F's origin.
+    ny = R[:, :, 1]                                         # (K, 3)
+    off = np.sum(ny * t, axis=1)                            # (K,)
+    # Ridge piercing points: q + λ s with ny·(q + λ s) = off.
+    lam = (off[:, None] - (gauge.ridge_q @ ny.T).T) / (gauge.ridge_s @ ny.T).T
+    P = gauge.ridge_q[None] + lam[..., None] * gauge.ridge_s[None]      # (K, n, 3)
+    # Outer face ends: the laser plane ∩ face ∩ the block edge x = const.
+    ends = []
+    for face, x_edge, ridge in ((0, gauge.x_range[0], 0), (gauge.n_corners, gauge.x_range[1], -1)):
+        nf = gauge.normals[face]
+        # Unknowns (y, z) with x = x_edge: nf·p = d_f and ny·p = off.
+        a11, a12 = nf[1], nf[2]
+        a21, a22 = ny[:, 1], ny[:, 2]
+        b1 = gauge.offsets[face] - nf[0] * x_edge
+        b2 = off - ny[:, 0] * x_edge
+        det = a11 * a22 - a12 * a21
+        y = (b1 * a22 - a12 * b2) / det
+        z = (a11 * b2 - a21 * b1) / det
+        edge = np.stack([np.full_like(y, x_edge), y, z], axis=1)
+        ends.append(0.5 * (edge + P[:, ridge]))
+    pts = np.concatenate([P, np.stack(ends, axis=1)], axis=1)       # (K, n + 2, 3)
+    p_F = np.einsum("kji,kmj->kmi", R, pts - t[:, None, :])          # R^T (p - t)
+    z = p_F[..., 2]
+    ok = (z >= model.z_near + margin_mm) & (z <= model.z_far - margin_mm)
+    ok &= np.abs(p_F[..., 0]) <= model.half_width(z) - margin_mm
+    ok &= (pts[..., 1] >= gauge.y_range[0] + margin_mm) & (pts[..., 1] <= gauge.y_range[1] - margin_mm)
+    # Each face must face the emitter: normal · (point - emitter) < 0 at the face's middle.
+    emitter = t + R[:, :, 2] * model.z_apex                           # (K, 3)
+    chain = np.concatenate([pts[:, -2:-1], P, pts[:, -1:]], axis=1)   # edge0, ridges..., edge1
+    mids = 0.5 * (chain[:, :-1] + chain[:, 1:])                       # (K, n + 1, 3) one per face
+    lit = np.einsum("fi,kfi->kf", gauge.normals, mids - emitter[:, None, :]) < 0
+    return np.all(ok, axis=1) & np.all(lit, axis=1)
+
+
 def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Workspace(),
-                 model: ProfilerModel = LJ_X8400) -> np.ndarray:
+                 model: ProfilerModel = LJ_X8400, visible_only: bool = True) -> np.ndarray:
     """Random sensor poses ``T_G_F`` around the nominal pose.
 
     Parameters
@@ -143,24 +195,43 @@ def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Work
     rng : numpy.random.Generator or int or None
     workspace : Workspace
     model : ProfilerModel
+    visible_only : bool
+        Keep only poses that see every corner (:func:`visible_mask`), drawing more until
+        there are ``count``; False keeps every draw, gauge cut off or not.
 
     Returns
     -------
     Ts_G_F : ndarray, shape (count, 4, 4)
         Poses of F in G, mm.
+
+    Raises
+    ------
+    ConfigError
+        If fewer than 2 % of the workspace's poses see the whole gauge.
     """
     rng = np.random.default_rng(rng)
     T0 = nominal_pose(gauge, model, workspace.standoff_mm)
     standoff = model.z_mid if workspace.standoff_mm is None else workspace.standoff_mm
-    dt = rng.uniform(-1, 1, (count, 3)) * np.asarray(workspace.translation_mm)
-    rv = np.radians(rng.uniform(-1, 1, (count, 3)) * np.asarray(workspace.rotation_deg))
-    R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
-    # Rotate about the pivot where the laser meets the gauge, not about the sensor
-    # (a 4 deg tilt about the sensor would sweep the line 30 mm over the gauge).
     pivot_F = np.array([0.0, 0.0, standoff])
     pivot_G = T0[:3, :3] @ pivot_F + T0[:3, 3]
-    t = pivot_G - R @ pivot_F + dt
-    return transform_from(R, t)
+    kept = []
+    drawn = 0
+    while sum(len(k) for k in kept) < count:
+        m = max(count, 64)
+        dt = rng.uniform(-1, 1, (m, 3)) * np.asarray(workspace.translation_mm)
+        rv = np.radians(rng.uniform(-1, 1, (m, 3)) * np.asarray(workspace.rotation_deg))
+        R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
+        # Rotate about the pivot where the laser meets the gauge, not about the sensor
+        # (a 4 deg tilt about the sensor would sweep the line 30 mm over the gauge).
+        Ts = transform_from(R, pivot_G - R @ pivot_F + dt)
+        drawn += m
+        kept.append(Ts[visible_mask(gauge, Ts, model)] if visible_only else Ts)
+        n_kept = sum(len(k) for k in kept)
+        if drawn >= 1000 and n_kept < 0.02 * drawn:
+            raise ConfigError(
+                f"workspace too large for gauge '{gauge.name}': only {n_kept} of {drawn} sampled poses "
+                "see every corner; reduce --translation-mm / --rotation-deg")
+    return np.concatenate(kept)[:count]
 
 
 def _cast(gauge: Gauge, Ts_G_F: np.ndarray, model: ProfilerModel) -> np.ndarray:

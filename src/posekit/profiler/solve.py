@@ -483,7 +483,7 @@ def _refine_kernel(R, t, corners, W, q, s, max_iter):
     ok, cost = _normal_equations(R, t, corners, W, q, s, H, g)
     if not ok:
         return False, R, t, H, cost, 0
-    lam = 1e-9
+    lam = 0.0                      # pure Gauss-Newton until a step fails to descend
     it = 0
     for it in range(1, max_iter + 1):
         accepted = False
@@ -492,21 +492,22 @@ def _refine_kernel(R, t, corners, W, q, s, max_iter):
             if _cholesky_solve(H, lam, g, d, L):
                 _exp_left(R, t, d, R2, t2)
                 ok2, cost2 = _normal_equations(R2, t2, corners, W, q, s, H2, g2)
-                if ok2 and cost2 <= cost:
+                if ok2 and cost2 <= cost * (1.0 + 1e-12):
                     accepted = True
                     break
-            lam *= 10.0
+            lam = 1e-6 if lam == 0.0 else lam * 10.0
         if not accepted:
             break
-        step = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) + 500.0 * np.sqrt(d[3] ** 2 + d[4] ** 2 + d[5] ** 2)
+        decrement = 0.0               # Newton decrement dᵀ H d: the cost still to gain
+        for a in range(6):
+            decrement += d[a] * g[a]
         R[:, :] = R2
         t[:] = t2
         H[:, :] = H2
         g[:] = g2
-        converged = cost - cost2 <= 1e-10 * cost or step < 1e-10
         cost = cost2
-        lam = max(lam * 0.1, 1e-12)
-        if converged:
+        lam = 0.0 if lam <= 1e-6 else lam * 0.1
+        if decrement < 1e-12 * max(1.0, cost):
             break
     return True, R, t, H, cost, it
 
