@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import EstimationError
-from ..geometry import invert_transform, point_line_distance, quaternion_from_matrix, transform_from
+from ..geometry import point_line_distance, quaternion_from_matrix, transform_from
 from .corners import Corners
 
 __all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "reprojection_residuals",
@@ -264,71 +264,6 @@ def _cf_kernel(corners, q, s):
 
 
 @njit(cache=True, nogil=True)
-def _cf4_kernel(corners, q, s):
-    """n = 4 start: on the solution line x(μ) = x_p + μ v of the 8×9 system, the μ whose
-    r1, r3 are closest to orthonormal (a quartic in μ, minimised in closed form)."""
-    n = corners.shape[0]
-    A = np.empty((2 * n, 9))
-    b = np.empty(2 * n)
-    _system(corners, q, s, A, b)
-    scale = np.empty(9)
-    for j in range(9):
-        scale[j] = max(np.sqrt(np.sum(A[:, j] ** 2)), 1e-300)
-        A[:, j] /= scale[j]
-    U, sv, Vt = np.linalg.svd(A, full_matrices=True)
-    if sv[7] <= 1e-12 * sv[0]:
-        return False, np.eye(3), np.zeros(3)
-    xp = np.zeros(9)
-    for i in range(8):
-        xp += (U[:, i] @ b) / sv[i] * Vt[i]
-    v = Vt[8].copy()
-    xp = xp / scale
-    v = v / scale
-    a1 = np.array([xp[0], xp[3], xp[6]])
-    b1 = np.array([v[0], v[3], v[6]])
-    a3 = np.array([xp[1], xp[4], xp[7]])
-    b3 = np.array([v[1], v[4], v[7]])
-    # f_k(μ) = c2 μ² + c1 μ + c0 for |r1|²-1, |r3|²-1, r1·r3
-    f = np.empty((3, 3))
-    f[0, 0] = b1 @ b1
-    f[0, 1] = 2.0 * (a1 @ b1)
-    f[0, 2] = a1 @ a1 - 1.0
-    f[1, 0] = b3 @ b3
-    f[1, 1] = 2.0 * (a3 @ b3)
-    f[1, 2] = a3 @ a3 - 1.0
-    f[2, 0] = b1 @ b3
-    f[2, 1] = a1 @ b3 + b1 @ a3
-    f[2, 2] = a1 @ a3
-    wts = np.array([1.0, 1.0, 2.0])
-    g = np.zeros(5)           # g(μ) = Σ w f²: quartic, highest power first
-    for k in range(3):
-        c2 = f[k, 0]
-        c1 = f[k, 1]
-        c0 = f[k, 2]
-        g[0] += wts[k] * c2 * c2
-        g[1] += wts[k] * 2.0 * c2 * c1
-        g[2] += wts[k] * (c1 * c1 + 2.0 * c2 * c0)
-        g[3] += wts[k] * 2.0 * c1 * c0
-        g[4] += wts[k] * c0 * c0
-    dg = np.array([4.0 * g[0], 3.0 * g[1], 2.0 * g[2], g[3]])
-    roots = np.roots(dg.astype(np.complex128))
-    best_mu = 0.0
-    best_g = np.inf
-    for rt in roots:
-        if abs(rt.imag) < 1e-6 * max(1.0, abs(rt.real)):
-            mu = rt.real
-            val = (((g[0] * mu + g[1]) * mu + g[2]) * mu + g[3]) * mu + g[4]
-            if val < best_g:
-                best_g = val
-                best_mu = mu
-    if not np.isfinite(best_g):
-        return False, np.eye(3), np.zeros(3)
-    R_hat, t_hat = _from_x(xp + best_mu * v)
-    ok, R = _polar_rotation(R_hat)
-    return ok, R, t_hat
-
-
-@njit(cache=True, nogil=True)
 def _normal_equations(R, t, corners, W, q, s, H, g):
     """Fill H = Jᵀ W J and g = Jᵀ W r for r = c - P(T_F_G) under a left twist [ρ, φ] of
     T_F_G = (R, t); returns ok and the cost rᵀ W r. W is the (2n, 2n) inverse of the
@@ -514,22 +449,21 @@ def _refine_kernel(R, t, corners, W, q, s, max_iter):
 
 @njit(cache=True, nogil=True)
 def _start(corners, q, s, method, has_init, R_init, t_init):
-    """Start pose T_G_F: the given one, the closed form (n >= 5) or the n = 4 start."""
-    n = corners.shape[0]
+    """Start pose T_G_F: the given one, else the closed form (n >= 5)."""
     if has_init:
         return OK, R_init.copy(), t_init.copy()
-    if n >= 5:
-        ok, R, t = _cf_kernel(corners, q, s)
-    elif method == 0:
-        return CF_UNDERDETERMINED, np.eye(3), np.zeros(3)
-    else:
-        ok, R, t = _cf4_kernel(corners, q, s)
+    if corners.shape[0] < 5:
+        return (CF_UNDERDETERMINED if method == 0 else DEGENERATE), np.eye(3), np.zeros(3)
+    ok, R, t = _cf_kernel(corners, q, s)
     return (OK if ok else DEGENERATE), R, t
 
 
 @njit(cache=True, nogil=True)
 def _solve_kernel(corners, cov, q, s, method, mounting, max_iter, has_init, R_init, t_init):
     """Returns status, reversed, R_G_F, t_G_F, H (information of the twist of T_F_G), cost.
+
+    ``has_init`` (2,), ``R_init`` (2, 3, 3), ``t_init`` (2, 3): an optional start pose
+    T_G_F for the normal and the reversed corner order.
 
     With mounting 'auto' (0) both corner orders get a start pose and the one with the
     lower reprojection cost is kept (a wrong order costs orders of magnitude more);
@@ -561,7 +495,7 @@ def _solve_kernel(corners, cov, q, s, method, mounting, max_iter, has_init, R_in
             continue
         cr = corners[::-1].copy() if r == 1 else corners
         Wr = W_rev if r == 1 else W
-        st, R_GF, t_GF = _start(cr, q, s, method, has_init, R_init, t_init)
+        st, R_GF, t_GF = _start(cr, q, s, method, has_init[r], R_init[r], t_init[r])
         if st != OK:
             if status != OK:
                 status = st
@@ -588,20 +522,78 @@ def _solve_kernel(corners, cov, q, s, method, mounting, max_iter, has_init, R_in
     return OK, rev, R_FG.T.copy(), -(R_FG.T @ t_FG), H, cost
 
 
+@njit(cache=True, nogil=True)
+def _finish_kernel(R_GF, t_GF, H, corners, rev, q, s):
+    """Pose covariance in G (6, 6) and the mean corner-to-ridge distance (mm).
+
+    H is the information of the left twist ξ = [ρ, φ] of T_F_G; T_G_F = T_F_G⁻¹ gets the
+    right twist -ξ, i.e. δt_G = -R_G_F ρ and δθ_G = -R_G_F φ, so the covariance is
+    B H⁻¹ Bᵀ with B = diag(R_G_F, R_G_F).
+    """
+    ok, S = _spd_inverse(H)
+    cov = np.full((6, 6), np.inf)
+    if ok:
+        B = np.zeros((6, 6))
+        B[:3, :3] = R_GF
+        B[3:, 3:] = R_GF
+        cov = B @ S @ B.T
+        cov = 0.5 * (cov + cov.T)
+    n = corners.shape[0]
+    total = 0.0
+    for i in range(n):
+        j = n - 1 - i if rev else i
+        px = R_GF[0, 0] * corners[j, 0] + R_GF[0, 2] * corners[j, 1] + t_GF[0] - q[i, 0]
+        py = R_GF[1, 0] * corners[j, 0] + R_GF[1, 2] * corners[j, 1] + t_GF[1] - q[i, 1]
+        pz = R_GF[2, 0] * corners[j, 0] + R_GF[2, 2] * corners[j, 1] + t_GF[2] - q[i, 2]
+        ns = np.sqrt(s[i, 0] ** 2 + s[i, 1] ** 2 + s[i, 2] ** 2)
+        ux = s[i, 0] / ns
+        uy = s[i, 1] / ns
+        uz = s[i, 2] / ns
+        cx = py * uz - pz * uy
+        cy = pz * ux - px * uz
+        cz = px * uy - py * ux
+        total += np.sqrt(cx * cx + cy * cy + cz * cz)
+    return cov, total / n
+
+
 # --------------------------------------------------------------------------- API
 
 
-def _covariance_G(R_GF, H):
-    """Pose covariance in G from the information H of the left twist of T_F_G."""
-    try:
-        S = np.linalg.inv(H)
-    except np.linalg.LinAlgError:
-        return np.full((6, 6), np.inf)
-    B = np.zeros((6, 6))
-    B[:3, :3] = R_GF
-    B[3:, 3:] = R_GF
-    C = B @ S @ B.T
-    return 0.5 * (C + C.T)
+def _cf4_start(corners, q, s):
+    """n = 4 start pose ``(ok, R_G_F, t_G_F)``: on the solution line x(μ) = x_p + μ v of
+    the 8×9 system of eq. (10), the μ whose r1 and r3 are closest to orthonormal.
+
+    ``g(μ) = (|r1|² - 1)² + (|r3|² - 1)² + 2 (r1·r3)²`` is a quartic in μ; its minimum is
+    among the real roots of the cubic g'(μ). Plain NumPy: only 4-corner gauges without a
+    previous pose need it, and it keeps the compiled kernels small.
+    """
+    n = corners.shape[0]
+    A = np.empty((2 * n, 9))
+    b = np.empty(2 * n)
+    _system(corners, q, s, A, b)
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    U, sv, Vt = np.linalg.svd(A / scale, full_matrices=True)
+    if sv[7] <= 1e-12 * sv[0]:
+        return False, np.eye(3), np.zeros(3)
+    xp = (Vt[:8].T @ ((U[:, :8].T @ b) / sv[:8])) / scale
+    v = Vt[8] / scale
+    a1, b1 = xp[[0, 3, 6]], v[[0, 3, 6]]
+    a3, b3 = xp[[1, 4, 7]], v[[1, 4, 7]]
+    quads = [np.array([b1 @ b1, 2 * a1 @ b1, a1 @ a1 - 1.0]),
+             np.array([b3 @ b3, 2 * a3 @ b3, a3 @ a3 - 1.0]),
+             np.array([b1 @ b3, a1 @ b3 + b1 @ a3, a1 @ a3])]
+    g = sum(w * np.polymul(f, f) for w, f in zip((1.0, 1.0, 2.0), quads))
+    roots = np.roots(np.polyder(g))
+    real = roots[np.abs(roots.imag) < 1e-6 * np.maximum(1.0, np.abs(roots.real))].real
+    if real.size == 0:
+        return False, np.eye(3), np.zeros(3)
+    mu = real[np.argmin(np.polyval(g, real))]
+    R_hat, t_hat = _from_x(xp + mu * v)
+    ok, R = _polar_rotation(R_hat)
+    return ok, R, t_hat
+
+
 
 
 def reprojection_residuals(T_G_F, corners_F, gauge):
@@ -620,6 +612,9 @@ def reprojection_residuals(T_G_F, corners_F, gauge):
     return point_line_distance(p_G, gauge.ridge_q, gauge.ridge_s)
 
 
+_EYE3 = np.eye(3)
+_ZERO3 = np.zeros(3)
+
 _MESSAGES = {
     CF_UNDERDETERMINED: "the closed form needs at least 5 corners (with {n}, eq. (10) has {e} equations "
                         "for 9 unknowns); use method 'mle'",
@@ -629,13 +624,29 @@ _MESSAGES = {
 }
 
 
+_NO_INIT = (np.zeros(2, dtype=np.bool_), np.tile(np.eye(3), (2, 1, 1)), np.zeros((2, 3)))
+
+
 def solve_pose_unchecked(corners, cov, gauge, method_code, mounting_code, max_iter=20, T_init=None):
-    """Raw kernel call; returns ``(status, reversed, R_G_F, t_G_F, H, cost)``."""
-    has_init = T_init is not None
-    R0 = np.eye(3) if T_init is None else np.ascontiguousarray(T_init[:3, :3], dtype=np.float64)
-    t0 = np.zeros(3) if T_init is None else np.ascontiguousarray(T_init[:3, 3], dtype=np.float64)
+    """Raw kernel call; returns ``(status, reversed, R_G_F, t_G_F, H, cost)``.
+
+    ``corners`` (n, 2) and ``cov`` (2n, 2n) float64 C-contiguous; codes index
+    :data:`METHODS` and :data:`MOUNTINGS`. For the real-time path; no validation.
+    """
+    if T_init is not None and method_code == 1:
+        T = np.asarray(T_init, dtype=np.float64)
+        init = (np.ones(2, dtype=np.bool_), np.stack([T[:3, :3]] * 2), np.stack([T[:3, 3]] * 2))
+    elif corners.shape[0] == 4 and method_code == 1:
+        init = (np.zeros(2, dtype=np.bool_), np.tile(np.eye(3), (2, 1, 1)), np.zeros((2, 3)))
+        for r, c in enumerate((corners, corners[::-1])):
+            ok, R, t = _cf4_start(np.ascontiguousarray(c), gauge.ridge_q, gauge.ridge_s)
+            init[0][r], init[1][r], init[2][r] = ok, R, t
+        if not init[0].any():
+            return DEGENERATE, False, np.eye(3), np.zeros(3), np.zeros((6, 6)), np.inf
+    else:
+        init = _NO_INIT
     return _solve_kernel(corners, cov, gauge.ridge_q, gauge.ridge_s, method_code, mounting_code,
-                         max_iter, has_init, R0, t0)
+                         max_iter, init[0], init[1], init[2])
 
 
 def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "auto", T_init=None,
@@ -682,10 +693,11 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
         MOUNTINGS.index(mounting), max_iter, T_init)
     if status != OK:
         raise EstimationError(_MESSAGES[status].format(n=n, e=2 * n))
-    T = transform_from(R, t)
-    ordered = pts[::-1] if rev else pts
-    reproj = float(np.mean(reprojection_residuals(T, ordered, gauge)) * 1e3)
-    return PoseEstimate(T_G_F=T, cov=_covariance_G(R, H), reprojection_um=reproj, cost=float(cost),
+    cov, reproj_mm = _finish_kernel(R, t, H, pts, rev, gauge.ridge_q, gauge.ridge_s)
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = t
+    return PoseEstimate(T_G_F=T, cov=cov, reprojection_um=float(reproj_mm * 1e3), cost=float(cost),
                         reversed=bool(rev), method=method)
 
 
