@@ -73,6 +73,10 @@ def run_simulate(args) -> int:
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
+    for flag, value in (("--noise-um", args.noise_um), ("--noise-x-um", args.noise_x_um),
+                        ("--outliers", args.outliers), ("--dropouts", args.dropouts)):
+        if value is not None and not (np.isfinite(value) and value >= 0):
+            raise ConfigError(f"{flag} must be a finite number >= 0, got {value:g}")
     gauge = resolve_gauge(args.gauge)
     noise = NoiseModel(
         sigma_x_um=2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um,

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import GaugeError
 from ..geometry import plane_intersection
@@ -63,15 +63,6 @@ class _GaugeModel(BaseModel):
     name: str = Field(min_length=1)
     planes: list[_PlaneModel]
     extent: _ExtentModel | None = None
-
-    @field_validator("planes")
-    @classmethod
-    def _enough(cls, planes):
-        if len(planes) < MIN_RIDGES + 1:
-            raise ValueError(
-                f"expected at least {MIN_RIDGES + 1} faces ({MIN_RIDGES} ridges), got {len(planes)}"
-            )
-        return planes
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,21 +24,23 @@ TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
 def _read_csv(path: Path) -> np.ndarray:
     try:
         with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
+            reader = csv.reader(fh)
+            numbered = [(reader.line_num, r) for r in reader]
     except UnicodeDecodeError:
         raise InputFileError(f"{path}: not a text CSV file; expected a header 'x,z' and rows of mm values") from None
-    rows = [r for r in rows if any(cell.strip() for cell in r)]
-    if not rows:
+    # Blank lines are skipped; a row of empty cells (",") is a point with no return.
+    numbered = [(line, r) for line, r in numbered if r and not (len(r) == 1 and not r[0].strip())]
+    if not numbered:
         raise InputFileError(f"{path}: file is empty; expected a CSV with header 'x,z'")
-    header = [c.strip().lower() for c in rows[0]]
-    if header != ["x", "z"]:
-        raise InputFileError(f"{path}: line 1: expected header 'x,z', got '{','.join(rows[0])}'")
-    if len(rows) == 1:
+    first_line, first = numbered[0]
+    if [c.strip().lower() for c in first] != ["x", "z"]:
+        raise InputFileError(f"{path}: line {first_line}: expected header 'x,z', got '{','.join(first)}'")
+    if len(numbered) == 1:
         raise InputFileError(f"{path}: no data rows after the header 'x,z'")
-    out = np.empty((len(rows) - 1, 2))
-    for i, row in enumerate(rows[1:]):
+    out = np.empty((len(numbered) - 1, 2))
+    for i, (line, row) in enumerate(numbered[1:]):
         if len(row) != 2:
-            raise InputFileError(f"{path}: line {i + 2}: expected 2 values (x,z), got {len(row)}")
+            raise InputFileError(f"{path}: line {line}: expected 2 values (x,z), got {len(row)}")
         for j, cell in enumerate(row):
             cell = cell.strip()
             if cell == "" or cell.lower() == "nan":
@@ -47,9 +49,9 @@ def _read_csv(path: Path) -> np.ndarray:
             try:
                 out[i, j] = float(cell)
             except ValueError:
-                raise InputFileError(f"{path}: line {i + 2}: '{cell}' is not a number (mm) or empty/nan") from None
+                raise InputFileError(f"{path}: line {line}: '{cell}' is not a number (mm) or empty/nan") from None
             if math.isinf(out[i, j]):
-                raise InputFileError(f"{path}: line {i + 2}: infinite value; use an empty cell or nan for no return")
+                raise InputFileError(f"{path}: line {line}: infinite value; use an empty cell or nan for no return")
     return out[None]
 
 
@@ -102,12 +104,13 @@ def read_profiles(path) -> np.ndarray:
     if suffix == ".npz":
         try:
             with np.load(path, allow_pickle=False) as data:
-                if "profiles" not in data.files:
-                    raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
-                                         f"found {', '.join(data.files) or 'no arrays'}")
-                arr = data["profiles"]
+                files = list(data.files)
+                arr = data["profiles"] if "profiles" in files else None
         except (ValueError, OSError, zipfile.BadZipFile) as exc:
             raise InputFileError(f"{path}: not a valid .npz file ({exc})") from None
+        if arr is None:
+            raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
+                                 f"found {', '.join(files) or 'no arrays'}")
         if arr.ndim != 3 or arr.shape[2] != 2:
             raise InputFileError(f"{path}: expected 'profiles' of shape (K, N, 2), got {arr.shape}")
         if arr.shape[0] == 0:

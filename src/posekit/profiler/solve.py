@@ -60,6 +60,7 @@ class PoseEstimate:
     cov : ndarray, shape (6, 6)
         Covariance of the pose error ``[δt (mm), δθ (rad)]`` with both parts in G
         (``t_true = t + δt``, ``R_true = Exp(δθ) R``), propagated from the corners.
+        NaN for the closed form, which has no error model (its error is far larger).
     reprojection_um : float
         Mean distance of the estimated 3D corners from their ridges, µm.
     cost : float
@@ -694,6 +695,9 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
     if status != OK:
         raise EstimationError(_MESSAGES[status].format(n=n, e=2 * n))
     cov, reproj_mm = _finish_kernel(R, t, H, pts, rev, gauge.ridge_q, gauge.ridge_s)
+    if method == "cf":
+        # The information matrix describes the ML estimate, not the closed form's error.
+        cov = np.full((6, 6), np.nan)
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = t
