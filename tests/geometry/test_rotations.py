@@ -133,7 +133,8 @@ def test_rotation_vector_matches_axis_angle_quaternion(axis, angle):
 @FAST
 @given(rotation_vectors())
 def test_rotation_vector_round_trip_below_pi(rotvec):
-    assert_allclose(rotation_vector_from_matrix(matrix_from_rotation_vector(rotvec)), rotvec, atol=1e-14)
+    rotvec_back = rotation_vector_from_matrix(matrix_from_rotation_vector(rotvec))
+    assert_allclose(rotvec_back, rotvec, atol=1e-14)
 
 
 def test_rotation_vector_at_exactly_pi_has_angle_pi_and_the_axis_up_to_sign():
@@ -237,7 +238,9 @@ BAD_ROTATION = [
 
 
 @pytest.mark.parametrize(("R", "match"), BAD_ROTATION)
-@pytest.mark.parametrize("f", [check_rotation_matrix, quaternion_from_matrix, rotation_vector_from_matrix])
+@pytest.mark.parametrize(
+    "f", [check_rotation_matrix, quaternion_from_matrix, rotation_vector_from_matrix]
+)
 def test_bad_rotation_matrix(f, R, match):
     with pytest.raises(GeometryError, match=match):
         f(R)
@@ -253,7 +256,10 @@ def test_rotation_angle_between_bad_input():
 @pytest.mark.parametrize(
     ("q", "match"),
     [
-        ([0.0, 0.0, 0.0, 0.0], r"^q_wxyz: expected non-zero quaternions \[w, x, y, z\], found norm 0$"),
+        (
+            [0.0, 0.0, 0.0, 0.0],
+            r"^q_wxyz: expected non-zero quaternions \[w, x, y, z\], found norm 0$",
+        ),
         ([[1, 0, 0, 0], [0, 0, 0, 0]], r"found norm 0 at index \(1,\) \(1 of 2 bad\)"),
         ([1.0, np.nan, 0.0, 0.0], r"^q_wxyz: expected finite values, found NaN or inf$"),
         ([1.0, 0.0, 0.0], r"^q_wxyz: expected an array of shape \(\.\.\., 4\), got shape \(3,\)$"),

@@ -89,7 +89,8 @@ def test_batch_equals_stacked_singles(Ts, ps):
     n = min(len(Ts), len(ps))
     Ts, ps = Ts[:n], ps[:n]
     Rs, ts = rotation_translation(Ts)
-    assert_array_equal(transform_from(Rs, ts), np.stack([transform_from(R, t) for R, t in zip(Rs, ts)]))
+    singles = np.stack([transform_from(R, t) for R, t in zip(Rs, ts)])
+    assert_array_equal(transform_from(Rs, ts), singles)
     assert_allclose(
         invert_transform(Ts), np.stack([invert_transform(T) for T in Ts]), rtol=0, atol=1e-10
     )
@@ -103,7 +104,8 @@ def test_broadcasting_shapes():
     Ts = np.broadcast_to(T_90_Z_UP_5, (2, 3, 4, 4))
     assert transform_from(R_90_Z, np.zeros((5, 3))).shape == (5, 4, 4)
     assert transform_from(np.stack([R_90_Z] * 5), [1.0, 2.0, 3.0]).shape == (5, 4, 4)
-    assert transform_from_quaternion(np.tile(Q_90_Z, (2, 1, 1)), np.zeros((4, 3))).shape == (2, 4, 4, 4)
+    qs = np.tile(Q_90_Z, (2, 1, 1))
+    assert transform_from_quaternion(qs, np.zeros((4, 3))).shape == (2, 4, 4, 4)
     assert invert_transform(Ts).shape == (2, 3, 4, 4)
     assert apply_transform(Ts, [1.0, 0.0, 0.0]).shape == (2, 3, 3)
     assert apply_transform(Ts[:, :1], np.zeros((7, 3))).shape == (2, 7, 3)
@@ -131,8 +133,14 @@ def _last_row_bad():
 
 
 BAD_TRANSFORMS = [
-    (_last_row_bad(), r"^T: expected last row \[0, 0, 0, 1\] within 1e-06, found \[0\.001 0\.    0\.    1\.   \]$"),
-    (np.diag([1.0, 1.0, -1.0, 1.0]), r"^T\[\.\.\., :3, :3\]: expected rotation matrices .*det = -1$"),
+    (
+        _last_row_bad(),
+        r"^T: expected last row \[0, 0, 0, 1\] within 1e-06, found \[0\.001 0\.    0\.    1\.   \]$",
+    ),
+    (
+        np.diag([1.0, 1.0, -1.0, 1.0]),
+        r"^T\[\.\.\., :3, :3\]: expected rotation matrices .*det = -1$",
+    ),
     (np.stack([np.eye(4), 2 * np.eye(4)]), r"at index \(1,\) \(1 of 2 bad\)"),
     (np.eye(3), r"^T: expected an array of shape \(\.\.\., 4, 4\), got shape \(3, 3\)$"),
     (np.full((4, 4), np.nan), r"^T: expected finite values, found NaN or inf$"),
@@ -155,30 +163,28 @@ def test_bad_transform(f, T, match):
         f(T)
 
 
-def test_transform_from_bad_input():
-    with pytest.raises(GeometryError, match=r"^R: expected rotation matrices"):
-        transform_from(2 * np.eye(3), [0.0, 0.0, 0.0])
-    with pytest.raises(GeometryError, match=r"^t: expected an array of shape \(\.\.\., 3\), got shape \(2,\)$"):
-        transform_from(np.eye(3), [0.0, 0.0])
-    with pytest.raises(GeometryError, match=r"^t: expected finite values"):
-        transform_from(np.eye(3), [0.0, np.nan, 0.0])
-    with pytest.raises(GeometryError, match=r"^R, t: expected broadcastable batch shapes, got \(2,\) and \(3,\)$"):
-        transform_from(np.stack([np.eye(3)] * 2), np.zeros((3, 3)))
+SHAPE_3 = r"expected an array of shape \(\.\.\., 3\), got shape "
+BROADCAST = r"expected broadcastable batch shapes, got \(2,\) and \(3,\)$"
+Q_2 = np.tile(Q_90_Z, (2, 1))
+BAD_INPUT = [
+    (transform_from, (2 * np.eye(3), [0.0, 0.0, 0.0]), r"^R: expected rotation matrices"),
+    (transform_from, (np.eye(3), [0.0, 0.0]), r"^t: " + SHAPE_3 + r"\(2,\)$"),
+    (transform_from, (np.eye(3), [0.0, np.nan, 0.0]), r"^t: expected finite values"),
+    (transform_from, (np.stack([np.eye(3)] * 2), np.zeros((3, 3))), r"^R, t: " + BROADCAST),
+    (transform_from_quaternion, ([0.0] * 4, [0.0] * 3), r"^q_wxyz: expected non-zero quaternions"),
+    (transform_from_quaternion, ([1.0, 0, 0, 0], [np.inf, 0, 0]), r"^t: expected finite values"),
+    (transform_from_quaternion, (Q_2, np.zeros((3, 3))), r"^R, t: " + BROADCAST),
+    (apply_transform, (np.eye(4), np.zeros((4, 2))), r"^p: " + SHAPE_3 + r"\(4, 2\)$"),
+    (
+        apply_transform,
+        (np.eye(4), [[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]]),
+        r"^p: expected finite values, found NaN or inf at index \(1,\)",
+    ),
+    (apply_transform, (np.stack([np.eye(4)] * 2), np.zeros((3, 3))), r"^T, p: " + BROADCAST),
+]
 
 
-def test_transform_from_quaternion_bad_input():
-    with pytest.raises(GeometryError, match=r"^q_wxyz: expected non-zero quaternions"):
-        transform_from_quaternion([0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
-    with pytest.raises(GeometryError, match=r"^t: expected finite values"):
-        transform_from_quaternion([1.0, 0.0, 0.0, 0.0], [np.inf, 0.0, 0.0])
-    with pytest.raises(GeometryError, match=r"^q_wxyz, t|^R, t: expected broadcastable"):
-        transform_from_quaternion(np.tile(Q_90_Z, (2, 1)), np.zeros((3, 3)))
-
-
-def test_apply_transform_bad_points():
-    with pytest.raises(GeometryError, match=r"^p: expected an array of shape \(\.\.\., 3\), got shape \(4, 2\)$"):
-        apply_transform(np.eye(4), np.zeros((4, 2)))
-    with pytest.raises(GeometryError, match=r"^p: expected finite values, found NaN or inf at index \(1,\)"):
-        apply_transform(np.eye(4), [[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
-    with pytest.raises(GeometryError, match=r"^T, p: expected broadcastable batch shapes, got \(2,\) and \(3,\)$"):
-        apply_transform(np.stack([np.eye(4)] * 2), np.zeros((3, 3)))
+@pytest.mark.parametrize(("f", "args", "match"), BAD_INPUT)
+def test_bad_rotation_translation_or_points(f, args, match):
+    with pytest.raises(GeometryError, match=match):
+        f(*args)

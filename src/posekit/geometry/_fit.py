@@ -76,16 +76,18 @@ def robust_line_kernel(xs, ys, start, stop, passes, k_sigma, floor):
         sxx = 0.0
         sxy = 0.0
         syy = 0.0
-        for i in range(start, stop):
-            if abs(nx * xs[i] + ny * ys[i] - c) <= thr:
-                x = xs[i] - rx
-                y = ys[i] - ry
-                cw += 1.0
-                sx += x
-                sy += y
-                sxx += x * x
-                sxy += x * y
-                syy += y * y
+        for i in range(start, stop):       # branch-free, so LLVM can vectorise it
+            x = xs[i] - rx
+            y = ys[i] - ry
+            w = 1.0 if abs(nx * xs[i] + ny * ys[i] - c) <= thr else 0.0
+            wx = w * x
+            wy = w * y
+            cw += w
+            sx += wx
+            sy += wy
+            sxx += wx * x
+            sxy += wx * y
+            syy += wy * y
         if cw < 2.0:
             break
         same = cw == n_in

@@ -63,10 +63,10 @@ def check_transform(T, tol: float = CHECK_TOL, *, name: str = "T") -> np.ndarray
 
     Examples
     --------
-    >>> check_transform(np.zeros((4, 4)))
+    >>> check_transform(np.zeros((4, 4)))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    posekit.errors.GeometryError: T: expected last row [0, 0, 0, 1] within 1e-06, found [0. 0. 0. 0.]
+    posekit.errors.GeometryError: T: expected last row [0, 0, 0, 1] ..., found [0. 0. 0. 0.]
     """
     T = _as_float_array(T, name, (4, 4))
     _require_finite(T, name, 2)
@@ -245,7 +245,8 @@ def apply_transform(T, p, *, check: bool = True) -> np.ndarray:
 
     Examples
     --------
-    >>> T_a_b = transform_from([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.0, 0.0, 5.0])
+    >>> R_a_b = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # 90 degrees about z
+    >>> T_a_b = transform_from(R_a_b, [0.0, 0.0, 5.0])
     >>> apply_transform(T_a_b, [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     array([[ 0.,  1.,  5.],
            [-2.,  0.,  5.]])

@@ -139,8 +139,14 @@ def _polar_rotation(M):
         det = _inv3(X, Y)
         if det <= 0.0:
             return False, X
-        nx = np.sqrt(np.sum(X * X))
-        ny = np.sqrt(np.sum(Y * Y))
+        nx = 0.0
+        ny = 0.0
+        for i in range(3):
+            for j in range(3):
+                nx += X[i, j] * X[i, j]
+                ny += Y[i, j] * Y[i, j]
+        nx = np.sqrt(nx)
+        ny = np.sqrt(ny)
         gam = np.sqrt(ny / nx)
         delta = 0.0
         for i in range(3):
@@ -307,8 +313,15 @@ def _normal_equations(R, t, corners, W, q, s, H, g):
         J[2 * i + 1, 3] = bz * pz
         J[2 * i + 1, 4] = -px
         J[2 * i + 1, 5] = -bz * px
-    WJ = W @ J
-    Wr = W @ r
+    # W J and W r by loops: tiny matrices, where a BLAS call costs more than the work.
+    WJ = np.zeros((m, 6))
+    Wr = np.zeros(m)
+    for a in range(m):
+        for k in range(m):
+            w = W[a, k]
+            Wr[a] += w * r[k]
+            for c in range(6):
+                WJ[a, c] += w * J[k, c]
     cost = 0.0
     for a in range(m):
         cost += r[a] * Wr[a]
@@ -349,7 +362,15 @@ def _spd_inverse(C):
             for k in range(j, i):
                 acc -= L[i, k] * Linv[k, j]
             Linv[i, j] = acc / L[i, i]
-    return True, Linv.T @ Linv
+    W = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(i, m):
+                acc += Linv[k, i] * Linv[k, j]
+            W[i, j] = acc
+            W[j, i] = acc
+    return True, W
 
 
 @njit(cache=True, nogil=True)
@@ -381,26 +402,58 @@ def _cholesky_solve(H, lam, g, x, L):
 
 @njit(cache=True, nogil=True)
 def _exp_left(R, t, d, R_out, t_out):
-    """(R_out, t_out) = exp(d^) (R, t) for a twist d = [ρ, φ]."""
+    """(R_out, t_out) = exp(d^) (R, t) for a twist d = [ρ, φ] (Rodrigues, no allocation)."""
     p0 = d[3]
     p1 = d[4]
     p2 = d[5]
     th2 = p0 * p0 + p1 * p1 + p2 * p2
-    th = np.sqrt(th2)
-    if th < 1e-6:
+    if th2 < 1e-12:
         A = 1.0 - th2 / 6.0
         B = 0.5 - th2 / 24.0
         C = 1.0 / 6.0 - th2 / 120.0
     else:
+        th = np.sqrt(th2)
         A = np.sin(th) / th
         B = (1.0 - np.cos(th)) / th2
         C = (th - np.sin(th)) / (th2 * th)
-    K = np.array([[0.0, -p2, p1], [p2, 0.0, -p0], [-p1, p0, 0.0]])
-    KK = K @ K
-    dR = np.eye(3) + A * K + B * KK
-    V = np.eye(3) + B * K + C * KK
-    R_out[:, :] = dR @ R
-    t_out[:] = dR @ t + V @ d[:3]
+    # K = [φ]x ; K² = φφᵀ - θ² I
+    k01 = -p2
+    k02 = p1
+    k10 = p2
+    k12 = -p0
+    k20 = -p1
+    k21 = p0
+    dR00 = 1.0 + B * (p0 * p0 - th2)
+    dR11 = 1.0 + B * (p1 * p1 - th2)
+    dR22 = 1.0 + B * (p2 * p2 - th2)
+    dR01 = A * k01 + B * p0 * p1
+    dR02 = A * k02 + B * p0 * p2
+    dR10 = A * k10 + B * p1 * p0
+    dR12 = A * k12 + B * p1 * p2
+    dR20 = A * k20 + B * p2 * p0
+    dR21 = A * k21 + B * p2 * p1
+    V00 = 1.0 + C * (p0 * p0 - th2)
+    V11 = 1.0 + C * (p1 * p1 - th2)
+    V22 = 1.0 + C * (p2 * p2 - th2)
+    V01 = B * k01 + C * p0 * p1
+    V02 = B * k02 + C * p0 * p2
+    V10 = B * k10 + C * p1 * p0
+    V12 = B * k12 + C * p1 * p2
+    V20 = B * k20 + C * p2 * p0
+    V21 = B * k21 + C * p2 * p1
+    for j in range(3):
+        r0 = R[0, j]
+        r1 = R[1, j]
+        r2 = R[2, j]
+        R_out[0, j] = dR00 * r0 + dR01 * r1 + dR02 * r2
+        R_out[1, j] = dR10 * r0 + dR11 * r1 + dR12 * r2
+        R_out[2, j] = dR20 * r0 + dR21 * r1 + dR22 * r2
+    t0 = t[0]
+    t1 = t[1]
+    t2 = t[2]
+    t_out[0] = dR00 * t0 + dR01 * t1 + dR02 * t2 + V00 * d[0] + V01 * d[1] + V02 * d[2]
+    t_out[1] = dR10 * t0 + dR11 * t1 + dR12 * t2 + V10 * d[0] + V11 * d[1] + V12 * d[2]
+    t_out[2] = dR20 * t0 + dR21 * t1 + dR22 * t2 + V20 * d[0] + V21 * d[1] + V22 * d[2]
 
 
 @njit(cache=True, nogil=True)
