@@ -135,7 +135,8 @@ def _last_row_bad():
 BAD_TRANSFORMS = [
     (
         _last_row_bad(),
-        r"^T: expected last row \[0, 0, 0, 1\] within 1e-06, found \[0\.001 0\.    0\.    1\.   \]$",
+        r"^T: expected last row \[0, 0, 0, 1\] within 1e-06, "
+        r"found \[0\.001 0\.    0\.    1\.   \]$",
     ),
     (
         np.diag([1.0, 1.0, -1.0, 1.0]),
@@ -173,7 +174,7 @@ BAD_INPUT = [
     (transform_from, (np.stack([np.eye(3)] * 2), np.zeros((3, 3))), r"^R, t: " + BROADCAST),
     (transform_from_quaternion, ([0.0] * 4, [0.0] * 3), r"^q_wxyz: expected non-zero quaternions"),
     (transform_from_quaternion, ([1.0, 0, 0, 0], [np.inf, 0, 0]), r"^t: expected finite values"),
-    (transform_from_quaternion, (Q_2, np.zeros((3, 3))), r"^R, t: " + BROADCAST),
+    (transform_from_quaternion, (Q_2, np.zeros((3, 3))), r"^q_wxyz, t: " + BROADCAST),
     (apply_transform, (np.eye(4), np.zeros((4, 2))), r"^p: " + SHAPE_3 + r"\(4, 2\)$"),
     (
         apply_transform,

@@ -155,7 +155,9 @@ def transform_from_quaternion(q_wxyz, t) -> np.ndarray:
     """
     t = _as_float_array(t, "t", (3,))
     _require_finite(t, "t", 1)
-    return transform_from(matrix_from_quaternion(q_wxyz), t, check=False)
+    R = matrix_from_quaternion(q_wxyz)
+    _batch_shape("q_wxyz, t", R.shape[:-2], t.shape[:-1])
+    return transform_from(R, t, check=False)
 
 
 def rotation_translation(T, *, check: bool = True) -> tuple[np.ndarray, np.ndarray]:
