@@ -18,7 +18,7 @@ from posekit.profiler import (
     solve_pose,
 )
 from posekit.profiler.evaluate import pose_errors
-from posekit.profiler.solve import _normal_equations
+from posekit.profiler.refine import normal_equations as _normal_equations
 
 NOISELESS = NoiseModel(sigma_x_um=0.0, sigma_z_um=0.0)
 

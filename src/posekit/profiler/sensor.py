@@ -10,7 +10,7 @@ from the emitter self-occlude) or NaN: no face, a face outside the block's footp
 or a hit outside the measuring range.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
