@@ -13,6 +13,7 @@ or a hit outside the measuring range.
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError
@@ -234,39 +235,64 @@ def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Work
     return np.concatenate(kept)[:count]
 
 
+@njit(cache=True, nogil=True)
+def _cast_kernel(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, Rs, ts, d_F, z_apex,
+                 z_near, z_far, out):
+    """First-hit ray casting, compiled: out[k, i] = (x, z) in F of ray i at pose k, or NaN."""
+    n_faces = normals.shape[0]
+    n_ridges = ridge_q.shape[0]
+    for k in range(Rs.shape[0]):
+        R = Rs[k]
+        ox = R[0, 2] * z_apex + ts[k, 0]
+        oy = R[1, 2] * z_apex + ts[k, 1]
+        oz = R[2, 2] * z_apex + ts[k, 2]
+        for i in range(d_F.shape[0]):
+            dxF = d_F[i, 0]
+            dzF = d_F[i, 2]
+            dx = R[0, 0] * dxF + R[0, 2] * dzF
+            dy = R[1, 0] * dxF + R[1, 2] * dzF
+            dz = R[2, 0] * dxF + R[2, 2] * dzF
+            best = np.inf
+            for f in range(n_faces):
+                denom = normals[f, 0] * dx + normals[f, 1] * dy + normals[f, 2] * dz
+                if denom >= 0.0:          # the ray meets the face from inside: occluded
+                    continue
+                lam = (offsets[f] - (normals[f, 0] * ox + normals[f, 1] * oy + normals[f, 2] * oz)) / denom
+                if lam <= 0.0 or lam >= best:
+                    continue
+                px = ox + lam * dx
+                py = oy + lam * dy
+                if py < y_lo or py > y_hi:
+                    continue
+                lo = x_lo
+                hi = x_hi
+                if f > 0:
+                    lo = max(lo, ridge_q[f - 1, 0] + ridge_s[f - 1, 0] * py)
+                if f < n_ridges:
+                    hi = min(hi, ridge_q[f, 0] + ridge_s[f, 0] * py)
+                if px >= lo and px <= hi:
+                    best = lam
+            z = z_apex + best * dzF
+            if best < np.inf and z >= z_near and z <= z_far:
+                out[k, i, 0] = best * dxF
+                out[k, i, 1] = z
+            else:
+                out[k, i, 0] = np.nan
+                out[k, i, 1] = np.nan
+
+
 def _cast(gauge: Gauge, Ts_G_F: np.ndarray, model: ProfilerModel) -> np.ndarray:
     """Noise-free first-hit ray casting; (K, n_points, 2) points (x, z) in F or NaN."""
-    d_F = model.ray_directions()                       # (N, 3)
-    o_F = np.array([0.0, 0.0, model.z_apex])
-    R = Ts_G_F[:, :3, :3]
-    t = Ts_G_F[:, :3, 3]
-    o_G = R @ o_F + t                                   # (K, 3)
-    d_G = np.einsum("kij,nj->kni", R, d_F)              # (K, N, 3)
-    best = np.full(d_G.shape[:2], np.inf)
-    nrm = gauge.normals
-    for f in range(nrm.shape[0]):
-        denom = d_G @ nrm[f]                            # (K, N)
-        lam = (gauge.offsets[f] - o_G @ nrm[f])[:, None] / np.where(denom < 0, denom, -1.0)
-        front = denom < 0                               # the ray meets the face's outside
-        p = o_G[:, None, :] + lam[..., None] * d_G
-        rx = gauge.ridge_q[:, 0] + gauge.ridge_s[:, 0] * p[..., 1:2]   # (K, N, n)
-        lo = rx[..., f - 1] if f > 0 else np.full(lam.shape, gauge.x_range[0])
-        hi = rx[..., f] if f < gauge.n_corners else np.full(lam.shape, gauge.x_range[1])
-        lo = np.maximum(lo, gauge.x_range[0])
-        hi = np.minimum(hi, gauge.x_range[1])
-        ok = (front & (lam > 0) & (p[..., 0] >= lo) & (p[..., 0] <= hi)
-              & (p[..., 1] >= gauge.y_range[0]) & (p[..., 1] <= gauge.y_range[1]))
-        best = np.where(ok & (lam < best), lam, best)
-    hit = np.isfinite(best)
-    lam = np.where(hit, best, np.nan)
-    x = lam * d_F[:, 0]
-    z = model.z_apex + lam
-    in_range = (z >= model.z_near) & (z <= model.z_far)
-    return np.stack([np.where(in_range, x, np.nan), np.where(in_range, z, np.nan)], axis=-1)
+    out = np.empty((Ts_G_F.shape[0], model.n_points, 2))
+    _cast_kernel(gauge.normals, gauge.offsets, gauge.ridge_q, gauge.ridge_s, gauge.x_range[0],
+                 gauge.x_range[1], gauge.y_range[0], gauge.y_range[1],
+                 np.ascontiguousarray(Ts_G_F[:, :3, :3]), np.ascontiguousarray(Ts_G_F[:, :3, 3]),
+                 model.ray_directions(), model.z_apex, model.z_near, model.z_far, out)
+    return out
 
 
 def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=None,
-                    model: ProfilerModel = LJ_X8400, chunk: int = 64) -> np.ndarray:
+                    model: ProfilerModel = LJ_X8400) -> np.ndarray:
     """Simulate the profiles the sensor measures at the given poses.
 
     Parameters
@@ -278,8 +304,6 @@ def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=
     rng : numpy.random.Generator or int or None
         Same seed, same profiles.
     model : ProfilerModel
-    chunk : int
-        Poses cast at once (bounds memory).
 
     Returns
     -------
@@ -290,9 +314,7 @@ def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=
     Ts = np.asarray(Ts_G_F, dtype=np.float64)
     single = Ts.ndim == 2
     Ts = Ts.reshape(-1, 4, 4)
-    out = np.empty((Ts.shape[0], model.n_points, 2))
-    for i in range(0, Ts.shape[0], chunk):
-        out[i:i + chunk] = _cast(gauge, Ts[i:i + chunk], model)
+    out = _cast(gauge, Ts, model)
     valid = np.isfinite(out[..., 0])
     out[..., 0] += rng.normal(0.0, noise.sigma_x_um * 1e-3, valid.shape)
     out[..., 1] += rng.normal(0.0, noise.sigma_z_um * 1e-3, valid.shape)
