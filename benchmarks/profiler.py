@@ -13,7 +13,6 @@ and in the same run the peers a user would otherwise pick:
 Medians and p99 are reported; the machines are shared and noisy, so compare ratios.
 """
 
-import importlib.util
 import os
 import sys
 import time
@@ -23,13 +22,6 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 SENSOR_PERIOD_MS = 1.0       # LJ-X8400 at its maximum rate, 1 kHz
-
-
-def _camera_module():
-    spec = importlib.util.spec_from_file_location("posekit_bench_camera", HERE / "_camera.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _time_ours(profiles, gauge):
@@ -100,6 +92,7 @@ def _stats(a):
 def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
+    from posekit.profiler.camera_peer import time_camera_pipeline
 
     count = 2000 if count is None else max(int(count), 100)
     gauge = bundled_gauge("demo-5")
@@ -111,7 +104,7 @@ def run(count=None, verbose=True):
     total = cd + pc
     api = _time_api(profiles, gauge)
     sp = _time_scipy(profiles, gauge)
-    cam = _camera_module().time_camera_pipeline(n_images=10, repeats=3, seed=0)
+    cam = time_camera_pipeline(n_images=10, repeats=3, seed=0)
     cam_cd, cam_pc = np.asarray(cam["cd_ms"]), np.asarray(cam["pc_ms"])
     cam_total = cam_cd + cam_pc
 
