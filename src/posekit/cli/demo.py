@@ -1,4 +1,4 @@
-"""``posekit demo``: the estimator on the bundled gauge, against simulated truth."""
+"""``posekit demo`` (the closed-loop experiment) and ``posekit profiler accuracy``."""
 
 import numpy as np
 
@@ -8,15 +8,21 @@ __all__ = ["add_parser"]
 
 
 def add_parser(sub):
-    p = sub.add_parser("demo", help="simulate profiles of the bundled gauge, estimate, report accuracy")
+    p = sub.add_parser("demo", help="the closed loop of the paper's §IV-C on the bundled gauge "
+                                    "(same as `posekit profiler loop --out posekit-demo`)")
+    from .profiler_loop import add_loop_arguments, run_loop
+    add_loop_arguments(p, out_default="posekit-demo")
+    p.set_defaults(func=run_loop)
+
+
+def add_accuracy_arguments(p):
     p.add_argument("--gauge", default="demo-5", help="bundled gauge name or YAML file (default demo-5)")
     p.add_argument("--count", type=int, default=1000, help="number of profiles (default 1000)")
     p.add_argument("--noise-um", type=float, default=5.0, help="noise in z, µm (x: twice that); default 5")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run_accuracy(args) -> int:
     from ..errors import ConfigError
     from ..profiler.evaluate import evaluate
     from ..profiler.sensor import NoiseModel
@@ -26,7 +32,7 @@ def run(args) -> int:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
     gauge = resolve_gauge(args.gauge)
     noise = NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um)
-    print(f"posekit demo: {args.count} simulated LJ-X8400-like profiles of gauge '{gauge.name}' "
+    print(f"posekit profiler accuracy: {args.count} simulated LJ-X8400-like profiles of gauge '{gauge.name}' "
           f"({gauge.n_corners} corners), noise {args.noise_um:g} µm in z / {2 * args.noise_um:g} µm in x, "
           f"seed {args.seed}")
     rows = []

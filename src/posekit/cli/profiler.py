@@ -38,6 +38,18 @@ def add_parser(sub):
     s.add_argument("--out", required=True, help="output folder: profiles.npz and truth.csv")
     s.set_defaults(func=run_simulate)
 
+    from .profiler_loop import add_loop_parser
+    from .profiler_serve import add_serve_parser
+    from .profiler_study import add_study_parser
+    add_study_parser(verbs)
+    add_serve_parser(verbs)
+    add_loop_parser(verbs)
+
+    a = verbs.add_parser("accuracy", help="accuracy of the estimator on simulated profiles of a gauge")
+    from .demo import add_accuracy_arguments, run_accuracy
+    add_accuracy_arguments(a)
+    a.set_defaults(func=run_accuracy)
+
 
 def run_estimate(args) -> int:
     from ..profiler.estimate import estimate_batch

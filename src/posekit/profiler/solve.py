@@ -226,6 +226,8 @@ def solve_pose_unchecked(corners, cov, gauge, method_code, mounting_code, max_it
     elif corners.shape[0] == 4 and method_code == 1:
         init = (np.zeros(2, dtype=np.bool_), np.tile(np.eye(3), (2, 1, 1)), np.zeros((2, 3)))
         for r, c in enumerate((corners, corners[::-1])):
+            if (mounting_code == 1 and r == 1) or (mounting_code == 2 and r == 0):
+                continue                 # this order is ruled out by the mounting
             ok, R, t = cf4_start(np.ascontiguousarray(c), gauge.ridge_q, gauge.ridge_s)
             init[0][r], init[1][r], init[2][r] = ok, R, t
         if not init[0].any():

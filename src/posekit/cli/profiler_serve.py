@@ -1,0 +1,125 @@
+"""``posekit profiler serve``: the real-time pose server on the command line.
+
+Wired into ``posekit profiler`` by :func:`add_serve_parser` (called from
+:mod:`posekit.cli.profiler`).
+"""
+
+import logging
+import sys
+import time
+
+from ._common import resolve_gauge
+
+__all__ = ["add_serve_parser", "run_serve"]
+
+
+def add_serve_parser(verbs):
+    """Add the ``serve`` verb to the ``posekit profiler`` sub-parsers ``verbs``."""
+    p = verbs.add_parser(
+        "serve", help="real-time pose server: profile frames in over TCP, pose records out to a robot",
+        description="Accept one sensor at a time on --listen (binary frames, see posekit.profiler.protocol), "
+                    "estimate the pose of every frame and send one JSON line per frame to the robot "
+                    "interface at --robot. Runs until Ctrl-C or --duration.")
+    p.add_argument("--gauge", required=True, help="gauge YAML file (or a bundled name: demo-4/5/7/10)")
+    p.add_argument("--listen", required=True, metavar="HOST:PORT",
+                   help="address to accept the sensor on, e.g. 127.0.0.1:5020 (port 0: any free port)")
+    p.add_argument("--robot", metavar="HOST:PORT",
+                   help="robot interface to send JSON records to (TCP); omit to only estimate")
+    p.add_argument("--queue", type=int, default=4, metavar="N",
+                   help="frames buffered for the worker; when full the oldest is dropped (default 4)")
+    p.add_argument("--method", choices=["cf", "mle"], default="mle",
+                   help="cf: closed form eq. (9)-(14); mle: refined (default)")
+    p.add_argument("--mounting", choices=["auto", "normal", "reversed"], default="auto",
+                   help="scan order of the corners vs the ridges (default: auto-detect)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="stop after S seconds (default: run until Ctrl-C)")
+    p.add_argument("--status-every", type=float, default=5.0, metavar="S",
+                   help="seconds between status lines (default 5)")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow non-loopback --listen/--robot addresses (default: loopback only)")
+    p.set_defaults(func=run_serve)
+    return p
+
+
+def _median(values) -> str:
+    import numpy as np
+    return f"{np.median(values):.3f}" if len(values) else "-"
+
+
+def _status_line(elapsed: float, st: dict, tim: dict, rate: float) -> str:
+    return (f"[{elapsed:7.1f} s] received {st['received']}  processed {st['processed']} ({rate:.0f}/s)  "
+            f"dropped {st['dropped']}  rejected {st['rejected']}  errors {st['errors']}  |  median ms "
+            f"DT {_median(tim['DT'])}  CD {_median(tim['CD'])}  PC {_median(tim['PC'])}")
+
+
+def _summary(elapsed: float, st: dict, tim: dict) -> str:
+    import numpy as np
+    lines = [(f"summary after {elapsed:.1f} s: received {st['received']}, processed {st['processed']} "
+             f"(ok {st['ok']}, errors {st['errors']}), dropped {st['dropped']}, rejected {st['rejected']}, "
+             f"sensor connections {st['connections']} (disconnects {st['disconnects']}), "
+             f"records sent {st['sent']} (unsent {st['unsent']})")]
+    if st["reasons"]:
+        lines.append("  rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(st["reasons"].items())))
+    if len(tim["DT"]):
+        for key, what in (("DT", "data transmission"), ("CD", "corner detection"), ("PC", "pose computation")):
+            v = tim[key]
+            lines.append(f"  {key} ({what}) ms: median {np.median(v):.3f}  mean {v.mean():.3f}  "
+                         f"p99 {np.percentile(v, 99):.3f}  max {v.max():.3f}")
+    return "\n".join(lines)
+
+
+def run_serve(args) -> int:
+    from ..errors import ConfigError
+    from ..profiler.server import PoseServer, parse_address
+
+    listen = parse_address(args.listen, "--listen")
+    robot = parse_address(args.robot, "--robot") if args.robot else None
+    if args.queue < 1:
+        raise ConfigError(f"--queue must be >= 1, got {args.queue}")
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError(f"--duration must be > 0 seconds, got {args.duration:g}")
+    if not args.status_every > 0:
+        raise ConfigError(f"--status-every must be > 0 seconds, got {args.status_every:g}")
+    gauge = resolve_gauge(args.gauge)
+
+    log = logging.getLogger("posekit.server")
+    handler = None
+    if not log.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("posekit: %(levelname)s: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
+    server = PoseServer(gauge, listen=listen, robot=robot, queue_size=args.queue, method=args.method,
+                        mounting=args.mounting, allow_remote=args.allow_remote, log=log)
+    try:
+        host, port = server.start()
+        target = f"robot interface {robot[0]}:{robot[1]}" if robot else "no robot (records are not sent)"
+        print(f"posekit profiler serve: gauge '{gauge.name}', method {args.method}, listening on "
+              f"{host}:{port}, sending to {target}; Ctrl-C stops", flush=True)
+        t0 = time.monotonic()
+        next_status = t0 + args.status_every
+        last_processed, last_t = 0, t0
+        try:
+            while True:
+                now = time.monotonic()
+                if args.duration is not None and now - t0 >= args.duration:
+                    break
+                if now >= next_status:
+                    st, tim = server.stats(), server.timings()
+                    new = st["processed"] - last_processed          # medians over this interval only
+                    recent = {k: (v[-new:] if new else v[:0]) for k, v in tim.items()}
+                    rate = new / max(now - last_t, 1e-9)
+                    print(_status_line(now - t0, st, recent, rate), flush=True)
+                    last_processed, last_t = st["processed"], now
+                    next_status += args.status_every
+                wake = next_status if args.duration is None else min(next_status, t0 + args.duration)
+                time.sleep(max(0.0, min(0.2, wake - time.monotonic())))
+        except KeyboardInterrupt:
+            print("posekit profiler serve: interrupted, stopping", file=sys.stderr, flush=True)
+        elapsed = time.monotonic() - t0
+    finally:
+        server.stop()
+        if handler is not None:
+            log.removeHandler(handler)
+    print(_summary(elapsed, server.stats(), server.timings()), flush=True)
+    return 0

@@ -1,0 +1,164 @@
+"""Tables, figures and ``report.html`` of the closed-loop experiment (Fig. 5/6, Tables III/IV)."""
+
+import base64
+import csv
+import html
+from pathlib import Path
+
+import numpy as np
+
+from .loop import TABLE3_COLUMNS, TABLE4_COLUMNS, LoopExperiment
+from .response import amplitude_spectrum
+
+__all__ = ["write_loop_report", "PAPER_TABLE4", "PAPER_TABLE3", "format_table3", "format_table4"]
+
+#: Table IV of the paper: (axis, step_mm, mode) -> (Mp %, ζ, Mf µm), means.
+PAPER_TABLE4 = {
+    ("x", 1.0, "open"): (5.39, 0.68, 8.30), ("x", 1.0, "closed"): (2.47, 0.76, 5.14),
+    ("x", 2.0, "open"): (4.86, 0.70, 22.52), ("x", 2.0, "closed"): (3.07, 0.74, 5.46),
+    ("y", 1.0, "open"): (65.88, 0.13, 9.69), ("y", 1.0, "closed"): (20.51, 0.45, 3.58),
+    ("y", 2.0, "open"): (39.48, 0.28, 27.26), ("y", 2.0, "closed"): (1.46, 0.81, 3.49),
+    ("z", 1.0, "open"): (13.98, 0.53, 29.86), ("z", 1.0, "closed"): (2.96, 0.75, 1.90),
+    ("z", 2.0, "open"): (8.06, 0.63, 46.64), ("z", 2.0, "closed"): (1.07, 0.82, 1.70),
+}
+#: Table III of the paper (i9-12900KF): (system, stage) -> (mean, std, median, max, min) ms.
+PAPER_TABLE3 = {
+    ("camera", "DT"): (94.20, 0.07, 94.19, 94.38, 94.04), ("camera", "CD"): (21.64, 5.43, 20.85, 33.57, 13.51),
+    ("camera", "PC"): (0.14, 0.04, 0.12, 0.27, 0.10), ("proposed", "DT"): (6.61, 0.56, 0.65, 7.78, 5.59),
+    ("proposed", "CD"): (0.11, 0.05, 0.10, 0.20, 0.06), ("proposed", "PC"): (0.26, 0.14, 0.21, 0.68, 0.12),
+}
+
+
+def _write_csv(path, columns, rows):
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def format_table4(exp: LoopExperiment) -> str:
+    """Text table: measured Table IV (mean ± std over repeats) with the improvement and the paper."""
+    spread = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4_spread}
+    means = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4}
+    lines = [f"{'axis':<5}{'step':>5}  {'mode':<7}{'Mp %':>15}{'zeta':>14}{'Mf µm':>16}   paper Mp/zeta/Mf"]
+    for (axis, step, mode), r in means.items():
+        s = spread[(axis, step, mode)]
+        paper = PAPER_TABLE4.get((axis, step, mode))
+        ptxt = "" if paper is None else f"{paper[0]:.2f} / {paper[1]:.2f} / {paper[2]:.2f}"
+        lines.append(f"{axis:<5}{step:>5.1f}  {mode:<7}{r['Mp_pct']:>8.2f} ±{s['Mp_pct']:>5.2f}"
+                     f"{r['zeta']:>8.2f} ±{s['zeta']:>4.2f}{r['Mf_um']:>9.2f} ±{s['Mf_um']:>5.2f}   {ptxt}")
+        if mode == "closed" and (axis, step, "open") in means:
+            o = means[(axis, step, "open")]
+            imp = [100 * (o["Mp_pct"] - r["Mp_pct"]) / o["Mp_pct"], 100 * (r["zeta"] - o["zeta"]) / o["zeta"],
+                   100 * (o["Mf_um"] - r["Mf_um"]) / o["Mf_um"]]
+            lines.append(f"{'':<5}{'':>5}  {'improve':<7}{imp[0]:>14.1f}%{imp[1]:>13.1f}%{imp[2]:>15.1f}%")
+    return "\n".join(lines)
+
+
+def format_table3(exp: LoopExperiment) -> str:
+    """Text table: measured Table III beside the paper's."""
+    lines = [f"{'system':<9}{'stage':<20}{'mean/std ms':>18}{'median':>9}{'max':>9}{'min':>9}   paper mean/std"]
+    for r in exp.table3:
+        paper = PAPER_TABLE3.get((r["system"], r["stage"]))
+        ptxt = "" if paper is None else f"{paper[0]:.2f} / {paper[1]:.2f}"
+        lines.append(f"{r['system']:<9}{r['stage']:<20}{r['mean_ms']:>10.3f} /{r['std_ms']:>6.3f}"
+                     f"{r['median_ms']:>9.3f}{r['max_ms']:>9.3f}{r['min_ms']:>9.3f}   {ptxt}")
+    return "\n".join(lines)
+
+
+def _fig_open_loop(exp, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7))
+    opens = [r for r in exp.runs if r.mode == "open"]
+    run = next((r for r in opens if r.axis == "y"), opens[0])
+    for src, style, label in (("truth", "-", "truth (250 Hz, 'VICON')"), ("measured", ".", "posekit (83.3 Hz)")):
+        t, y = run.signal(src)
+        ax[0, 0].plot(t, y, style, ms=3, label=label)
+        ok = np.isfinite(y) & (t >= run.t_step_s)
+        f, a = amplitude_spectrum(t[ok], y[ok] - np.mean(y[ok][-20:]))
+        ax[0, 1].plot(f, a * 1e3, style, ms=2, label=label)
+    ax[0, 0].set(title=f"(a) open-loop {run.step_mm:g} mm step along {run.axis}", xlabel="t [s]",
+                 ylabel="position [mm]")
+    ax[0, 1].set(title="(b) spectrum", xlabel="f [Hz]", ylabel="amplitude [µm]", xlim=(0, 40))
+    imp = exp.impulse
+    for src, style, label in (("truth", "-", "truth"), ("measured", ".", "posekit")):
+        t, y = imp.signal(src)
+        ax[1, 0].plot(t, y, style, ms=3, label=label)
+        ok = np.isfinite(y) & (t > imp.t_step_s)
+        f, a = amplitude_spectrum(t[ok], y[ok] - np.mean(y[ok][-20:]))
+        ax[1, 1].plot(f, a * 1e3, style, ms=2, label=label)
+    res = exp.resonance or {}
+    ax[1, 0].set(title=f"(c) impulse along y (resonance {res.get('f_natural_hz', float('nan')):.1f} Hz)",
+                 xlabel="t [s]", ylabel="y [mm]")
+    ax[1, 1].set(title="(d) spectrum", xlabel="f [Hz]", ylabel="amplitude [µm]", xlim=(0, 40))
+    for a in ax.ravel():
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _fig_steps(exp, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    axes = [a for a in ("x", "y", "z", "xyz") if any(r.axis == a for r in exp.runs)]
+    fig, ax = plt.subplots(1, len(axes), figsize=(4 * len(axes), 3.6), squeeze=False)
+    for i, axis in enumerate(axes):
+        for r in exp.runs:
+            if r.axis != axis or r.repeat != 0:
+                continue
+            t, y = r.signal("truth")
+            ax[0, i].plot(t, y, "-" if r.mode == "closed" else "--",
+                          label=f"{'CL' if r.mode == 'closed' else 'OL'} {r.step_mm:g} mm")
+        ax[0, i].set(title=f"step along {axis}", xlabel="t [s]", ylabel="position [mm]")
+        ax[0, i].grid(alpha=0.3)
+        ax[0, i].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _html_table(columns, rows):
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{(f'{r[c]:.4g}' if isinstance(r[c], float) else html.escape(str(r[c])))}</td>"
+                                    for c in columns) + "</tr>" for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def write_loop_report(exp: LoopExperiment, out) -> dict:
+    """Write ``table3.csv``, ``table4.csv``, ``fig5_open_loop.png``, ``fig6_steps.png``, ``report.html``.
+
+    Returns the paths written, by name.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"table3": out / "table3.csv", "table4": out / "table4.csv", "fig5": out / "fig5_open_loop.png",
+             "fig6": out / "fig6_steps.png", "report": out / "report.html"}
+    _write_csv(paths["table3"], TABLE3_COLUMNS, exp.table3)
+    _write_csv(paths["table4"], TABLE4_COLUMNS, exp.table4)
+    _fig_open_loop(exp, paths["fig5"])
+    _fig_steps(exp, paths["fig6"])
+    imgs = {k: base64.b64encode(paths[k].read_bytes()).decode() for k in ("fig5", "fig6")}
+    paper4 = [{"axis": a, "step_mm": s, "mode": m, "Mp_pct": v[0], "zeta": v[1], "Mf_um": v[2]}
+              for (a, s, m), v in PAPER_TABLE4.items()]
+    doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>posekit closed loop</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:auto}}table{{border-collapse:collapse;margin:8px 0}}
+td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}pre{{background:#f6f6f6;padding:8px}}</style></head><body>
+<h1>Real-time closed loop (paper §IV-C), simulated over loopback sockets</h1>
+<p>{len(exp.runs)} step runs + 1 impulse run; wall time {exp.wall_s:.1f} s; server: {html.escape(str(exp.server_stats))}</p>
+<h2>Table IV — step responses (measured by posekit, mean over repeats)</h2>{_html_table(TABLE4_COLUMNS, exp.table4)}
+<pre>{html.escape(format_table4(exp))}</pre>
+<h3>Paper's Table IV</h3>{_html_table(TABLE4_COLUMNS, paper4)}
+<h2>Table III — stage times</h2>{_html_table(TABLE3_COLUMNS, exp.table3)}<pre>{html.escape(format_table3(exp))}</pre>
+<h2>Fig. 5 — open loop and impulse</h2><img src="data:image/png;base64,{imgs['fig5']}" width="100%">
+<h2>Fig. 6 — open vs closed loop</h2><img src="data:image/png;base64,{imgs['fig6']}" width="100%">
+</body></html>"""
+    paths["report"].write_text(doc)
+    return paths

@@ -1,0 +1,764 @@
+"""Real-time pose server: profile frames in over TCP, one pose record per frame out.
+
+The processing unit of the paper's architecture (§II-A, Fig. 1a): the profiler
+controller pushes each triggered profile over TCP; the server detects the corners,
+solves the pose, optionally asks a controller for a correction, and sends one JSON line
+per frame to the robot interface over TCP.
+
+Threads and buffers::
+
+    sensor ──TCP──▶ receiver ──▶ deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
+                    (decode)      drop-oldest, never blocks     CD → PC → controller → send
+
+- The **receiver** accepts one sensor connection at a time and decodes frames
+  (:class:`~posekit.profiler.protocol.FrameDecoder`). It never waits for the worker: when
+  the buffer is full the *oldest* frame is dropped (and counted), so the pose that goes
+  out is always from the newest profile and the sensor is never blocked. After a
+  disconnect (also mid-frame) it logs it, discards the partial frame and accepts the next
+  connection.
+- The **worker** takes one frame at a time: NaN-storm check, corner detection
+  (:func:`~posekit.profiler.corners.detect_corners_unchecked`), pose
+  (:func:`~posekit.profiler.solve.solve_pose_unchecked`, warm-started from the previous
+  pose and falling back to the closed form when that fails or lands in a poor minimum),
+  the controller, and the record to the robot. A bad profile becomes a record with
+  ``status: "error"``, never an exception.
+
+Timing of each processed frame, ms, on the clock of :func:`time.perf_counter_ns` (on
+Linux ``CLOCK_MONOTONIC``, system-wide; a sensor process on the same machine stamps its
+frames with it, so DT is meaningful): **DT** = receive time of the frame's last byte −
+sensor stamp (the paper's data transmission, Table III); **CD** = NaN-storm check and
+corner detection; **PC** = pose computation, covariance and the controller. ``QW``, the
+time a frame waited in the buffer, is kept as well (it grows when the worker falls
+behind).
+
+Record sent to the robot (one JSON line per processed frame, and for a NaN storm)::
+
+    {"seq", "t_sensor_ns", "status": "ok"|"error", "t_mm": [3], "q_wxyz": [4],
+     "std_t_um": [3], "std_rot_deg": [3], "reprojection_um", "reversed",
+     "command": <controller dict or null>, "timing_ms": {"DT", "QW", "CD", "PC"},
+     "error": str|null}
+
+Pose fields are null when the profile failed; the standard deviations are null for the
+closed form (``method="cf"``), which has no error model.
+"""
+
+import gc
+import ipaddress
+import logging
+import math
+import select
+import socket
+import threading
+import time
+from collections import Counter, deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, ProfileError
+from .corners import CornerParams, detect_corners_unchecked, raise_for_status
+from .gauge import Gauge
+from .protocol import MAX_FRAME_BYTES, Frame, FrameDecoder, encode_command
+from .refine import pose_covariance_and_reprojection
+from .solve import _MESSAGES as _SOLVE_MESSAGES
+from .solve import METHODS, MOUNTINGS, _solve_kernel, solve_pose_unchecked
+
+__all__ = ["PoseServer", "parse_address", "check_address", "NAN_STORM", "quaternion_wxyz"]
+
+#: Rejection reason of a frame whose points are (almost) all NaN.
+NAN_STORM = "nan_storm"
+_TIMING_KEYS = ("DT", "QW", "CD", "PC")
+_POLL_S = 0.05                 # how often blocked threads look at the stop flag
+_LOG_INTERVAL_S = 1.0          # at most one log line per kind of event per interval
+
+
+# --------------------------------------------------------------------------- addresses
+
+
+def parse_address(text: str, what: str = "address") -> tuple[str, int]:
+    """``'127.0.0.1:5000'`` or ``'[::1]:5000'`` → ``(host, port)``.
+
+    Raises
+    ------
+    ConfigError
+        If the text is not ``HOST:PORT`` with a port in 0..65535.
+    """
+    text = str(text).strip()
+    host, sep, port_text = text.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if not sep or not host:
+        raise ConfigError(f"{what} '{text}': expected HOST:PORT, e.g. 127.0.0.1:5000")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ConfigError(f"{what} '{text}': port '{port_text}' is not a number") from None
+    if not 0 <= port <= 65535:
+        raise ConfigError(f"{what} '{text}': port must be in 0..65535, got {port}")
+    return host, port
+
+
+def check_address(address, what: str = "address", allow_remote: bool = False):
+    """Resolve ``(host, port)``; refuse a non-loopback host unless ``allow_remote``.
+
+    Returns
+    -------
+    family : int
+        ``socket.AF_INET`` or ``socket.AF_INET6``.
+    sockaddr : tuple
+        The first resolved socket address.
+
+    Raises
+    ------
+    ConfigError
+        If the address is malformed, does not resolve, or is not a loopback address
+        (127.0.0.0/8, ::1) and ``allow_remote`` is False.
+    """
+    try:
+        host, port = address
+        port = int(port)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what}: expected (host, port), got {address!r}") from None
+    if not 0 <= port <= 65535:
+        raise ConfigError(f"{what} {host}:{port}: port must be in 0..65535")
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as exc:
+        raise ConfigError(f"{what} {host}:{port}: cannot resolve host ({exc})") from None
+    if not allow_remote:
+        for info in infos:
+            try:
+                loop = ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback
+            except ValueError:
+                loop = False
+            if not loop:
+                raise ConfigError(f"{what} {host}:{port} is not a loopback address (127.0.0.0/8, ::1); "
+                                  "allow_remote=True (--allow-remote) permits other hosts")
+    return infos[0][0], infos[0][4]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def quaternion_wxyz(R) -> list:
+    """Unit quaternion ``[w, x, y, z]`` (``w >= 0``) of a rotation matrix, as floats.
+
+    Shepperd's method on 9 Python floats, about 3 µs (scipy's ``Rotation`` takes 100× longer
+    per call, too much for the real-time path). Agrees with
+    :func:`posekit.geometry.quaternion_from_matrix` for ``w > 0``.
+    """
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist() if hasattr(R, "tolist") else R
+    tr = a + e + i
+    if tr >= a and tr >= e and tr >= i:
+        s = 2.0 * math.sqrt(max(1.0 + tr, 0.0))
+        q = [0.25 * s, (h - f) / s, (c - g) / s, (d - b) / s]
+    elif a >= e and a >= i:
+        s = 2.0 * math.sqrt(max(1.0 + a - e - i, 0.0))
+        q = [(h - f) / s, 0.25 * s, (b + d) / s, (c + g) / s]
+    elif e >= i:
+        s = 2.0 * math.sqrt(max(1.0 - a + e - i, 0.0))
+        q = [(c - g) / s, (b + d) / s, 0.25 * s, (f + h) / s]
+    else:
+        s = 2.0 * math.sqrt(max(1.0 - a - e + i, 0.0))
+        q = [(d - b) / s, (c + g) / s, (f + h) / s, 0.25 * s]
+    n = math.sqrt(sum(v * v for v in q))
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    return [sign * v / n for v in q]
+
+
+def _floats(values):
+    """List of floats, or None if any is not finite (JSON has no NaN)."""
+    out = [float(v) for v in values]
+    return out if all(math.isfinite(v) for v in out) else None
+
+
+class _LogLimiter:
+    """Logs the first event of each kind at once, then at most one line per interval."""
+
+    def __init__(self, log: logging.Logger, interval_s: float = _LOG_INTERVAL_S):
+        self._log = log
+        self._interval = interval_s
+        self._lock = threading.Lock()
+        self._last: dict = {}
+        self._held: Counter = Counter()
+
+    def event(self, key: str, level: int, message: str) -> None:
+        now = time.monotonic()
+        with self._lock:
+            last = self._last.get(key)
+            if last is not None and now - last < self._interval:
+                self._held[key] += 1
+                return
+            self._last[key] = now
+            held = self._held.pop(key, 0)
+        suffix = f" (and {held} more '{key}' in the last {now - last:.1f} s)" if held else ""
+        self._log.log(level, "%s%s", message, suffix)
+
+    def flush_due(self) -> None:
+        """Log the held-back count of every kind whose interval has passed."""
+        now = time.monotonic()
+        with self._lock:
+            due = [k for k, n in self._held.items() if n and now - self._last.get(k, 0.0) >= self._interval]
+            held = {k: self._held.pop(k) for k in due}
+            for k in due:
+                self._last[k] = now
+        for key, n in held.items():
+            self._log.warning("%d more '%s' event(s) in the last %.1f s", n, key, self._interval)
+
+    def flush(self) -> None:
+        with self._lock:
+            held, self._held = self._held, Counter()
+        for key, n in held.items():
+            self._log.warning("%d more '%s' event(s) not logged individually", n, key)
+
+
+@dataclass
+class _Counts:
+    received: int = 0
+    processed: int = 0
+    ok: int = 0
+    errors: int = 0
+    dropped: int = 0
+    rejected: int = 0
+    disconnects: int = 0
+    connections: int = 0
+    cold_restarts: int = 0
+    sent: int = 0
+    unsent: int = 0
+    robot_connects: int = 0
+    robot_failures: int = 0
+
+
+class _RobotLink:
+    """The TCP client to the robot interface, reconnecting with exponential back-off.
+
+    Lives in the worker thread; :meth:`send` never blocks longer than ``timeout_s``.
+    """
+
+    def __init__(self, family, sockaddr, counts: _Counts, lock, limiter: _LogLimiter, timeout_s: float = 0.2):
+        self._lock = lock
+        self._family = family
+        self._addr = sockaddr
+        self._counts = counts
+        self._limiter = limiter
+        self._timeout = timeout_s
+        self._sock = None
+        self._next_try = 0.0
+        self._backoff = 0.05
+
+    def _connect(self) -> bool:
+        now = time.monotonic()
+        if now < self._next_try:
+            return False
+        sock = socket.socket(self._family, socket.SOCK_STREAM)
+        try:
+            sock.settimeout(self._timeout)
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            sock.connect(self._addr)
+        except OSError as exc:
+            sock.close()
+            self._next_try = now + self._backoff
+            self._limiter.event("robot_unreachable", logging.WARNING,
+                                f"robot interface {self._addr[0]}:{self._addr[1]} unreachable ({exc}); "
+                                f"retrying in {self._backoff:.2f} s")
+            self._backoff = min(2.0 * self._backoff, 2.0)
+            return False
+        self._sock = sock
+        self._backoff = 0.05
+        with self._lock:
+            self._counts.robot_connects += 1
+        self._limiter.event("robot_connect", logging.INFO,
+                            f"connected to robot interface {self._addr[0]}:{self._addr[1]}")
+        return True
+
+    def _peer_closed(self) -> bool:
+        """True if the robot side closed (readable with EOF); its own bytes are discarded."""
+        try:
+            readable, _, _ = select.select([self._sock], [], [], 0)
+            if readable:
+                return self._sock.recv(65536, socket.MSG_DONTWAIT) == b""
+        except BlockingIOError:
+            return False
+        except OSError:
+            return True
+        return False
+
+    def send(self, data: bytes) -> bool:
+        if self._sock is None and not self._connect():
+            return False
+        try:
+            if self._peer_closed():
+                raise ConnectionResetError("robot interface closed the connection")
+            self._sock.sendall(data)
+            return True
+        except OSError as exc:       # includes the send timeout: a partial line dies with the socket
+            with self._lock:
+                self._counts.robot_failures += 1
+            self._limiter.event("robot_lost", logging.WARNING,
+                                f"lost robot interface {self._addr[0]}:{self._addr[1]} ({exc}); reconnecting")
+            self.close()
+            return False
+
+    def close(self) -> None:
+        if self._sock is not None:
+            try:
+                self._sock.close()
+            finally:
+                self._sock = None
+
+
+# --------------------------------------------------------------------------- server
+
+
+class PoseServer:
+    """Streams profile frames in, sends one pose record per frame to the robot.
+
+    Parameters
+    ----------
+    gauge : Gauge
+        The gauge in view.
+    listen : (str, int)
+        Address to accept the sensor on; port 0 picks a free port (see :meth:`start`).
+    robot : (str, int), optional
+        Robot interface to send the JSON records to (a TCP server); None: no sending.
+    controller : callable, optional
+        ``controller(seq, t_s, T_G_F, cov) -> dict | None`` called for each good pose:
+        ``t_s`` the sensor stamp in s, ``T_G_F`` (4, 4) mm, ``cov`` (6, 6) the pose
+        covariance ``[mm, rad]`` in G (NaN for the closed form). Its dict goes out as the
+        record's ``command``; an exception makes the record an error.
+    queue_size : int
+        Frames buffered between receiver and worker; when full the oldest is dropped.
+    method : {'mle', 'cf'}
+    mounting : {'auto', 'normal', 'reversed'}
+    log : logging.Logger, optional
+        Default ``logging.getLogger("posekit.server")``. Rejections, disconnects and
+        failed profiles are logged at most once per second per kind, with a count of
+        the ones held back.
+    allow_remote : bool
+        Accept a non-loopback ``listen`` or ``robot`` address.
+    params : CornerParams
+    nan_storm_fraction : float
+        A frame with more than this fraction of NaN points (or no points) is rejected
+        as ``nan_storm``.
+    history : int
+        Timings kept for :meth:`timings` (the most recent ones).
+    freeze_gc : bool
+        :meth:`start` calls :func:`gc.freeze` after the warm-up, so that Python's full
+        garbage collections no longer scan the ~10⁵ objects of NumPy, SciPy and numba: a
+        full collection otherwise stops every thread for 50–150 ms on a 2-core machine,
+        which at 1 kHz drops frames. Process-wide; objects alive at that moment are never
+        collected afterwards.
+
+    Examples
+    --------
+    >>> from posekit.profiler import bundled_gauge
+    >>> with PoseServer(bundled_gauge("demo-5")) as server:   # doctest: +SKIP
+    ...     host, port = server.address                        # stream frames to it
+    """
+
+    def __init__(self, gauge: Gauge, *, listen=("127.0.0.1", 0), robot=None, controller=None,
+                 queue_size: int = 4, method: str = "mle", mounting: str = "auto",
+                 log: logging.Logger | None = None, allow_remote: bool = False,
+                 params: CornerParams = CornerParams(), nan_storm_fraction: float = 0.95,
+                 history: int = 100_000, freeze_gc: bool = True):
+        if not isinstance(gauge, Gauge):
+            raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
+        if method not in METHODS:
+            raise ConfigError(f"PoseServer: unknown method '{method}'; expected one of {', '.join(METHODS)}")
+        if mounting not in MOUNTINGS:
+            raise ConfigError(f"PoseServer: unknown mounting '{mounting}'; expected one of {', '.join(MOUNTINGS)}")
+        if method == "cf" and gauge.n_corners < 5:
+            raise ConfigError(f"PoseServer: method 'cf' needs a gauge with >= 5 corners; "
+                              f"'{gauge.name}' has {gauge.n_corners} (use 'mle')")
+        if not (isinstance(queue_size, int) and queue_size >= 1):
+            raise ConfigError(f"PoseServer: queue_size must be an integer >= 1, got {queue_size!r}")
+        if not (isinstance(history, int) and history >= 1):
+            raise ConfigError(f"PoseServer: history must be an integer >= 1, got {history!r}")
+        if not 0.0 <= nan_storm_fraction < 1.0:
+            raise ConfigError(f"PoseServer: nan_storm_fraction must be in [0, 1), got {nan_storm_fraction}")
+        if controller is not None and not callable(controller):
+            raise ConfigError("PoseServer: controller must be callable(seq, t_s, T_G_F, cov) -> dict | None")
+        self.gauge = gauge
+        self.method = method
+        self.mounting = mounting
+        self.params = params
+        self.controller = controller
+        self.queue_size = queue_size
+        self.nan_storm_fraction = float(nan_storm_fraction)
+        self.allow_remote = bool(allow_remote)
+        self.freeze_gc = bool(freeze_gc)
+        self._listen_family, self._listen_addr = check_address(listen, "listen address", self.allow_remote)
+        self._robot = None if robot is None else check_address(robot, "robot address", self.allow_remote)
+        self.log = log if log is not None else logging.getLogger("posekit.server")
+        self._limiter = _LogLimiter(self.log)
+
+        self._method_code = METHODS.index(method)
+        self._mounting_code = MOUNTINGS.index(mounting)
+        n = gauge.n_corners
+        # A warm start whose χ² (2n - 6 dof) exceeds its 1e-6 tail went to a wrong minimum.
+        from scipy.stats import chi2
+        self._chi2_gate = float(chi2.isf(1e-6, 2 * n - 6))
+        self._ridge_q = gauge.ridge_q
+        self._ridge_s = gauge.ridge_s
+
+        self._queue: deque = deque(maxlen=queue_size)
+        self._cond = threading.Condition(threading.Lock())
+        self._stats_lock = threading.Lock()
+        self._counts = _Counts()
+        self._reasons: Counter = Counter()
+        self._tim = np.zeros((history, len(_TIMING_KEYS)))
+        self._tim_n = 0
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._lsock = None
+        self._conn = None
+        self._address = None
+        self._last_T = None
+        self._last_rev = False
+        self._init = (np.ones(2, dtype=np.bool_), np.empty((2, 3, 3)), np.empty((2, 3)))
+
+    # ------------------------------------------------------------------ lifecycle
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        """Bound ``(host, port)`` once started, else None."""
+        return self._address
+
+    def start(self) -> tuple[str, int]:
+        """Bind, listen and start the receiver and worker threads.
+
+        Returns
+        -------
+        (host, port)
+            The bound address (the actual port when ``listen`` asked for port 0).
+
+        Raises
+        ------
+        ConfigError
+            If the address cannot be bound, or the server was already started.
+        """
+        if self._threads:
+            raise ConfigError("PoseServer.start: the server is already running (one start per server)")
+        sock = socket.socket(self._listen_family, socket.SOCK_STREAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(self._listen_addr)
+            sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
+            sock.settimeout(_POLL_S)
+        except OSError as exc:
+            sock.close()
+            raise ConfigError(f"listen address {self._listen_addr[0]}:{self._listen_addr[1]}: "
+                              f"cannot bind ({exc.strerror or exc})") from None
+        self._lsock = sock
+        self._address = sock.getsockname()[:2]
+        self._warm_up()
+        if self.freeze_gc:
+            gc.freeze()
+        self._stop.clear()
+        self._threads = [
+            threading.Thread(target=self._receive_loop, name="posekit-receiver", daemon=True),
+            threading.Thread(target=self._work_loop, name="posekit-worker", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+        self.log.info("listening for the sensor on %s:%d", *self._address)
+        return self._address
+
+    def _warm_up(self) -> None:
+        """Run the pipeline once on a simulated profile: load the compiled kernels now,
+        not on the first real frame (that costs 0.1-1 s and would drop frames)."""
+        from .sensor import NoiseModel, nominal_pose, render_profiles
+
+        prof = render_profiles(self.gauge, nominal_pose(self.gauge), NoiseModel(), rng=0)
+        n = self.gauge.n_corners
+        status, _, corners, ccov, *_ = detect_corners_unchecked(prof, n, self.params)
+        if status != 0:         # the nominal pose always sees the gauge; be safe anyway
+            return
+        for T_init in (None, nominal_pose(self.gauge)):
+            st, rev, R, t, H, _ = solve_pose_unchecked(corners, ccov, self.gauge, self._method_code,
+                                                       self._mounting_code, T_init=T_init)
+            if st == 0:
+                pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
+                quaternion_wxyz(R)
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Stop both threads, close every socket; returns within about ``timeout_s``.
+
+        Frames still buffered are discarded. Held-back log lines are flushed.
+        """
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        conn = self._conn
+        if conn is not None:
+            try:
+                conn.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        deadline = time.monotonic() + timeout_s
+        for t in self._threads:
+            t.join(max(0.0, deadline - time.monotonic()))
+        if self._lsock is not None:
+            self._lsock.close()
+            self._lsock = None
+        self._limiter.flush()
+
+    @property
+    def running(self) -> bool:
+        """True while the receiver and worker threads are alive."""
+        return bool(self._threads) and all(t.is_alive() for t in self._threads) and not self._stop.is_set()
+
+    def __enter__(self):
+        if not self._threads:
+            self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    # ------------------------------------------------------------------ statistics
+
+    def stats(self) -> dict:
+        """Counters since :meth:`start`.
+
+        Returns
+        -------
+        dict
+            ``received`` (well-formed frames decoded), ``processed`` (frames that went
+            through detection and pose, ok or not), ``ok``, ``errors`` (processed frames
+            whose profile or controller failed), ``dropped`` (oldest frames pushed out of
+            the full buffer), ``rejected`` (malformed stretches of the stream and NaN
+            storms) with ``reasons`` (a :class:`collections.Counter` by reason),
+            ``disconnects``, ``connections``, ``cold_restarts`` (warm starts that fell back
+            to the closed form), ``sent``/``unsent`` records and ``robot_connects``/
+            ``robot_failures``, and ``queued``. Once idle, ``received == processed +
+            dropped + reasons['nan_storm']``.
+        """
+        with self._stats_lock:
+            c = self._counts
+            out = dict(vars(c))
+            out["reasons"] = Counter(self._reasons)
+        with self._cond:
+            out["queued"] = len(self._queue)
+        return out
+
+    def timings(self) -> dict:
+        """Per-stage times of the processed frames (the most recent ``history``), ms.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (k,)
+            ``DT`` (sensor stamp → last byte received), ``QW`` (wait in the buffer),
+            ``CD`` (NaN check + corner detection), ``PC`` (pose + covariance +
+            controller), oldest first.
+        """
+        with self._stats_lock:
+            h = self._tim.shape[0]
+            n = self._tim_n
+            if n <= h:
+                arr = self._tim[:n].copy()
+            else:
+                i = n % h
+                arr = np.concatenate([self._tim[i:], self._tim[:i]])
+        return {k: arr[:, j] for j, k in enumerate(_TIMING_KEYS)}
+
+    def _reject(self, reason: str, detail: str) -> None:
+        with self._stats_lock:
+            self._counts.rejected += 1
+            self._reasons[reason] += 1
+        self._limiter.event(reason, logging.WARNING, f"rejected frame ({reason}): {detail}")
+
+    # ------------------------------------------------------------------ receiver
+
+    def _receive_loop(self) -> None:
+        buf = bytearray(4 * MAX_FRAME_BYTES)
+        view = memoryview(buf)
+        while not self._stop.is_set():
+            try:
+                conn, peer = self._lsock.accept()
+            except TimeoutError:
+                self._limiter.flush_due()
+                continue
+            except OSError:
+                if self._stop.is_set():
+                    break
+                time.sleep(_POLL_S)
+                continue
+            conn.settimeout(_POLL_S)
+            self._conn = conn
+            with self._stats_lock:
+                self._counts.connections += 1
+            self._limiter.event("connect", logging.INFO, f"sensor connected from {peer[0]}:{peer[1]}")
+            decoder = FrameDecoder()
+            why = "closed by the sensor"
+            try:
+                while not self._stop.is_set():
+                    try:
+                        n = conn.recv_into(view)
+                    except TimeoutError:
+                        self._limiter.flush_due()
+                        continue
+                    except OSError as exc:
+                        why = f"connection error ({exc})"
+                        break
+                    t_recv = time.perf_counter_ns()
+                    if n == 0:
+                        break
+                    for item in decoder.feed(view[:n], t_recv):
+                        if isinstance(item, Frame):
+                            self._enqueue(item)
+                        else:
+                            self._reject(item.reason, item.detail)
+            finally:
+                self._conn = None
+                conn.close()
+            if self._stop.is_set():
+                break
+            partial = decoder.flush()
+            with self._stats_lock:
+                self._counts.disconnects += 1
+            level = logging.INFO
+            if partial is not None:
+                self._reject(partial.reason, partial.detail)
+                why += f", mid-frame: {partial.detail}; the partial frame was discarded"
+                level = logging.WARNING
+            self._limiter.event("disconnect", level,
+                                f"sensor {peer[0]}:{peer[1]} disconnected ({why}); waiting for the next connection")
+
+    def _enqueue(self, frame: Frame) -> None:
+        with self._cond:
+            dropped = len(self._queue) == self.queue_size
+            self._queue.append(frame)           # a full deque drops its oldest item
+            self._cond.notify()
+        with self._stats_lock:
+            self._counts.received += 1
+            self._counts.dropped += dropped
+        if dropped:
+            self._limiter.event("dropped", logging.WARNING,
+                                f"worker behind: dropped the oldest buffered frame (queue_size={self.queue_size})")
+
+    # ------------------------------------------------------------------ worker
+
+    def _work_loop(self) -> None:
+        link = None if self._robot is None else _RobotLink(*self._robot, self._counts, self._stats_lock, self._limiter)
+        try:
+            while True:
+                with self._cond:
+                    while not self._queue and not self._stop.is_set():
+                        self._cond.wait(_POLL_S)
+                    if self._stop.is_set():
+                        break
+                    frame = self._queue.popleft()
+                record = self._process(frame)
+                if record is None:
+                    continue
+                if link is None:
+                    continue
+                sent = link.send(encode_command(record))
+                with self._stats_lock:
+                    if sent:
+                        self._counts.sent += 1
+                    else:
+                        self._counts.unsent += 1
+        finally:
+            if link is not None:
+                link.close()
+
+    def _solve(self, corners, ccov):
+        """Warm start from the previous pose; closed form if it fails or its χ² is implausible."""
+        g = self.gauge
+        if self._method_code == 1 and self._last_T is not None:
+            mount = self._mounting_code or (2 if self._last_rev else 1)
+            # solve_pose_unchecked(..., T_init=T) builds these arrays on every call (~40 µs
+            # of NumPy overhead here); the kernel takes them preallocated.
+            has, R0, t0 = self._init
+            R0[:] = self._last_T[:3, :3]
+            t0[:] = self._last_T[:3, 3]
+            warm = _solve_kernel(corners, ccov, self._ridge_q, self._ridge_s, 1, mount, 20, has, R0, t0)
+            if warm[0] == 0 and warm[5] <= self._chi2_gate:
+                return warm
+            with self._stats_lock:
+                self._counts.cold_restarts += 1
+            cold = solve_pose_unchecked(corners, ccov, g, 1, self._mounting_code)
+            if warm[0] == 0 and (cold[0] != 0 or warm[5] < cold[5]):
+                return warm
+            return cold
+        return solve_pose_unchecked(corners, ccov, g, self._method_code, self._mounting_code)
+
+    def _process(self, frame: Frame) -> dict:
+        t0 = time.perf_counter_ns()
+        seq = frame.seq
+        dt_ms = (frame.t_recv_ns - frame.t_sensor_ns) * 1e-6
+        qw_ms = (t0 - frame.t_recv_ns) * 1e-6
+        rec = {"seq": seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
+               "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
+               "command": None, "timing_ms": None, "error": None}
+        pts = frame.points
+        n = self.gauge.n_corners
+        # The kernel counts the valid returns (info[1]) before anything else; a NaN storm
+        # costs it one pass over the points, and the count is exact (x and z finite).
+        status, info, corners, ccov, _, _, npts, cand = detect_corners_unchecked(pts, n, self.params)
+        n_pts = pts.shape[0]
+        n_nan = n_pts - int(info[1])
+        if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
+            detail = (f"seq {seq}: {n_nan} of {n_pts} points have no return "
+                      f"(more than {100 * self.nan_storm_fraction:.0f} % NaN)")
+            self._reject(NAN_STORM, detail)
+            rec["error"] = f"rejected frame (nan_storm): {detail}"
+            return rec
+        t1 = time.perf_counter_ns()
+        error = None
+        if status != 0:
+            try:
+                raise_for_status(status, info, npts, cand, n, self.gauge.name)
+            except ProfileError as exc:
+                error = f"seq {seq}: {exc}"
+        else:
+            st, rev, R, t, H, _ = self._solve(corners, ccov)
+            if st != 0:
+                error = f"seq {seq}: " + _SOLVE_MESSAGES[st].format(n=n, e=2 * n)
+            else:
+                cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
+                if self._method_code == 0:
+                    cov = np.full((6, 6), np.nan)
+                T = np.eye(4)
+                T[:3, :3] = R
+                T[:3, 3] = t
+                self._last_T = T
+                self._last_rev = bool(rev)
+                var = cov.diagonal().tolist()
+                finite = all(map(math.isfinite, var))
+                rec.update(status="ok", t_mm=t.tolist(), q_wxyz=quaternion_wxyz(R),
+                           std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
+                           std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
+                           reprojection_um=float(reproj_mm) * 1e3, reversed=bool(rev))
+                if self.controller is not None:
+                    try:
+                        command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)
+                        if command is not None:
+                            encode_command(command)     # a dict JSON can carry, or ConfigError
+                        rec["command"] = command
+                    except Exception as exc:   # user code: report, never kill the worker
+                        error = f"seq {seq}: controller failed: {type(exc).__name__}: {exc}"
+        t2 = time.perf_counter_ns()
+        cd_ms = (t1 - t0) * 1e-6
+        pc_ms = (t2 - t1) * 1e-6
+        rec["timing_ms"] = {"DT": dt_ms, "QW": qw_ms, "CD": cd_ms, "PC": pc_ms}
+        with self._stats_lock:
+            c = self._counts
+            c.processed += 1
+            if error is None:
+                c.ok += 1
+            else:
+                c.errors += 1
+            row = self._tim[self._tim_n % self._tim.shape[0]]
+            row[0] = dt_ms
+            row[1] = qw_ms
+            row[2] = cd_ms
+            row[3] = pc_ms
+            self._tim_n += 1
+        if error is not None:
+            rec["status"] = "error"
+            rec["error"] = error
+            self._limiter.event("profile_error", logging.WARNING, f"profile failed: {error}")
+        return rec

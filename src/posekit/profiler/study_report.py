@@ -1,0 +1,328 @@
+"""Tables (CSV), figures (PNG, matplotlib Agg) and ``report.html`` of the design studies.
+
+:func:`write_report` takes the result of :func:`~posekit.profiler.study.corners_study`,
+:func:`~posekit.profiler.study.noise_study` or
+:func:`~posekit.profiler.study_limits.limits_study` and writes everything into one folder;
+the report embeds each figure (base64) and links its PNG file.
+"""
+
+import base64
+import csv
+import html
+import math
+from pathlib import Path
+
+from ..errors import ConfigError
+from .study import (
+    METHODS,
+    PAPER_TABLE1,
+    PAPER_TABLE1_M,
+    STATUS_NAMES,
+    TABLE1_COLUMNS,
+    CornersStudy,
+    NoiseStudy,
+)
+from .study_limits import LimitsStudy, range_summary, tilt_summary
+
+__all__ = ["write_report", "write_csv"]
+
+LABEL = {"cf": "CF", "mle": "CF-Opt"}
+
+
+def write_csv(path, rows, columns) -> Path:
+    """Write dict rows with exactly ``columns`` (floats to 6 significant digits, NaN as 'nan')."""
+    path = Path(path)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        for row in rows:
+            w.writerow([f"{row[c]:.6g}" if isinstance(row[c], float) else row[c] for c in columns])
+    return path
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _save(fig, path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
+    return Path(path)
+
+
+def _num(v: float) -> str:
+    """3 significant digits, without exponents between 1e-3 and 1e6."""
+    if math.isnan(v):
+        return "–"
+    if v != 0 and not 1e-3 <= abs(v) < 1e6:
+        return f"{v:.3g}"
+    return f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}"
+
+
+def _fmt(v):
+    return _num(v) if isinstance(v, float) else html.escape(str(v))
+
+
+def _table(rows, columns, headers=None) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in (headers or columns))
+    body = "".join("<tr>" + "".join(f"<td>{_fmt(r[c])}</td>" for c in columns) + "</tr>" for r in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _figure(path: Path, caption: str) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    name = html.escape(path.name)
+    return (f'<figure><img src="data:image/png;base64,{data}" alt="{name}">'
+            f'<figcaption>{html.escape(caption)} (<a href="{name}">{name}</a>)</figcaption></figure>')
+
+
+def _failures(failures) -> str:
+    if not failures:
+        return "<p>No profile failed.</p>"
+    rows = [{"method": LABEL[m], "reason": STATUS_NAMES[s], "count": c, "example": msg}
+            for (m, s), (c, msg) in failures.items()]
+    return _table(rows, ["method", "reason", "count", "example"])
+
+
+def _html(out: Path, title: str, intro: str, sections) -> Path:
+    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;"
+             "text-align:right}th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}")
+    body = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
+    text = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>{intro}{body}</body></html>")
+    path = out / "report.html"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _config(study) -> str:
+    cfg = study.config
+    items = "".join(f"<li><code>{html.escape(k)}</code> = {html.escape(repr(v))}</li>"
+                    for k, v in vars(cfg).items())
+    return (f"<p>Wall time {study.wall_s:.1f} s; CPU time in the tasks {study.task_cpu_s:.1f} s.</p>"
+            f"<details><summary>Configuration</summary><ul>{items}</ul></details>")
+
+
+# --------------------------------------------------------------------------- corners
+
+DIAG_COLUMNS = ("n", "method", "estimates", "beyond_fail_um", "t_err_median_um", "rmse_x_um", "rmse_y_um",
+                "rmse_z_um", "ridge_skew_mean", "beta_mean_deg")
+
+
+def _corners(study: CornersStudy, out: Path) -> Path:
+    plt = _plt()
+    write_csv(out / "table1.csv", study.table, TABLE1_COLUMNS)
+    write_csv(out / "table1_diagnostics.csv", study.diagnostics, DIAG_COLUMNS)
+    cfg = study.config
+    row = {(r["method"], r["n"], r["m"]): r for r in study.table}
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, method in zip(axes, METHODS):
+        for i, n in enumerate(cfg.corners):
+            rs = [row[(method, n, m)] for m in cfg.gauges]
+            ax.plot(cfg.gauges, [r["reproj_mean_um"] for r in rs], "o-", color=f"C{i}", label=f"n = {n}: mean")
+            ax.plot(cfg.gauges, [r["reproj_std_um"] for r in rs], "s--", color=f"C{i}", label=f"n = {n}: std")
+        ax.set(xlabel="random gauges m", title=f"{LABEL[method]}", yscale="log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("reprojection error (µm)")
+    axes[1].legend(fontsize=8, ncol=2)
+    f1 = _save(fig, out / "table1_reprojection.png")
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    m = max(cfg.gauges)
+    for method in METHODS:
+        rs = [row[(method, n, m)] for n in cfg.corners]
+        axes[0].plot(cfg.corners, [r["t_err_mean_um"] for r in rs], "o-", label=LABEL[method])
+        axes[1].plot(cfg.corners, [r["rot_err_mean_deg"] for r in rs], "o-", label=LABEL[method])
+    diag = [d for d in study.diagnostics if d["method"] == "mle"]
+    for axis in "xyz":
+        axes[2].plot([d["n"] for d in diag], [d[f"rmse_{axis}_um"] for d in diag], "o-", label=f"RMSE {axis}")
+    twin = axes[2].twinx()
+    twin.plot([d["n"] for d in diag], [d["ridge_skew_mean"] for d in diag], "k:", label="ridge skew ptp(u)")
+    twin.set_ylabel("mean ridge skew ptp(u)")
+    axes[0].set(xlabel="corners n", ylabel="mean |translation error| (µm)", yscale="log", title=f"m = {m}")
+    axes[1].set(xlabel="corners n", ylabel="mean rotation error (deg)", yscale="log", title=f"m = {m}")
+    axes[2].set(xlabel="corners n", ylabel="CF-Opt translation RMSE in G (µm)", yscale="log",
+                title="CF-Opt error per axis; y follows the ridge skew")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+    twin.legend(fontsize=8, loc="lower right")
+    f2 = _save(fig, out / "table1_pose_error.png")
+
+    def cell(r):
+        if math.isnan(r["reproj_mean_um"]):
+            return "-/-"
+        return f"{_num(r['reproj_mean_um'])}/{_num(r['reproj_std_um'])}"
+
+    side = []
+    for method in METHODS:
+        for n in cfg.corners:
+            entry = {"method": LABEL[method], "n": n}
+            for m in cfg.gauges:
+                entry[f"ours m={m}"] = cell(row[(method, n, m)])
+            for i, m in enumerate(PAPER_TABLE1_M):
+                entry[f"paper m={m}"] = PAPER_TABLE1[(method, n)][i] if (method, n) in PAPER_TABLE1 else ""
+            side.append(entry)
+    cols = ["method", "n"] + [f"ours m={m}" for m in cfg.gauges] + [f"paper m={m}" for m in PAPER_TABLE1_M]
+    intro = (f"<p>Paper Table I by simulation: {len(cfg.corners)} corner counts × {max(cfg.gauges)} random "
+             f"gauges × {cfg.poses} poses, noise {cfg.noise.sigma_z_um:g} µm in z and {cfg.noise.sigma_x_um:g} µm "
+             f"in x; the row for m uses the first m gauges. A failure is a profile whose corners were not "
+             f"found, an estimator error, or an error above 10³ µm (the paper's '-').</p>"
+             + _config(study))
+    sections = [
+        ("Table I: reprojection error mean/std (µm), ours beside the paper's",
+         _table(side, cols) + "<p>Paper: '-' failure (error above 10³ µm), '*' below 1 µm.</p>"),
+        ("All statistics (table1.csv)", _table(study.table, list(TABLE1_COLUMNS))),
+        (f"Diagnostics over all {max(cfg.gauges)} gauges (every estimate returned, also those beyond 10³ µm)",
+         _table(study.diagnostics, list(DIAG_COLUMNS))
+         + "<p>y (along the ridges) is observed only through the skew of the ridges, ptp(u) of their "
+           "directions [u, 1, w]; rmse_y follows it.</p>"),
+        ("Figures", _figure(f1, "Reprojection error vs number of random gauges")
+         + _figure(f2, "True pose error vs corner count")),
+        ("Failures", _failures(study.failures)),
+    ]
+    return _html(out, "posekit profiler study: corners (Table I)", intro, sections)
+
+
+# --------------------------------------------------------------------------- noise
+
+NOISE_COLUMNS = ("noise_um", "method") + TABLE1_COLUMNS[3:]
+COV_COLUMNS = ("noise_um", "axis", "predicted_std_um", "empirical_rmse_um", "normalized_rms")
+
+
+def _noise(study: NoiseStudy, out: Path) -> Path:
+    plt = _plt()
+    write_csv(out / "fig3.csv", study.table, NOISE_COLUMNS)
+    write_csv(out / "noise_covariance.csv", study.covariance, COV_COLUMNS)
+    cfg = study.config
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, method, tag in zip(axes, METHODS, "ab"):
+        rs = [r for r in study.table if r["method"] == method]
+        ax.plot([r["noise_um"] for r in rs], [r["reproj_mean_um"] for r in rs], "o-", label="mean")
+        ax.plot([r["noise_um"] for r in rs], [r["reproj_std_um"] for r in rs], "s--", label="std")
+        ax.set(xlabel="noise σ_z (µm)", ylabel="reprojection error (µm)", title=f"({tag}) {LABEL[method]}")
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+    f1 = _save(fig, out / "fig3_reprojection.png")
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for axis, color in zip("xyz", ("C0", "C1", "C2")):
+        rs = [r for r in study.covariance if r["axis"] == axis and r["noise_um"] > 0]
+        x = [r["noise_um"] for r in rs]
+        ax.plot(x, [r["empirical_rmse_um"] for r in rs], "o-", color=color, label=f"{axis}: empirical RMSE")
+        ax.plot(x, [r["predicted_std_um"] for r in rs], "--", color=color, label=f"{axis}: predicted std")
+    ax.set(xlabel="noise σ_z (µm)", ylabel="translation error in G (µm)", yscale="log",
+           title="CF-Opt: predicted std (covariance) vs empirical RMSE")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    f2 = _save(fig, out / "noise_predicted_vs_empirical.png")
+    intro = (f"<p>Paper Fig. 3 by simulation: n = {cfg.n_corners}, {cfg.gauges} random gauges × {cfg.poses} "
+             f"poses at each noise level (σ in z; σ_x = {cfg.x_ratio:g} σ_z). The same gauges, poses and "
+             f"standard-normal draws at every level.</p>" + _config(study))
+    sections = [
+        ("Reprojection and pose errors vs noise (fig3.csv)", _table(study.table, list(NOISE_COLUMNS))),
+        ("Predicted vs empirical translation error, CF-Opt (noise_covariance.csv)",
+         _table(study.covariance, list(COV_COLUMNS))
+         + "<p>normalized_rms: RMS of error / predicted std (1 when the covariance is right).</p>"),
+        ("Figures", _figure(f1, "Fig. 3: reprojection error vs noise, (a) CF, (b) CF-Opt")
+         + _figure(f2, "Predicted standard deviation vs empirical RMSE per axis")),
+        ("Failures", _failures(study.failures)),
+    ]
+    return _html(out, "posekit profiler study: noise (Fig. 3)", intro, sections)
+
+
+# --------------------------------------------------------------------------- limits
+
+RANGE_COLUMNS = ("axis", "size_mm", "gauge", "lower_tracked_mm", "upper_tracked_mm", "range_tracked_mm",
+                 "lower_visible_mm", "upper_visible_mm", "range_visible_mm")
+RANGE_SUMMARY_COLUMNS = ("axis", "size_mm", "range_tracked_mean_mm", "range_tracked_min_mm",
+                         "range_tracked_max_mm", "range_visible_mean_mm", "margin_model_mm")
+TILT_COLUMNS = ("beta_deg", "alpha_deg", "trials", "success_rate", "visible_rate")
+
+
+def _limits(study: LimitsStudy, out: Path) -> Path:
+    plt = _plt()
+    rng_rows = [{k: (float(v) if k in RANGE_COLUMNS[3:] else v) for k, v in r.items()} for r in study.ranges]
+    write_csv(out / "limits_range.csv", rng_rows, RANGE_COLUMNS)
+    summary = range_summary(study)
+    write_csv(out / "limits_range_summary.csv", summary, RANGE_SUMMARY_COLUMNS)
+    tilts = tilt_summary(study)
+    write_csv(out / "limits_tilt.csv", tilts, TILT_COLUMNS)
+    cfg = study.config
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for axis, color in (("x", "C0"), ("z", "C1"), ("y", "C2")):
+        rs = [r for r in summary if r["axis"] == axis]
+        ax = axes[1] if axis == "y" else axes[0]
+        s = [r["size_mm"] for r in rs]
+        ax.plot(s, [r["range_tracked_mean_mm"] for r in rs], "o-", color=color, label=f"along {axis}: tracked")
+        ax.fill_between(s, [r["range_tracked_min_mm"] for r in rs], [r["range_tracked_max_mm"] for r in rs],
+                        color=color, alpha=0.15)
+        ax.plot(s, [r["range_visible_mean_mm"] for r in rs], "s--", color=color, label=f"along {axis}: visible")
+        if axis == "x":
+            ax.plot(s, [r["margin_model_mm"] for r in rs], ":", color="k", label="x: view width − gauge width")
+    axes[0].set(xlabel="gauge width (mm)", ylabel="range of motion along F's axis (mm)",
+                title="(a) x and z vs gauge width")
+    axes[1].set(xlabel="gauge length along the ridges (mm)", ylabel="range of motion along F's y (mm)",
+                title="(a) y vs gauge length")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    f1 = _save(fig, out / "fig4a_range.png")
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for i, beta in enumerate(cfg.betas_deg):
+        rs = [r for r in tilts if r["beta_deg"] == beta]
+        ax.plot([r["alpha_deg"] for r in rs], [r["success_rate"] for r in rs], "o-", ms=3, color=f"C{i}",
+                label=f"β = {beta:g}°")
+        for sgn in (-1, 1):
+            ax.axvline(sgn * beta, color=f"C{i}", ls=":", lw=1)
+    ax.set(xlabel="tilt α about F's y (deg)", ylabel="success rate", ylim=(-0.03, 1.03),
+           title="(b) self-occlusion: tracked poses vs tilt (dotted: ±β)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    f2 = _save(fig, out / "fig4b_tilt.png")
+    intro = ("<p>Paper Fig. 4 by simulation. (a) From the nominal pose, the sensor is moved along F's x and z "
+             "(gauges scaled in x–z to each width) or y (gauges cut to each length) until the pose is lost: "
+             "<em>tracked</em> = all corners detected on a noisy rendered profile and a CF-Opt estimate that "
+             "fits them; <em>visible</em> = posekit.profiler.sensor.visible_mask (3 mm margins). "
+             f"{cfg.gauges} random gauges with {cfg.n_corners} corners per size (band: min–max). "
+             f"(b) Gauges whose steepest faces make exactly β with the vertical, tilted by α about F's y "
+             f"through the gauge, {cfg.tilt_poses} jittered poses per gauge and tilt.</p>"
+             + _config(study))
+    sections = [
+        ("Range of motion (limits_range_summary.csv)", _table(summary, list(RANGE_SUMMARY_COLUMNS))),
+        ("Figures", _figure(f1, "Fig. 4(a): range of motion vs gauge size")
+         + _figure(f2, "Fig. 4(b): success rate vs tilt α for gauges of different β")),
+        ("Success rate vs tilt (limits_tilt.csv)", _table(tilts, list(TILT_COLUMNS))),
+    ]
+    return _html(out, "posekit profiler study: limits (Fig. 4)", intro, sections)
+
+
+def write_report(study, out) -> Path:
+    """Write the study's CSV tables, PNG figures and ``report.html`` into folder ``out``.
+
+    Parameters
+    ----------
+    study : CornersStudy, NoiseStudy or LimitsStudy
+    out : str or Path
+        Created if missing.
+
+    Returns
+    -------
+    Path
+        The ``report.html`` written.
+    """
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot create folder ({exc.strerror or exc})") from None
+    if isinstance(study, CornersStudy):
+        return _corners(study, out)
+    if isinstance(study, NoiseStudy):
+        return _noise(study, out)
+    if isinstance(study, LimitsStudy):
+        return _limits(study, out)
+    raise ConfigError(f"write_report: expected a study result, got {type(study).__name__}")

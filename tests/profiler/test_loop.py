@@ -1,0 +1,74 @@
+"""The networked closed loop: sensor sim -> PoseServer -> PD -> robot sim over loopback TCP."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from posekit.cli.main import main
+from posekit.profiler import bundled_gauge
+from posekit.profiler.loop import TABLE4_COLUMNS, run_experiment, transfer_times
+from posekit.profiler.loop_report import write_loop_report
+
+
+@pytest.fixture(scope="module")
+def experiment():
+    return run_experiment(bundled_gauge("demo-5"), axes=("y", "z"), steps_mm=(1.0,), repeats=1, camera=False,
+                          duration_s=1.5, seed=3)
+
+
+def test_every_cycle_crosses_the_sockets(experiment):
+    st = experiment.server_stats
+    cycles = sum(len(r.t_s) for r in experiment.runs) + len(experiment.impulse.t_s)
+    assert st["dropped"] == 0 and st["rejected"] == 0 and st["errors"] == 0
+    assert st["processed"] >= cycles
+    assert sum(r.missed for r in experiment.runs) == 0
+    # the estimate of the flange follows the truth to a few µm
+    for r in experiment.runs:
+        d = r.measured_mm - r.position_mm
+        assert np.nanmax(np.abs(d)) < 0.02
+
+
+def test_open_loop_matches_table_iv_and_closed_loop_improves(experiment):
+    rows = {(r["axis"], r["mode"]): r for r in experiment.table4}
+    assert rows[("y", "open")]["Mp_pct"] == pytest.approx(65.9, abs=3)      # paper: 65.88 %
+    assert rows[("y", "open")]["zeta"] == pytest.approx(0.13, abs=0.02)
+    assert rows[("z", "open")]["Mp_pct"] == pytest.approx(14.0, abs=1.5)    # paper: 13.98 %
+    for axis in ("y", "z"):
+        o, c = rows[(axis, "open")], rows[(axis, "closed")]
+        assert c["Mp_pct"] < o["Mp_pct"] and c["zeta"] > o["zeta"] and c["Mf_um"] < o["Mf_um"]
+    assert experiment.resonance["f_natural_hz"] == pytest.approx(10.0, abs=0.5)
+
+
+def test_report_files(experiment, tmp_path):
+    paths = write_loop_report(experiment, tmp_path)
+    with open(paths["table4"]) as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == TABLE4_COLUMNS
+    assert {r["mode"] for r in rows} == {"open", "closed"}
+    with open(paths["table3"]) as fh:
+        stages = {(r["system"], r["stage"]) for r in csv.DictReader(fh)}
+    assert {("proposed", "DT"), ("proposed", "CD"), ("proposed", "PC")} <= stages
+    html = paths["report"].read_text()
+    assert html.count("data:image/png;base64,") == 2 and "Table IV" in html
+
+
+def test_image_takes_longer_than_profile_over_loopback():
+    image = np.median(transfer_times(2590 * 1942, trials=5))
+    profile = np.median(transfer_times(4 * 3200, trials=5))
+    assert image > 5 * profile
+
+
+def test_demo_cli(tmp_path, capsys):
+    rc = main(["demo", "--repeats", "1", "--axes", "x", "--steps-mm", "1", "--no-camera", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "Table IV" in out and "Table III" in out and "0 dropped" in out
+    assert (tmp_path / "table4.csv").is_file() and (tmp_path / "report.html").is_file()
+
+
+def test_loop_bad_options(tmp_path, capsys):
+    assert main(["profiler", "loop", "--steps-mm", "1,x", "--out", str(tmp_path)]) == 1
+    assert "--steps-mm: expected comma-separated numbers" in capsys.readouterr().err
+    assert main(["profiler", "loop", "--axes", "w", "--no-camera", "--out", str(tmp_path)]) == 1
+    assert "unknown axis 'w'" in capsys.readouterr().err
