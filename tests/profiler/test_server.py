@@ -107,11 +107,12 @@ def _check_pose(rec, T_true, k_sigma=5.0):
 # --- soak ----------------------------------------------------------------------------------
 
 SENDER = """
-import json, sys
+import gc, json, sys
 import numpy as np
 from posekit.profiler.stream_client import SensorClient
 host, port, rate, seconds, path = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), sys.argv[5]
 profiles = np.load(path)
+gc.freeze()     # a full collection over numpy/scipy/numba objects would stall the sender for ~10-70 ms
 with SensorClient(host, port) as client:
     rep = client.stream(profiles, rate, duration_s=seconds)
 print(json.dumps({"sent": rep.sent, "elapsed_s": rep.elapsed_s, "rate_hz": rep.rate_hz,
