@@ -10,8 +10,8 @@ __all__ = ["random_gauge"]
 
 
 def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_mm: float | None = None,
-                 y_half_mm: float = 15.0, min_gap_mm: float = 5.0, model: ProfilerModel = LJ_X8400,
-                 max_tries: int = 1000) -> Gauge:
+                 y_half_mm: float = 15.0, min_gap_mm: float = 5.0, u_spread: float = 0.35,
+                 min_y_half_mm: float = 8.0, model: ProfilerModel = LJ_X8400, max_tries: int = 1000) -> Gauge:
     """A random multi-plane gauge that a profiler can measure in one profile.
 
     The block is at most as wide as the measuring range's near width minus margins (so all
@@ -30,9 +30,14 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
     width_mm : float, optional
         Block width (default: uniform in 60 %–85 % of the near-range width).
     y_half_mm : float
-        Half length of the block along the ridges, mm.
+        Largest half length of the block along the ridges, mm.
     min_gap_mm : float
         Smallest x gap between neighbouring ridges anywhere on the block, mm.
+    u_spread : float
+        Ridge skews ``u = dx/dy`` are uniform in ±``u_spread`` whatever ``n_corners``, so
+        gauges with more corners are not worse at observing y; the block is shortened
+        along y (down to ``min_y_half_mm``) where neighbouring ridges would meet.
+    min_y_half_mm : float
     model : ProfilerModel
     max_tries : int
 
@@ -56,16 +61,22 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
             continue
         signs = np.where(np.arange(n_corners + 1) % 2 == 0, 1.0, -1.0) * rng.choice([-1.0, 1.0])
         slopes_x = signs * rng.uniform(0.3, 0.85, n_corners + 1) * max_slope
-        u_max = (np.min(np.diff(ridge_x)) - min_gap_mm) / (2 * y_half_mm)
-        ridge_u = rng.uniform(-1.0, 1.0, n_corners) * min(u_max, 0.5)
+        # Ridge skews from the same distribution whatever n (y is observed through them);
+        # the block gets shorter along y where neighbouring ridges would come too close.
+        ridge_u = rng.uniform(-u_spread, u_spread, n_corners)
+        du = np.abs(np.diff(ridge_u))
+        room = (np.diff(ridge_x) - min_gap_mm) / np.maximum(du, 1e-9)
+        y_half = min(y_half_mm, float(np.min(room)))
+        if y_half < min_y_half_mm:
+            continue
         try:
             g = gauge_from_design(f"random-{n_corners}", ridge_x, slopes_x, ridge_u,
                                   y_slope0=rng.uniform(-0.1, 0.1) * max_slope,
-                                  extent=((-width / 2, width / 2), (-y_half_mm, y_half_mm)))
+                                  extent=((-width / 2, width / 2), (-y_half, y_half)))
         except GaugeError:
             continue
         # skewed ridges (a spread of u) make y and the tilt about x observable
-        if g.beta_deg >= beta_min_deg and np.ptp(g.ridge_s[:, 0]) >= 0.2:
+        if g.beta_deg >= beta_min_deg and np.ptp(g.ridge_s[:, 0]) >= 0.5 * u_spread:
             return g
     raise ConfigError(f"random_gauge: no gauge with {n_corners} corners, beta >= {beta_min_deg} deg and "
                       f"ridge gaps >= {min_gap_mm} mm in {max_tries} tries; relax the limits")

@@ -188,7 +188,7 @@ def _range_task(task):
 def _tilt_gauge(n, beta_deg, rng):
     """A random gauge whose steepest rising and falling faces make exactly β with the vertical."""
     for _ in range(100):
-        g = random_gauge(n, rng, beta_min_deg=beta_deg)
+        g = random_gauge(n, rng, beta_min_deg=beta_deg, u_spread=0.05)   # little skew: β set by the x-slopes
         a = _design(g)[1].copy()
         steep = np.tan(np.radians(90.0 - beta_deg))
         a[a > 0] *= steep / a[a > 0].max()
