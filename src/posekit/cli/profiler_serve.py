@@ -5,7 +5,9 @@ Wired into ``posekit profiler`` by :func:`add_serve_parser` (called from
 """
 
 import logging
+import signal
 import sys
+import threading
 import time
 
 from ._common import resolve_gauge
@@ -68,6 +70,10 @@ def _summary(elapsed: float, st: dict, tim: dict) -> str:
     return "\n".join(lines)
 
 
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def run_serve(args) -> int:
     from ..errors import ConfigError
     from ..profiler.server import PoseServer, parse_address
@@ -91,6 +97,9 @@ def run_serve(args) -> int:
         log.setLevel(logging.INFO)
     server = PoseServer(gauge, listen=listen, robot=robot, queue_size=args.queue, method=args.method,
                         mounting=args.mounting, allow_remote=args.allow_remote, log=log)
+    old_term = None
+    if threading.current_thread() is threading.main_thread():     # SIGTERM stops like Ctrl-C
+        old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         host, port = server.start()
         target = f"robot interface {robot[0]}:{robot[1]}" if robot else "no robot (records are not sent)"
@@ -119,6 +128,8 @@ def run_serve(args) -> int:
         elapsed = time.monotonic() - t0
     finally:
         server.stop()
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
         if handler is not None:
             log.removeHandler(handler)
     print(_summary(elapsed, server.stats(), server.timings()), flush=True)

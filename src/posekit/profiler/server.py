@@ -166,10 +166,11 @@ def quaternion_wxyz(R) -> list:
     return [sign * v / n for v in q]
 
 
-def _floats(values):
-    """List of floats, or None if any is not finite (JSON has no NaN)."""
-    out = [float(v) for v in values]
-    return out if all(math.isfinite(v) for v in out) else None
+def _error_record(frame, error):
+    """The robot record of a frame without a pose (its fields are filled in on success)."""
+    return {"seq": frame.seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
+            "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
+            "command": None, "timing_ms": None, "error": error}
 
 
 class _LogLimiter:
@@ -439,6 +440,9 @@ class PoseServer:
         """
         if self._threads:
             raise ConfigError("PoseServer.start: the server is already running (one start per server)")
+        self._warm_up()
+        if self.freeze_gc:
+            gc.freeze()
         sock = socket.socket(self._listen_family, socket.SOCK_STREAM)
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -451,9 +455,6 @@ class PoseServer:
                               f"cannot bind ({exc.strerror or exc})") from None
         self._lsock = sock
         self._address = sock.getsockname()[:2]
-        self._warm_up()
-        if self.freeze_gc:
-            gc.freeze()
         self._stop.clear()
         self._threads = [
             threading.Thread(target=self._receive_loop, name="posekit-receiver", daemon=True),
@@ -609,6 +610,9 @@ class PoseServer:
                             self._enqueue(item)
                         else:
                             self._reject(item.reason, item.detail)
+            except Exception as exc:      # a bug, never bad input (the decoder takes any bytes)
+                self.log.exception("receiver: internal error, dropping the connection")
+                why = f"internal error ({type(exc).__name__}: {exc})"
             finally:
                 self._conn = None
                 conn.close()
@@ -649,9 +653,14 @@ class PoseServer:
                     if self._stop.is_set():
                         break
                     frame = self._queue.popleft()
-                record = self._process(frame)
-                if record is None:
-                    continue
+                try:
+                    record = self._process(frame)
+                except Exception as exc:  # a bug, never bad input: report it and go on
+                    self.log.exception("worker: internal error on frame seq %d", frame.seq)
+                    with self._stats_lock:
+                        self._counts.processed += 1
+                        self._counts.errors += 1
+                    record = _error_record(frame, f"seq {frame.seq}: internal error: {type(exc).__name__}: {exc}")
                 if link is None:
                     continue
                 sent = link.send(encode_command(record))
@@ -690,9 +699,7 @@ class PoseServer:
         seq = frame.seq
         dt_ms = (frame.t_recv_ns - frame.t_sensor_ns) * 1e-6
         qw_ms = (t0 - frame.t_recv_ns) * 1e-6
-        rec = {"seq": seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
-               "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
-               "command": None, "timing_ms": None, "error": None}
+        rec = _error_record(frame, None)
         pts = frame.points
         n = self.gauge.n_corners
         # The kernel counts the valid returns (info[1]) before anything else; a NaN storm

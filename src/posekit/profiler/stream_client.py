@@ -101,7 +101,9 @@ class SensorClient:
         Frame k is due at ``t0 + k / rate_hz`` on :func:`time.perf_counter` (an absolute
         schedule: a late frame does not delay the ones after it; frames that fell behind
         are sent at once, as a sensor's buffered frames would be). Each frame carries
-        ``seq = first_seq + k`` (mod 2³²) and is stamped when it is sent.
+        ``seq = first_seq + k`` (mod 2³²) and is stamped when it is sent. For steady
+        pacing, call :func:`gc.freeze` in the sending process once its imports are done: a
+        full garbage collection over NumPy/SciPy/numba objects stalls it for 10-70 ms.
 
         Parameters
         ----------
@@ -237,6 +239,11 @@ class RobotInterfaceStub:
             finally:
                 self._conn = None
                 conn.close()
+
+    @property
+    def connected(self) -> bool:
+        """True while a pose server is connected."""
+        return self._conn is not None
 
     @property
     def records(self) -> list[dict]:
