@@ -92,18 +92,25 @@ def _stats(a):
 def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-    from posekit.profiler.camera_peer import time_camera_pipeline
 
     count = 2000 if count is None else max(int(count), 100)
     gauge = bundled_gauge("demo-5")
     rng = np.random.default_rng(0)
     Ts = sample_poses(gauge, count, rng)
     profiles = np.ascontiguousarray(render_profiles(gauge, Ts, NoiseModel(), rng))
-    _time_ours(profiles[:50], gauge)          # compile / load the kernels first
-    cd, pc, failures = _time_ours(profiles, gauge)
+    # Warm-up: load the kernels, then keep the core busy for ~2 s (on this VM the first few
+    # hundred calls after an idle spell run at half speed while the vCPU gets scheduled).
+    t_end = time.perf_counter() + 2.0
+    while time.perf_counter() < t_end:
+        _time_ours(profiles[:200], gauge)
+    passes = [_time_ours(profiles, gauge) for _ in range(3)]   # 3 passes: the VM is noisy
+    cd = np.concatenate([p[0] for p in passes])
+    pc = np.concatenate([p[1] for p in passes])
+    failures = sum(p[2] for p in passes)
     total = cd + pc
     api = _time_api(profiles, gauge)
     sp = _time_scipy(profiles, gauge)
+    from posekit.profiler.camera_peer import time_camera_pipeline   # OpenCV only after our timing
     cam = time_camera_pipeline(n_images=10, repeats=3, seed=0)
     cam_cd, cam_pc = np.asarray(cam["cd_ms"]), np.asarray(cam["pc_ms"])
     cam_total = cam_cd + cam_pc
@@ -124,7 +131,7 @@ def run(count=None, verbose=True):
     row("profiler.estimate_pose_api", api, f"{cam_name}: CD + PC", cam_total)
 
     if verbose:
-        print(f"posekit bench profiler: {len(cd)} profiles of gauge '{gauge.name}' (3200 points, 5 µm noise), "
+        print(f"posekit bench profiler: 3 passes over {count} profiles of gauge '{gauge.name}' (3200 points, 5 µm noise), "
               f"one thread; {failures} failures; camera: {len(cam_cd)} runs on "
               f"{cam.get('n_images', 10)} rendered images")
         print(f"{'stage':<28}{'ours median':>12}{'p99':>10}   {'peer median':>12}  ratio   peer")
