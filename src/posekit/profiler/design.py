@@ -11,7 +11,8 @@ __all__ = ["random_gauge"]
 
 def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_mm: float | None = None,
                  y_half_mm: float = 15.0, min_gap_mm: float = 5.0, u_spread: float = 0.35,
-                 min_y_half_mm: float = 8.0, model: ProfilerModel = LJ_X8400, max_tries: int = 1000) -> Gauge:
+                 min_y_half_mm: float = 8.0, strict_length: bool = False, model: ProfilerModel = LJ_X8400,
+                 max_tries: int = 1000) -> Gauge:
     """A random multi-plane gauge that a profiler can measure in one profile.
 
     The block is at most as wide as the measuring range's near width minus margins (so all
@@ -38,6 +39,9 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
         gauges with more corners are not worse at observing y; the block is shortened
         along y (down to ``min_y_half_mm``) where neighbouring ridges would meet.
     min_y_half_mm : float
+        Shortest admissible half length, mm.
+    strict_length : bool
+        Insist on the full ``y_half_mm`` (draw again rather than shorten).
     model : ProfilerModel
     max_tries : int
 
@@ -66,8 +70,11 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
         ridge_u = rng.uniform(-u_spread, u_spread, n_corners)
         du = np.abs(np.diff(ridge_u))
         room = (np.diff(ridge_x) - min_gap_mm) / np.maximum(du, 1e-9)
-        y_half = min(y_half_mm, float(np.min(room)))
-        if y_half < min_y_half_mm:
+        # ... and where an outer ridge would leave the block
+        edge = np.array([ridge_x[0] + width / 2, width / 2 - ridge_x[-1]]) - min_gap_mm
+        room_out = edge / np.maximum(np.abs(ridge_u[[0, -1]]), 1e-9)
+        y_half = min(y_half_mm, float(np.min(room)), float(np.min(room_out)))
+        if y_half < min_y_half_mm or (strict_length and y_half < y_half_mm):
             continue
         try:
             g = gauge_from_design(f"random-{n_corners}", ridge_x, slopes_x, ridge_u,

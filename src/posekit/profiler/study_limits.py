@@ -164,7 +164,8 @@ def _range_task(task):
     ss_gauge, ss_noise = task_seed(cfg.seed, tag, cfg.n_corners, k).spawn(2)
     if axis == "y":
         size = cfg.lengths_mm[i_size]
-        base = random_gauge(cfg.n_corners, np.random.default_rng(ss_gauge), y_half_mm=0.5 * max(cfg.lengths_mm))
+        base = random_gauge(cfg.n_corners, np.random.default_rng(ss_gauge), y_half_mm=0.5 * max(cfg.lengths_mm),
+                            u_spread=0.1, strict_length=True)
         gauge = scaled_gauge(base, length_mm=size)
         limit = 0.5 * size + 5.0
     else:
