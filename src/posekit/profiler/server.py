@@ -58,8 +58,14 @@ from .gauge import Gauge
 from .protocol import MAX_FRAME_BYTES, Frame, FrameDecoder, encode_command
 from .refine import pose_covariance_and_reprojection
 from .server_support import Counts, LogLimiter, RobotLink, check_address, parse_address, quaternion_wxyz
-from .solve import _MESSAGES as _SOLVE_MESSAGES
-from .solve import METHODS, MOUNTINGS, _solve_kernel, solve_pose_unchecked
+from .solve import (
+    METHODS,
+    MOUNTINGS,
+    solve_pose_unchecked,
+    solve_pose_warm,
+    status_message,
+    warm_start_buffers,
+)
 
 __all__ = ["PoseServer", "parse_address", "check_address", "NAN_STORM", "quaternion_wxyz"]
 
@@ -181,7 +187,7 @@ class PoseServer:
         self._address = None
         self._last_T = None
         self._last_rev = False
-        self._init = (np.ones(2, dtype=np.bool_), np.empty((2, 3, 3)), np.empty((2, 3)))
+        self._init = warm_start_buffers()
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -443,12 +449,7 @@ class PoseServer:
         g = self.gauge
         if self._method_code == 1 and self._last_T is not None:
             mount = self._mounting_code or (2 if self._last_rev else 1)
-            # solve_pose_unchecked(..., T_init=T) builds these arrays on every call (~40 µs
-            # of NumPy overhead here); the kernel takes them preallocated.
-            has, R0, t0 = self._init
-            R0[:] = self._last_T[:3, :3]
-            t0[:] = self._last_T[:3, 3]
-            warm = _solve_kernel(corners, ccov, self._ridge_q, self._ridge_s, 1, mount, 20, has, R0, t0)
+            warm = solve_pose_warm(corners, ccov, g, self._last_T, mount, self._init)
             if warm[0] == 0 and warm[5] <= self._chi2_gate:
                 return warm
             with self._stats_lock:
@@ -488,7 +489,7 @@ class PoseServer:
         else:
             st, rev, R, t, H, _ = self._solve(corners, ccov)
             if st != 0:
-                error = f"seq {seq}: " + _SOLVE_MESSAGES[st].format(n=n, e=2 * n)
+                error = f"seq {seq}: " + status_message(st, n)
             else:
                 cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
                 if self._method_code == 0:

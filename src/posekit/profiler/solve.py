@@ -40,7 +40,8 @@ from .closed_form import cf4_start, cf_kernel, closed_form
 from .corners import Corners
 from .refine import normal_equations, pose_covariance_and_reprojection, refine_kernel, spd_inverse
 
-__all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "reprojection_residuals",
+__all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "solve_pose_warm", "warm_start_buffers",
+           "status_message", "reprojection_residuals",
            "closed_form", "METHODS", "MOUNTINGS"]
 
 METHODS = ("cf", "mle")
@@ -238,6 +239,30 @@ def solve_pose_unchecked(corners, cov, gauge, method_code, mounting_code, max_it
                          max_iter, init[0], init[1], init[2])
 
 
+def warm_start_buffers():
+    """Reusable start arrays for :func:`solve_pose_warm`: ``(has_init (2,), R (2, 3, 3), t (2, 3))``."""
+    return np.ones(2, dtype=np.bool_), np.empty((2, 3, 3)), np.empty((2, 3))
+
+
+def solve_pose_warm(corners, cov, gauge, T_init, mounting_code, buffers, max_iter=20):
+    """ML refinement from a given start pose (a stream's previous pose), no allocation.
+
+    As :func:`solve_pose_unchecked` with ``method='mle'`` and ``T_init``, but the start is
+    written into ``buffers`` (from :func:`warm_start_buffers`) instead of new arrays: the
+    real-time path saves the NumPy overhead per frame.
+    """
+    has, R0, t0 = buffers
+    has[:] = True
+    R0[:] = T_init[:3, :3]
+    t0[:] = T_init[:3, 3]
+    return _solve_kernel(corners, cov, gauge.ridge_q, gauge.ridge_s, 1, mounting_code, max_iter, has, R0, t0)
+
+
+def status_message(status: int, n_corners: int) -> str:
+    """The user-facing reason of a failed solver status."""
+    return _MESSAGES[status].format(n=n_corners, e=2 * n_corners)
+
+
 def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "auto", T_init=None,
                max_iter: int = 20) -> PoseEstimate:
     """Pose of the profiler in the gauge frame from the corners of one profile.
@@ -281,7 +306,7 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
         pts, np.ascontiguousarray(corners.cov, dtype=np.float64), gauge, METHODS.index(method),
         MOUNTINGS.index(mounting), max_iter, T_init)
     if status != OK:
-        raise EstimationError(_MESSAGES[status].format(n=n, e=2 * n))
+        raise EstimationError(status_message(status, n))
     cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, pts, rev, gauge.ridge_q, gauge.ridge_s)
     if method == "cf":
         # The information matrix describes the ML estimate, not the closed form's error.
