@@ -8,8 +8,8 @@ from ..errors import ConfigError
 
 __all__ = ["add_parser", "BENCHMARKS"]
 
-BENCHMARKS = ("profiler",)
-PLANNED = ("ceiling", "seam")
+BENCHMARKS = ("profiler", "ceiling")
+PLANNED = ("seam",)
 
 
 def add_parser(sub):

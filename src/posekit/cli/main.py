@@ -20,9 +20,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    from . import bench, demo, profiler
+    from . import bench, ceiling, demo, profiler
     demo.add_parser(sub)
     profiler.add_parser(sub)
+    ceiling.add_parser(sub)
     bench.add_parser(sub)
     return parser
 

@@ -75,3 +75,22 @@ __all__ += [
     "fit_line_robust",
     "robust_line_kernel",
 ]
+
+# --- planar homographies: normalized DLT, refinement, RANSAC (_homography, _homography_ransac) ---
+from ._homography import (  # noqa: E402
+    apply_homography,
+    check_correspondences,
+    homography_dlt,
+    normalize_homography,
+    refine_homography,
+)
+from ._homography_ransac import homography_ransac  # noqa: E402
+
+__all__ += [
+    "homography_dlt",
+    "refine_homography",
+    "homography_ransac",
+    "apply_homography",
+    "check_correspondences",
+    "normalize_homography",
+]

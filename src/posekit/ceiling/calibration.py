@@ -1,0 +1,352 @@
+"""Camera calibration of the ceiling system: the homography between the ceiling and the image.
+
+The paper (§IV-A) calibrates the fixed camera with the 3×3 homography of eq. (1) from a few
+corners of the ceiling grid whose world and image positions are known, by the normalized
+DLT. Here that estimate is made robust to a mis-clicked point (RANSAC, from 6 points on) and
+refined by minimising the reprojection error in the image.
+
+Frames and units: world (X, Y) on the ceiling plane, in mm (any unit works; it carries through
+to ``rms_world`` and the tracked positions); image (u, v) in px, u to the right, v down, the
+centre of the top-left pixel at (0, 0) (OpenCV's convention, the one of ``cv2.moments``).
+Both homographies are scaled so that ``H[2, 2] == 1``.
+"""
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import CalibrationError
+from ..geometry import (
+    apply_homography,
+    check_correspondences,
+    homography_dlt,
+    homography_ransac,
+    normalize_homography,
+    refine_homography,
+)
+
+__all__ = [
+    "Calibration",
+    "CalibrationPoints",
+    "calibrate",
+    "load_calibration",
+    "read_points_csv",
+    "write_points_csv",
+]
+
+#: The keys of a calibration JSON file, in order (DESIGN.md).
+JSON_KEYS = ("H_image_world", "H_world_image", "rms_px", "rms_world")
+#: Header of a calibration-points CSV file.
+CSV_HEADER = ("X", "Y", "u", "v")
+#: A homography whose condition number exceeds this is singular.
+MAX_COND = 1e12
+#: ``H_world_image @ H_image_world`` must be within this (relative) of a multiple of I.
+INVERSE_TOL = 1e-6
+#: RANSAC is on by default from this many points.
+RANSAC_MIN_POINTS = 6
+
+
+@dataclass(eq=False)
+class Calibration:
+    """The homography between the ceiling (world) plane and the image, with its accuracy.
+
+    Attributes
+    ----------
+    H_image_world : ndarray, shape (3, 3)
+        Maps world (X, Y) [mm] to image (u, v) [px]: ``[u, v, 1] ~ H @ [X, Y, 1]``.
+    H_world_image : ndarray, shape (3, 3)
+        Its inverse, image → world.
+    rms_px : float
+        Root mean square of the reprojection distance ``‖H(X, Y) - (u, v)‖`` over the
+        inliers, px.
+    rms_world : float
+        Root mean square of ``‖H⁻¹(u, v) - (X, Y)‖`` over the inliers, world units (mm).
+    inliers : ndarray of bool, shape (n_points,), or None
+        Which calibration points were used (False: rejected by RANSAC); None when unknown.
+    n_points : int or None
+        Number of calibration points; None when unknown (a file without the key).
+    """
+
+    H_image_world: np.ndarray
+    H_world_image: np.ndarray
+    rms_px: float
+    rms_world: float
+    inliers: np.ndarray | None = None
+    n_points: int | None = None
+
+    def image_to_world(self, uv, *, invalid="raise"):
+        """Map image points to the ceiling.
+
+        Parameters
+        ----------
+        uv : array_like, shape (..., 2)
+            Image points (u, v), px.
+        invalid : {"raise", "nan"}, optional
+            A pixel on the ceiling's horizon maps to infinity: raise ``GeometryError``
+            (default) or return NaN for it.
+
+        Returns
+        -------
+        XY : ndarray, shape (..., 2)
+            World points (X, Y) on the ceiling, mm.
+        """
+        return apply_homography(self.H_world_image, uv, invalid=invalid)
+
+    def world_to_image(self, XY, *, invalid="raise"):
+        """Map ceiling points to the image.
+
+        Parameters
+        ----------
+        XY : array_like, shape (..., 2)
+            World points (X, Y), mm.
+        invalid : {"raise", "nan"}, optional
+            As :meth:`image_to_world`.
+
+        Returns
+        -------
+        uv : ndarray, shape (..., 2)
+            Image points (u, v), px.
+        """
+        return apply_homography(self.H_image_world, XY, invalid=invalid)
+
+    def to_json(self, path):
+        """Write the DESIGN.md calibration file (``H_image_world``, ``H_world_image``,
+        ``rms_px``, ``rms_world``, then ``n_points`` and ``inliers`` when known)."""
+        data = {"H_image_world": np.asarray(self.H_image_world, dtype=float).tolist(),
+                "H_world_image": np.asarray(self.H_world_image, dtype=float).tolist(),
+                "rms_px": float(self.rms_px), "rms_world": float(self.rms_world)}
+        if self.n_points is not None:
+            data["n_points"] = int(self.n_points)
+        if self.inliers is not None:
+            data["inliers"] = [bool(b) for b in self.inliers]
+        path = Path(path)
+        try:
+            path.write_text("{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items())
+                            + "\n}\n")
+        except OSError as exc:
+            raise CalibrationError(f"{path}: cannot write the calibration ({exc.strerror or exc})") from None
+
+
+def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0, rng=None) -> Calibration:
+    """Calibrate the camera from corresponding ceiling and image points (paper §IV-A).
+
+    Parameters
+    ----------
+    world_xy : array_like, shape (N, 2)
+        Points (X, Y) on the ceiling plane, mm; N >= 4, no 3 of 4 on a line.
+    image_uv : array_like, shape (N, 2)
+        Their images (u, v), px.
+    refine : bool, optional
+        Minimise the reprojection error in the image after the DLT (default).
+    ransac : bool or None, optional
+        Reject mismatched points by RANSAC; None (default) turns it on from 6 points.
+    threshold_px : float, optional
+        RANSAC inlier threshold on the reprojection distance, px.
+    rng : numpy.random.Generator or int or None, optional
+        RANSAC's random samples; up to 20 points every 4-point sample is tried and the result
+        does not depend on it.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    CalibrationError
+        Degenerate points (fewer than 4, duplicates, on one line, ...).
+    """
+    world, image = check_correspondences(world_xy, image_uv, names=("world", "image"))
+    n = len(world)
+    use_ransac = n >= RANSAC_MIN_POINTS if ransac is None else bool(ransac)
+    if use_ransac:
+        H, inliers = homography_ransac(world, image, threshold_px, rng=rng, check=False)
+    else:
+        H, inliers = homography_dlt(world, image, check=False), np.ones(n, dtype=bool)
+    if refine:
+        for _ in range(3):
+            H = refine_homography(H, world[inliers], image[inliers], check=False)
+            if not use_ransac:
+                break
+            err = np.linalg.norm(apply_homography(H, world, invalid="nan") - image, axis=1)
+            new = err <= threshold_px
+            if new.sum() < 4 or np.array_equal(new, inliers):
+                break
+            inliers = new
+    if np.linalg.cond(H) > MAX_COND:
+        raise CalibrationError("calibrate: the homography is singular; the points are inconsistent "
+                               "(swapped or mistyped coordinates?)")
+    H_world_image = normalize_homography(np.linalg.inv(H))
+    w_in, i_in = world[inliers], image[inliers]
+    rms_px = math.sqrt(float(np.mean(np.sum((apply_homography(H, w_in) - i_in) ** 2, axis=1))))
+    rms_world = math.sqrt(float(np.mean(np.sum((apply_homography(H_world_image, i_in) - w_in) ** 2, axis=1))))
+    return Calibration(H, H_world_image, rms_px, rms_world, inliers, n)
+
+
+def _matrix(data, key, path):
+    value = data[key]
+    try:
+        H = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CalibrationError(f"{path}: '{key}' must be a 3x3 matrix of numbers, "
+                               f"got {json.dumps(value)[:60]}") from None
+    if H.shape != (3, 3):
+        raise CalibrationError(f"{path}: '{key}' must be a 3x3 matrix of numbers, got shape {H.shape}")
+    if not np.all(np.isfinite(H)):
+        raise CalibrationError(f"{path}: '{key}' contains NaN or infinity; expected finite numbers")
+    if np.linalg.cond(H) > MAX_COND:
+        raise CalibrationError(f"{path}: '{key}' is singular; expected an invertible homography")
+    return normalize_homography(H)
+
+
+def _rms(data, key, path):
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise CalibrationError(f"{path}: '{key}' must be a finite number >= 0, got {json.dumps(value)[:60]}")
+    return float(value)
+
+
+def load_calibration(path) -> Calibration:
+    """Read a calibration JSON file written by :meth:`Calibration.to_json`.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    CalibrationError
+        Missing or unreadable file, invalid JSON, a missing key, a matrix that is not 3x3,
+        not finite or singular, two matrices that are not inverses of each other, a
+        negative rms; the message names the file and the key.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise CalibrationError(f"{path}: no such file; expected a calibration JSON file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CalibrationError(f"{path}: not valid JSON (line {exc.lineno} column {exc.colno}: {exc.msg})") from None
+    if not isinstance(data, dict):
+        raise CalibrationError(f"{path}: expected a JSON object with the keys {', '.join(JSON_KEYS)}")
+    for key in JSON_KEYS:
+        if key not in data:
+            raise CalibrationError(f"{path}: missing key '{key}'; expected the keys {', '.join(JSON_KEYS)}")
+    H_iw = _matrix(data, "H_image_world", path)
+    H_wi = _matrix(data, "H_world_image", path)
+    P = H_wi @ H_iw
+    if np.abs(P / P[2, 2] - np.eye(3)).max() > INVERSE_TOL:
+        raise CalibrationError(f"{path}: 'H_world_image' is not the inverse of 'H_image_world'")
+    rms_px, rms_world = _rms(data, "rms_px", path), _rms(data, "rms_world", path)
+    n_points = data.get("n_points")
+    if n_points is not None and (isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 0):
+        raise CalibrationError(f"{path}: 'n_points' must be an integer >= 0, got {json.dumps(n_points)[:60]}")
+    inliers = data.get("inliers")
+    if inliers is not None:
+        if not (isinstance(inliers, list) and all(isinstance(b, bool) for b in inliers)
+                and (n_points is None or len(inliers) == n_points)):
+            raise CalibrationError(f"{path}: 'inliers' must be a list of true/false, one per point")
+        inliers = np.array(inliers, dtype=bool)
+    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points)
+
+
+class CalibrationPoints(NamedTuple):
+    """Correspondences read from a points CSV file."""
+
+    world_xy: np.ndarray
+    """(N, 2) ceiling points (X, Y), mm."""
+    image_uv: np.ndarray
+    """(N, 2) image points (u, v), px."""
+    lines: np.ndarray
+    """(N,) the line of each point in the file (1-based, the header is line 1)."""
+
+
+def read_points_csv(path) -> CalibrationPoints:
+    """Read calibration points from a CSV file with the header ``X,Y,u,v``.
+
+    Blank lines and lines starting with ``#`` are skipped.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    CalibrationPoints
+        ``(world_xy (N, 2) mm, image_uv (N, 2) px, lines (N,))``.
+
+    Raises
+    ------
+    CalibrationError
+        Missing or empty file, wrong header, a row without 4 finite numbers (naming the
+        line), or fewer than 4 points.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise CalibrationError(f"{path}: no such file; expected a CSV of calibration points 'X,Y,u,v'") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    rows, lines, header_seen = [], [], False
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        fields = [f.strip() for f in stripped.split(",")]
+        if not header_seen:
+            if tuple(fields) != CSV_HEADER:
+                raise CalibrationError(f"{path} line {lineno}: expected the header 'X,Y,u,v', got '{stripped[:60]}'")
+            header_seen = True
+            continue
+        if len(fields) != 4:
+            raise CalibrationError(f"{path} line {lineno}: expected 4 values X,Y,u,v, got {len(fields)} "
+                                   f"('{stripped[:60]}')")
+        values = []
+        for name, field in zip(CSV_HEADER, fields):
+            try:
+                value = float(field)
+            except ValueError:
+                raise CalibrationError(f"{path} line {lineno}: {name} is '{field[:30]}'; expected a number") from None
+            if not math.isfinite(value):
+                raise CalibrationError(f"{path} line {lineno}: {name} is '{field}'; expected a finite number")
+            values.append(value)
+        rows.append(values)
+        lines.append(lineno)
+    if not header_seen:
+        raise CalibrationError(f"{path}: file is empty; expected the header 'X,Y,u,v' and one point per line")
+    if len(rows) < 4:
+        raise CalibrationError(f"{path}: {len(rows)} calibration points; a homography needs at least 4 "
+                               "(6 or more let RANSAC reject a mis-clicked one)")
+    arr = np.array(rows, dtype=np.float64)
+    return CalibrationPoints(arr[:, :2], arr[:, 2:], np.array(lines))
+
+
+def write_points_csv(path, world_xy, image_uv):
+    """Write correspondences as a points CSV (``X,Y,u,v``; world mm, image px).
+
+    Parameters
+    ----------
+    path : str or Path
+    world_xy : array_like, shape (N, 2)
+    image_uv : array_like, shape (N, 2)
+    """
+    world = np.asarray(world_xy, dtype=float).reshape(-1, 2)
+    image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    body = "".join(f"{X:.6g},{Y:.6g},{u:.4f},{v:.4f}\n" for (X, Y), (u, v) in zip(world, image))
+    path = Path(path)
+    try:
+        path.write_text(",".join(CSV_HEADER) + "\n" + body)
+    except OSError as exc:
+        raise CalibrationError(f"{path}: cannot write the points ({exc.strerror or exc})") from None

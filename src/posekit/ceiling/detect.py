@@ -1,0 +1,603 @@
+"""Laser dot detection on ceiling images (paper §IV-B): background subtraction with a running
+average that follows the illumination, colour thresholds per laser, morphological opening,
+connected components gated by area and shape, and a sub-pixel intensity-weighted centroid.
+
+Pixel convention: ``(u, v)`` in px, u to the right (column), v down (row), **pixel-centre
+convention** -- the centre of the top-left pixel is (0, 0), so pixel ``[row, col]`` is at
+``(u, v) = (col, row)``. This is the convention of OpenCV's point functions
+(``cv2.perspectiveTransform``, ``cv2.findHomography``) and of :mod:`posekit.ceiling.render`.
+
+How a frame is processed (``DotDetector.detect``):
+
+1. *Lit pixels.* A byte (one channel of one pixel) is lit when it exceeds the background by
+   ``contrast`` grey levels. The test runs on the whole frame, or only in a square of side
+   ``2 * roi_radius_px + 1`` around each predicted dot position (the fast path). A compiled
+   kernel rejects a row with one vectorised pass and lists the lit pixels of the few rows that
+   have any.
+2. *Colour.* For each lit pixel the light the laser adds, ``frame - background`` (positive
+   part, per channel), is converted to hue and saturation; a pixel is of a laser colour when its
+   hue is in the colour's range (red wraps through 0°) and its saturation is high enough. The
+   colour of the added light is the laser's whatever the ceiling's tint, which a threshold on
+   the raw frame cannot say of a faint glow on a bright tile. Pixels whose three channels all
+   exceed ``core_level`` are the saturated white core of a dot and take the colour of the blob
+   they belong to.
+3. *Blobs.* Lit pixels are grouped, opened morphologically (3×3 cross) and labelled with
+   ``cv2.connectedComponentsWithStats``; a blob is kept if its area is within
+   ``[min_area_px, max_area_px]``, its elongation (ratio of the principal axes) is at most
+   ``max_elongation`` and enough of its pixels have one of the requested colours.
+4. *Centroid.* In the blob's bounding box grown by ``window_margin_px``, each pixel weighs the
+   sum over channels of its positive background difference minus ``weight_threshold``; the
+   dot is the weighted mean of the pixel centres.
+5. *Background update.* The background is a running average of the frame: each frame updates
+   one band of ``1 / background_stride`` of the rows (cycling, with the learning rate
+   compounded so the time constant is that of updating every row every frame), leaves out the
+   lit bytes and the windows of the detected dots, and is kept as float32 (H, W, 3). A band
+   with more than ``max_lit_fraction`` of its bytes lit means a sudden change of illumination
+   (a light switched on): the background is rebuilt from the frame.
+
+The first frame (or the first after :meth:`DotDetector.reset`) builds the background from the
+frame itself, with the pixels of laser colour (thresholds on the raw frame) and the saturated
+ones replaced by a median of their neighbourhood, so a robot standing still is found at once;
+an image of the ceiling without dots can be given instead (``background=``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import cv2
+import numba as nb
+import numpy as np
+
+from ..errors import ConfigError, InputFileError
+
+__all__ = ["Dot", "Line", "LaserColor", "LASER_COLORS", "DotDetector", "LineDetector"]
+
+
+@dataclass(frozen=True)
+class LaserColor:
+    """Colour thresholds of one laser.
+
+    ``hue_deg = (lo, hi)`` is the accepted hue range in degrees on [0, 360); ``lo > hi`` wraps
+    through 0° (red). ``min_saturation`` applies to the added light (on [0, 1]);
+    ``raw_min_saturation`` to the raw frame (used only to build the first background).
+    """
+
+    name: str
+    hue_deg: tuple[float, float]
+    min_saturation: float = 0.45
+    raw_min_saturation: float = 0.18
+
+    def hue_mask(self, hue_deg: np.ndarray) -> np.ndarray:
+        lo, hi = self.hue_deg
+        return (hue_deg >= lo) & (hue_deg <= hi) if lo <= hi else (hue_deg >= lo) | (hue_deg <= hi)
+
+
+#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them.
+LASER_COLORS = {
+    "red": LaserColor("red", (330.0, 30.0)),
+    "green": LaserColor("green", (75.0, 170.0)),
+}
+
+
+@dataclass(frozen=True)
+class Dot:
+    """A detected laser dot.
+
+    ``u, v``: sub-pixel position in px (pixel-centre convention: the top-left pixel's centre
+    is (0, 0)); ``area_px``: pixels in its blob; ``peak``: the largest background difference
+    in the blob, summed over the three channels (grey levels, 0-765).
+    """
+
+    color: str
+    u: float
+    v: float
+    area_px: int
+    peak: float
+
+
+@nb.njit(cache=True, boundscheck=False)
+def _lit_pixels(frame, thr, y0, y1, x0, x1, coords):
+    """Pixels in rows y0:y1, columns x0:x1 where any channel of ``frame`` exceeds ``thr``.
+
+    ``frame`` and ``thr`` are (H, 3 W) uint8 views. Writes (row, col) into ``coords`` up to
+    its length and returns how many there are (which may exceed it).
+    """
+    n = 0
+    cap = coords.shape[0]
+    for i in range(y0, y1):
+        f = frame[i, 3 * x0:3 * x1]
+        t = thr[i, 3 * x0:3 * x1]
+        acc = np.uint8(0)
+        for k in range(f.shape[0]):                 # vectorised: no lit byte, no second pass
+            acc = max(acc, np.uint8(max(np.int16(f[k]) - np.int16(t[k]), 0) > 0))
+        if acc:
+            last = -1
+            for k in range(f.shape[0]):
+                if f[k] > t[k]:
+                    j = x0 + k // 3
+                    if j != last:
+                        if n < cap:
+                            coords[n, 0] = i
+                            coords[n, 1] = j
+                        n += 1
+                        last = j
+    return n
+
+
+#: Columns of the per-blob table computed by :func:`_blob_table`: area, elongation, weighted
+#: centroid, peak, unsaturated pixels, weighted central second moments (uu, vv, uv; px²), then
+#: one count per colour.
+_AREA, _ELONG, _U, _V, _PEAK, _PLAIN, _MUU, _MVV, _MUV, _COUNTS = range(10)
+
+
+@nb.njit(cache=True, boundscheck=False)
+def _blob_table(frame, bg, labels, stats, n, specs, core_level, margin, weight_threshold):
+    """Per blob 1..n-1 of ``labels`` (a window of the frame): area, elongation, weighted
+    centroid (u, v in window pixels), peak, number of unsaturated pixels and, per colour of
+    ``specs`` ((k, 3): hue lo, hue hi in degrees, min saturation), how many of those have it."""
+    h, w = labels.shape
+    k_col = specs.shape[0]
+    out = np.zeros((n, _COUNTS + k_col))
+    mom = np.zeros((n, 5))                       # sum x, y, xx, yy, xy over the blob's pixels
+    for i in range(h):
+        for j in range(w):
+            lab = labels[i, j]
+            if lab == 0:
+                continue
+            mom[lab, 0] += j
+            mom[lab, 1] += i
+            mom[lab, 2] += j * j
+            mom[lab, 3] += i * i
+            mom[lab, 4] += i * j
+            if frame[i, j, 0] >= core_level and frame[i, j, 1] >= core_level and frame[i, j, 2] >= core_level:
+                continue                            # saturated core: no colour
+            b = max(np.float64(frame[i, j, 0]) - bg[i, j, 0], 0.0)
+            g = max(np.float64(frame[i, j, 1]) - bg[i, j, 1], 0.0)
+            r = max(np.float64(frame[i, j, 2]) - bg[i, j, 2], 0.0)
+            mx = max(r, max(g, b))
+            mn = min(r, min(g, b))
+            out[lab, _PLAIN] += 1
+            if mx <= 0.0:
+                continue
+            span = mx - mn
+            sat = span / mx
+            if span <= 0.0:
+                hue = 0.0
+            elif mx == r:
+                hue = 60.0 * (((g - b) / span) % 6.0)
+            elif mx == g:
+                hue = 60.0 * ((b - r) / span + 2.0)
+            else:
+                hue = 60.0 * ((r - g) / span + 4.0)
+            for c in range(k_col):
+                lo, hi = specs[c, 0], specs[c, 1]
+                inside = (lo <= hue <= hi) if lo <= hi else (hue >= lo or hue <= hi)
+                if inside and sat >= specs[c, 2]:
+                    out[lab, _COUNTS + c] += 1
+    for lab in range(1, n):
+        a = stats[lab, 4]
+        out[lab, _AREA] = a
+        mx, my = mom[lab, 0] / a, mom[lab, 1] / a
+        sxx = mom[lab, 2] / a - mx * mx + 1.0 / 12.0          # + the extent of a pixel
+        syy = mom[lab, 3] / a - my * my + 1.0 / 12.0
+        sxy = mom[lab, 4] / a - mx * my
+        tr, det = sxx + syy, sxx * syy - sxy * sxy
+        disc = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
+        l1, l2 = tr / 2.0 + disc, tr / 2.0 - disc
+        out[lab, _ELONG] = math.sqrt(l1 / l2) if l2 > 0 else np.inf
+        y0, y1 = max(stats[lab, 1] - margin, 0), min(stats[lab, 1] + stats[lab, 3] + margin, h)
+        x0, x1 = max(stats[lab, 0] - margin, 0), min(stats[lab, 0] + stats[lab, 2] + margin, w)
+        sw = 0.0
+        su = 0.0
+        sv = 0.0
+        suu = 0.0
+        svv = 0.0
+        suv = 0.0
+        peak = 0.0
+        for i in range(y0, y1):
+            for j in range(x0, x1):
+                s = 0.0
+                for c in range(3):
+                    s += max(np.float64(frame[i, j, c]) - bg[i, j, c], 0.0)
+                peak = max(peak, s)
+                wt = s - weight_threshold
+                if wt > 0.0:
+                    sw += wt
+                    su += wt * j
+                    sv += wt * i
+                    suu += wt * j * j
+                    svv += wt * i * i
+                    suv += wt * i * j
+        out[lab, _PEAK] = peak
+        if sw > 0:
+            u, v = su / sw, sv / sw
+            out[lab, _U], out[lab, _V] = u, v
+            out[lab, _MUU], out[lab, _MVV], out[lab, _MUV] = suu / sw - u * u, svv / sw - v * v, suv / sw - u * v
+        else:
+            out[lab, _U] = out[lab, _V] = np.nan
+    return out
+
+
+class DotDetector:
+    """Finds laser dots of the given colours in BGR frames of a fixed camera.
+
+    Parameters
+    ----------
+    colors : tuple of str
+        Laser colours to report, names of :data:`LASER_COLORS` (``("red",)``,
+        ``("red", "green")``). Every blob of a requested colour that passes the gates is a
+        dot, so two red lasers give two red dots.
+    learning_rate : float
+        Weight of the new frame in the running-average background, per frame (0.05: a time
+        constant of 20 frames, 1.3 s at 15 fps).
+    contrast : int
+        Grey levels by which a channel must exceed the background to be lit.
+    core_level : int
+        A pixel with all three channels at or above it is a saturated dot core.
+    min_area_px, max_area_px, max_elongation
+        Gates on a blob (after the opening).
+    roi_radius_px : int
+        Half-size of the square searched around a predicted position.
+    roi_fallback : bool
+        Search the whole frame when the windows around the predictions find no dot for one of
+        them.
+    weight_threshold : float
+        Subtracted from the centroid weights (summed background difference, grey levels).
+    window_margin_px : int
+        Growth of a blob's bounding box for the centroid window.
+    background_stride : int
+        The background update covers 1 / stride of the rows per frame (1: all rows).
+    max_lit_fraction : float
+        Fraction of lit bytes in the updated band (or of lit pixels in a full-frame search)
+        above which the illumination is taken to have jumped and the background is rebuilt.
+    background : ndarray, shape (H, W, 3), optional
+        An image of the ceiling without dots (uint8 BGR) to start the background from.
+
+    Attributes
+    ----------
+    status : str
+        What the last :meth:`detect` did with the background: ``"ok"`` (updated),
+        ``"started"`` (built from this frame or ``background``), ``"rebuilt"`` (the
+        illumination jumped; rebuilt from this frame); ``"empty"`` before the first frame.
+
+    Examples
+    --------
+    >>> det = DotDetector(("red", "green"))
+    >>> dots = det.detect(frame)                                   # doctest: +SKIP
+    >>> dots = det.detect(next_frame, {d.color: (d.u, d.v) for d in dots})  # doctest: +SKIP
+    """
+
+    def __init__(self, colors=("red",), *, learning_rate: float = 0.05, contrast: int = 25,
+                 core_level: int = 250, min_area_px: int = 8, max_area_px: int = 900,
+                 max_elongation: float = 3.0, roi_radius_px: int = 24, roi_fallback: bool = True,
+                 weight_threshold: float = 12.0, window_margin_px: int = 3, background_stride: int = 4,
+                 max_lit_fraction: float = 0.01, background: np.ndarray | None = None):
+        colors = (colors,) if isinstance(colors, str) else tuple(colors)
+        unknown = [c for c in colors if c not in LASER_COLORS]
+        if not colors or unknown or len(set(colors)) != len(colors):
+            raise ConfigError(f"colors: expected distinct names among {', '.join(LASER_COLORS)}, "
+                              f"got {', '.join(colors) or 'nothing'}")
+        if not 0.0 < learning_rate <= 1.0:
+            raise ConfigError(f"learning_rate: expected a number in (0, 1], got {learning_rate}")
+        if not 1 <= int(contrast) <= 254:
+            raise ConfigError(f"contrast: expected 1..254 grey levels, got {contrast}")
+        if int(background_stride) < 1 or int(roi_radius_px) < 4:
+            raise ConfigError("background_stride must be >= 1 and roi_radius_px >= 4")
+        self.colors = colors
+        self._specs = [LASER_COLORS[c] for c in colors]
+        self._spec_table = np.array([[*sp.hue_deg, sp.min_saturation] for sp in self._specs], np.float64)
+        self.learning_rate = float(learning_rate)
+        self.contrast = int(contrast)
+        self.core_level = int(core_level)
+        self.min_area_px = int(min_area_px)
+        self.max_area_px = int(max_area_px)
+        self.max_elongation = float(max_elongation)
+        self.roi_radius_px = int(roi_radius_px)
+        self.roi_fallback = bool(roi_fallback)
+        self.weight_threshold = float(weight_threshold)
+        self.window_margin_px = int(window_margin_px)
+        self.background_stride = int(background_stride)
+        self.max_lit_fraction = float(max_lit_fraction)
+        self._kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        self.reset()
+        self._initial = None if background is None else self._check_frame(background, "background").copy()
+
+    # -- state --
+    def reset(self) -> None:
+        """Forget the background (the next frame starts a new one) and the frame count."""
+        self._bg = None           # float32 (H, W, 3)
+        self._bg_u8 = None        # rounded background, uint8 (H, W, 3)
+        self._thr = None          # min(background + contrast, 255), uint8 (H, W, 3)
+        self._frames = 0
+        self._coords = None
+        self.status = "empty"     # 'ok', 'started', 'rebuilt' (background built from this frame)
+
+    @property
+    def background(self) -> np.ndarray | None:
+        """The current background model, float32 (H, W, 3) BGR grey levels (a copy), or None."""
+        return None if self._bg is None else self._bg.copy()
+
+    def _check_frame(self, frame, name="frame") -> np.ndarray:
+        frame = np.asarray(frame)
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            raise InputFileError(f"{name}: expected a uint8 BGR image (H, W, 3), got {frame.dtype} {frame.shape}")
+        if self._bg is not None and frame.shape != self._bg.shape:
+            raise InputFileError(f"{name}: expected {self._bg.shape[1]}×{self._bg.shape[0]} like the previous "
+                                 f"frames, got {frame.shape[1]}×{frame.shape[0]}")
+        return np.ascontiguousarray(frame)
+
+    def _set_background(self, bg_u8: np.ndarray, bg_f: np.ndarray | None = None) -> None:
+        self._bg = bg_u8.astype(np.float32) if bg_f is None else bg_f
+        self._bg_u8 = bg_u8.copy()
+        self._thr = cv2.add(self._bg_u8.reshape(bg_u8.shape[0], -1), self.contrast).reshape(bg_u8.shape)
+        cap = max(256, int(self.max_lit_fraction * bg_u8.shape[0] * bg_u8.shape[1]))
+        self._coords = np.empty((cap, 2), np.int32)
+
+    def _start_background(self, frame: np.ndarray) -> None:
+        """Background from a frame: laser-coloured and saturated pixels (raw thresholds, grown
+        by the glow) replaced by the median of their neighbourhood."""
+        hsv = cv2.cvtColor(frame, cv2.COLOR_BGR2HSV_FULL)
+        h, s, v = hsv[..., 0].astype(np.float32) * (360.0 / 256.0), hsv[..., 1] / 255.0, hsv[..., 2]
+        mask = np.all(frame >= self.core_level, axis=2)
+        for spec in LASER_COLORS.values():
+            mask |= spec.hue_mask(h) & (s >= spec.raw_min_saturation) & (v >= 100)
+        bg = frame.copy()
+        if mask.any():
+            mask = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))) > 0
+            bg[mask] = cv2.medianBlur(frame, 21)[mask]
+        self._set_background(bg)
+
+    # -- detection --
+    def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list[Dot]:
+        """Dots in one frame, and the background update.
+
+        Parameters
+        ----------
+        frame_bgr : ndarray, shape (H, W, 3), uint8
+            The frame, BGR as OpenCV reads it; every frame of a sequence has the same size.
+        predicted_uv : None, (u, v), sequence of (u, v), or mapping colour -> (u, v)
+            Where the dots are expected (px): only squares around them are searched (the fast
+            path; the whole frame if one of them finds nothing and ``roi_fallback``). None, or
+            a mapping without a prediction for one of ``colors``, searches the whole frame.
+
+        Returns
+        -------
+        list of Dot
+            In the order of ``colors``, then by decreasing ``peak``.
+        """
+        frame = self._check_frame(frame_bgr)
+        self.status = "ok"
+        self._protect = []
+        if self._bg is None:
+            if self._initial is not None and self._initial.shape == frame.shape:
+                self._set_background(self._initial)
+            else:
+                self._start_background(frame)
+            self.status = "started"
+        dots = None
+        rects = self._rois(predicted_uv, frame.shape)
+        if rects:
+            dots = self._search(frame, rects)
+            if dots is not None and self.roi_fallback and len(dots) < len(rects):
+                dots = None if self._unmatched(dots, rects) else dots
+        if dots is None:
+            dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
+            if dots is None:                         # too many lit pixels: illumination jumped
+                self._start_background(frame)
+                self.status = "rebuilt"
+                dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])]) or []
+        self._update_background(frame)
+        self._frames += 1
+        return dots
+
+    def _rois(self, predicted_uv, shape) -> list[tuple[int, int, int, int]]:
+        if predicted_uv is None:
+            return []
+        if isinstance(predicted_uv, Mapping):
+            pts = [predicted_uv.get(c) for c in self.colors]
+            if any(p is None for p in pts):       # a colour without a prediction: search everywhere
+                return []
+        else:
+            arr = np.asarray(predicted_uv, float)
+            pts = [arr] if arr.ndim == 1 else list(arr)
+        rects = []
+        r = self.roi_radius_px
+        for p in pts:
+            p = np.asarray(p, float).reshape(-1)
+            if p.size != 2 or not np.all(np.isfinite(p)):
+                raise InputFileError(f"predicted_uv: expected (u, v) pixel positions, got {predicted_uv!r}")
+            u, v = int(round(p[0])), int(round(p[1]))
+            y0, y1, x0, x1 = max(v - r, 0), min(v + r + 1, shape[0]), max(u - r, 0), min(u + r + 1, shape[1])
+            if y0 < y1 and x0 < x1:
+                rects.append((y0, y1, x0, x1))
+        return rects
+
+    @staticmethod
+    def _unmatched(dots, rects) -> bool:
+        """True if some window holds none of the dots."""
+        for y0, y1, x0, x1 in rects:
+            if not any(x0 - 0.5 <= d.u < x1 - 0.5 and y0 - 0.5 <= d.v < y1 - 0.5 for d in dots):
+                return True
+        return False
+
+    def _search(self, frame: np.ndarray, rects) -> list[Dot] | None:
+        """Dots in the union of ``rects`` (row0, row1, col0, col1); None if too much is lit."""
+        h, w, _ = frame.shape
+        self._protect = []
+        f2, t2 = frame.reshape(h, -1), self._thr.reshape(h, -1)
+        coords = self._coords
+        parts = []
+        for y0, y1, x0, x1 in rects:
+            n = _lit_pixels(f2, t2, y0, y1, x0, x1, coords)
+            if n > len(coords):
+                return None
+            if n:
+                parts.append(coords[:n].copy())
+        if not parts:
+            return []
+        pix = np.concatenate(parts) if len(parts) > 1 else parts[0]      # overlaps repeat: harmless
+        dots = []
+        for y0, y1, x0, x1 in _clusters(pix, h, w, self.window_margin_px + 2):
+            dots += self._blobs(frame, pix, y0, y1, x0, x1)
+        order = {c: i for i, c in enumerate(self.colors)}
+        dots.sort(key=lambda d: (order[d.color], -d.peak, d.v, d.u))
+        return dots
+
+    def _blobs(self, frame, pix, y0, y1, x0, x1) -> list:
+        sel = (pix[:, 0] >= y0) & (pix[:, 0] < y1) & (pix[:, 1] >= x0) & (pix[:, 1] < x1)
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        mask[pix[sel, 0] - y0, pix[sel, 1] - x0] = 1
+        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._kernel)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if n <= 1:
+            return []
+        table = _blob_table(frame[y0:y1, x0:x1], self._bg[y0:y1, x0:x1], labels, stats, n, self._spec_table,
+                            self.core_level, self.window_margin_px, self.weight_threshold)
+        out = []
+        for k in range(1, n):
+            row = table[k]
+            if not (self.min_area_px <= row[_AREA] <= self.max_area_px and np.isfinite(row[_U])):
+                continue
+            counts = row[_COUNTS:]
+            best = int(np.argmax(counts))
+            if counts[best] < max(2.0, 0.3 * row[_PLAIN]):
+                continue
+            found = self._make(self.colors[best], row, x0, y0)
+            if found is not None:
+                bx, by, bw, bh = stats[k, :4]
+                self._protect.append((y0 + by - 8, y0 + by + bh + 8, x0 + bx - 8, x0 + bx + bw + 8))
+                out.append(found)
+        return out
+
+    def _make(self, color: str, row: np.ndarray, x0: int, y0: int) -> Dot | None:
+        """The detection of one blob that passed the area and colour gates (None: rejected)."""
+        if row[_ELONG] > self.max_elongation:
+            return None
+        return Dot(color, float(row[_U] + x0), float(row[_V] + y0), int(row[_AREA]), float(row[_PEAK]))
+
+    def _update_background(self, frame: np.ndarray) -> None:
+        h, w, _ = frame.shape
+        stride = self.background_stride
+        band = self._frames % stride
+        r0, r1 = band * h // stride, (band + 1) * h // stride
+        if r1 <= r0:
+            return
+        alpha = 1.0 - (1.0 - self.learning_rate) ** stride
+        keep = []
+        for y0, y1, x0, x1 in self._protect:      # the detected dots are masked out of the update
+            y0, y1, x0, x1 = max(y0, r0), min(y1, r1), max(x0, 0), min(x1, w)
+            if y0 < y1 and x0 < x1:
+                keep.append((y0, y1, x0, x1, self._bg[y0:y1, x0:x1].copy()))
+        f = frame[r0:r1].reshape(r1 - r0, -1)
+        bg = self._bg[r0:r1].reshape(r1 - r0, -1)
+        bg_u8 = self._bg_u8[r0:r1].reshape(r1 - r0, -1)
+        thr = self._thr[r0:r1].reshape(r1 - r0, -1)
+        unlit = cv2.compare(f, thr, cv2.CMP_LE)
+        lit_fraction = 1.0 - cv2.countNonZero(unlit) / unlit.size
+        if lit_fraction > self.max_lit_fraction and self.status != "rebuilt":
+            self._start_background(frame)
+            self.status = "rebuilt"
+            return
+        cv2.accumulateWeighted(f, bg, alpha, unlit)
+        for y0, y1, x0, x1, saved in keep:
+            self._bg[y0:y1, x0:x1] = saved
+        cv2.convertScaleAbs(bg, bg_u8)
+        cv2.add(bg_u8, self.contrast, thr)
+
+
+@dataclass(frozen=True)
+class Line:
+    """A detected laser line segment (case C).
+
+    ``u, v``: intensity-weighted centre in px (pixel-centre convention); ``angle_deg``: the
+    segment's direction in the image, in [0, 180) degrees from +u towards +v (a line has no
+    sense: the heading it gives is ambiguous by 180°); ``length_px``: its length estimated
+    from the second moments (``sqrt(12 λ_max)``, exact for a uniform segment); ``area_px`` and
+    ``peak`` as for :class:`Dot`.
+    """
+
+    color: str
+    u: float
+    v: float
+    angle_deg: float
+    length_px: float
+    area_px: int
+    peak: float
+
+    def endpoints(self) -> np.ndarray:
+        """The two ends (2, 2) ``[[u, v], [u, v]]`` in px, centre ∓ half the length."""
+        a = math.radians(self.angle_deg)
+        d = 0.5 * self.length_px * np.array([math.cos(a), math.sin(a)])
+        return np.array([[self.u, self.v]]) + np.array([-d, d])
+
+
+class LineDetector(DotDetector):
+    """Finds laser line segments (the paper's case C) with the machinery of :class:`DotDetector`.
+
+    A segment on the ceiling is one elongated blob of laser colour (or two, where a vent cuts
+    it). Its centre and direction are the intensity-weighted mean and principal axis of the
+    background-subtracted intensity, which resolve hundredths of a pixel and of a degree where
+    ``cv2.HoughLinesP`` quantises angles to its accumulator bins and ends to whole pixels
+    (Hough transforms pay off for many or long lines crossing clutter, not for one short
+    segment on a blank ceiling).
+
+    Parameters
+    ----------
+    color : str
+        Laser colour (:data:`LASER_COLORS`).
+    min_elongation : float
+        A blob is a segment if the ratio of its principal axes is at least this.
+    min_length_px : float
+        Shorter segments are dropped.
+    **kwargs
+        Any other :class:`DotDetector` parameter (``roi_radius_px`` defaults to 48 here so a
+        window holds a whole segment).
+    """
+
+    def __init__(self, color: str = "red", *, min_elongation: float = 3.0, min_length_px: float = 12.0,
+                 max_area_px: int = 5000, roi_radius_px: int = 48, **kwargs):
+        super().__init__((color,), max_area_px=max_area_px, roi_radius_px=roi_radius_px, **kwargs)
+        self.min_elongation = float(min_elongation)
+        self.min_length_px = float(min_length_px)
+
+    def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list[Line]:
+        """Segments in one frame (longest first), and the background update; see
+        :meth:`DotDetector.detect`."""
+        lines = super().detect(frame_bgr, predicted_uv)
+        return sorted(lines, key=lambda line: -line.length_px)
+
+    def _make(self, color: str, row: np.ndarray, x0: int, y0: int) -> Line | None:
+        if row[_ELONG] < self.min_elongation:
+            return None
+        muu, mvv, muv = row[_MUU], row[_MVV], row[_MUV]
+        half_tr, disc = 0.5 * (muu + mvv), math.hypot(0.5 * (muu - mvv), muv)
+        length = math.sqrt(12.0 * (half_tr + disc))
+        if length < self.min_length_px:
+            return None
+        angle = math.degrees(0.5 * math.atan2(2.0 * muv, muu - mvv)) % 180.0
+        return Line(color, float(row[_U] + x0), float(row[_V] + y0), angle, length, int(row[_AREA]),
+                    float(row[_PEAK]))
+
+
+def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> list[tuple[int, int, int, int]]:
+    """Bounding boxes (row0, row1, col0, col1), grown by ``margin``, of groups of lit pixels
+    (n, 2) (row, col); pixels closer than about a cell are in the same group."""
+    r, c = pix[:, 0], pix[:, 1]
+    if (r.max() - r.min()) < 4 * cell and (c.max() - c.min()) < 4 * cell:
+        boxes = [(r.min(), r.max() + 1, c.min(), c.max() + 1)]
+    else:
+        grid = np.zeros((h // cell + 1, w // cell + 1), np.uint8)
+        grid[r // cell, c // cell] = 1
+        grid = cv2.dilate(grid, np.ones((3, 3), np.uint8))
+        n, labels = cv2.connectedComponents(grid, connectivity=8)
+        lab = labels[r // cell, c // cell]
+        boxes = []
+        for k in range(1, n):
+            sel = lab == k
+            if sel.any():
+                boxes.append((r[sel].min(), r[sel].max() + 1, c[sel].min(), c[sel].max() + 1))
+    return [(max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w))
+            for y0, y1, x0, x1 in boxes]

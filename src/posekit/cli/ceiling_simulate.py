@@ -1,0 +1,55 @@
+"""``posekit ceiling simulate``: render a synthetic ceiling video with its truth."""
+
+import sys
+
+from ..errors import ConfigError
+
+__all__ = ["add_simulate_parser", "run_simulate"]
+
+DOT_CHOICES = {"red": ("red",), "red,green": ("red", "green"), "red,red": ("red", "red"), "line": ("line",)}
+
+
+def add_simulate_parser(verbs):
+    """Add ``simulate`` to the ``posekit ceiling`` verbs (an argparse sub-parsers object)."""
+    s = verbs.add_parser(
+        "simulate", help="render a synthetic ceiling video (laser dots of a robot driving a rectangle)",
+        description="Render a 4 m x 6 m tiled ceiling seen by a fixed 864x480 camera while a robot with "
+                    "laser pointers drives the paper's 2.4 m x 4.4 m rectangle. Writes video.avi (MJPG), "
+                    "truth.csv, calibration_points.csv (X,Y,u,v of grid corners), reference.png.")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same video; default 0)")
+    s.add_argument("--dots", default="red", help="lasers: red (case A), red,green or red,red (case B, "
+                                                 "40 cm apart), line (case C); default red")
+    s.add_argument("--duration-s", type=float, default=60.0, help="video length, s (default 60)")
+    s.add_argument("--fps", type=float, default=15.0, help="frame rate (default 15)")
+    s.add_argument("--holes", action="store_true", default=True,
+                   help="air-conditioning vents where a dot vanishes (default)")
+    s.add_argument("--no-holes", dest="holes", action="store_false", help="a ceiling without vents")
+    s.add_argument("--noise-std", type=float, default=2.0, help="sensor noise, grey levels (default 2)")
+    s.add_argument("--frames-png", action="store_true", help="also write every frame as frames/NNNNNN.png")
+    s.set_defaults(func=run_simulate)
+    return s
+
+
+def _progress(iterable, total=None):
+    if not sys.stderr.isatty():
+        return iterable
+    from tqdm import tqdm
+    return tqdm(iterable, total=total, desc="render", unit="frame", leave=False)
+
+
+def run_simulate(args) -> int:
+    from ..ceiling.render import SceneConfig, render_video
+
+    dots = DOT_CHOICES.get(args.dots.replace(" ", "").lower())
+    if dots is None:
+        raise ConfigError(f"--dots: expected one of {' | '.join(DOT_CHOICES)}, got '{args.dots}'")
+    if not args.duration_s > 0:
+        raise ConfigError(f"--duration-s: expected a positive number of seconds, got {args.duration_s}")
+    config = SceneConfig(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes,
+                         noise_std=args.noise_std)
+    paths = render_video(config, args.out, frames_png=args.frames_png, progress=_progress)
+    print(f"wrote {paths.n_frames} frames ({config.width_px}x{config.height_px}, {config.fps:g} fps) to "
+          f"{paths.video}; truth {paths.truth.name}, calibration {paths.calibration_points.name}, "
+          f"reference {paths.reference.name}" + (f", frames in {paths.frames_dir}" if paths.frames_dir else ""))
+    return 0

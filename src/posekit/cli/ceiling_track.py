@@ -1,0 +1,91 @@
+"""``posekit ceiling track`` and ``posekit ceiling demo`` (wired into ``cli/ceiling.py``)."""
+
+import sys
+from pathlib import Path
+
+__all__ = ["add_track_parser", "add_demo_parser", "run_track", "run_demo"]
+
+
+def _frame_progress(total=None, desc="track"):
+    """A tqdm bar over frames on a terminal (stderr); None (no bar) otherwise."""
+    if not sys.stderr.isatty():
+        return None
+
+    def wrap(iterable, total=total, **_):
+        from tqdm import tqdm
+        return tqdm(iterable, total=total, desc=desc, unit="frame", leave=False)
+    return wrap
+
+
+def add_track_parser(verbs):
+    t = verbs.add_parser("track", help="track the laser dot(s) in a video or a folder of images")
+    t.add_argument("input", help="video file, or folder of images sorted by name")
+    t.add_argument("--calibration", action="append", required=True, metavar="CAL.json",
+                   help="calibration JSON of INPUT (`posekit ceiling calibrate`); repeat it once per "
+                        "--input2 for several cameras, in the same order")
+    t.add_argument("--input2", action="append", default=[], metavar="INPUT",
+                   help="video or image folder of a further camera covering another part of the ceiling "
+                        "(case D; synchronised frame by frame with INPUT); may be repeated")
+    t.add_argument("--dots", default="red", help="'red' (position) or 'red,green' (position and heading)")
+    t.add_argument("--fps", type=float, default=None,
+                   help="frame rate for the timestamps (default: the video's, or 15 for an image folder)")
+    t.add_argument("--max-predict-s", type=float, default=1.0,
+                   help="predict through a dropout for at most this long, then 'lost' (default 1 s)")
+    t.add_argument("--out", required=True, metavar="TRACK.csv",
+                   help="output CSV frame,time_s,x,y,heading_deg,status (mm, s, degrees)")
+    t.set_defaults(func=run_track)
+
+
+def run_track(args) -> int:
+    from ..ceiling.pipeline import parse_dots, track_video, write_track_csv
+    from ..ceiling.track import TrackerConfig
+    from ..ceiling.video_io import DEFAULT_FPS
+    from ..errors import ConfigError
+
+    inputs = [args.input, *args.input2]
+    if len(args.calibration) != len(inputs):
+        raise ConfigError(f"--calibration given {len(args.calibration)} time(s) for {len(inputs)} input(s); "
+                          "give one calibration per camera, in the order INPUT, --input2 ...")
+    dots = parse_dots(args.dots)
+    try:
+        config = TrackerConfig(dots=dots, max_predict_s=args.max_predict_s)
+    except ConfigError:
+        raise ConfigError(f"--max-predict-s must be a number >= 0, got {args.max_predict_s:g}") from None
+    out = Path(args.out)
+    if out.is_dir():
+        raise ConfigError(f"--out {out}: is a folder; expected a CSV file name")
+    result = track_video(inputs, args.calibration, dots, fps=args.fps, config=config,
+                         progress=_frame_progress())
+    try:
+        write_track_csv(result.rows, out)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
+    c = result.counts()
+    if result.fps_source == "default":
+        print(f"posekit: note: no frame rate in the input; timestamps assume {DEFAULT_FPS:g} fps "
+              "(pass --fps)", file=sys.stderr)
+    print(f"{len(result)} frames: {c['ok']} ok, {c['predicted']} predicted, {c['lost']} lost; "
+          f"{result.fps:.0f} frames/s end to end ({result.processing_ms:.2f} ms/frame without decoding); "
+          f"wrote {out}")
+    return 0
+
+
+def add_demo_parser(verbs):
+    d = verbs.add_parser("demo", help="render a ceiling video, calibrate, track, and compare with the truth "
+                                      "(the paper's §V: Fig. 8/9, accuracy, speed)")
+    d.add_argument("--out", default="posekit-ceiling-demo", help="output folder (default posekit-ceiling-demo)")
+    d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
+    d.add_argument("--seconds", type=float, default=None, help="length of the rendered video, s "
+                                                                "(default: the renderer's)")
+    d.add_argument("--seed", type=int, default=0, help="random seed of the render (default 0)")
+    d.set_defaults(func=run_demo)
+
+
+def run_demo(args) -> int:
+    from ..ceiling.demo import run_demo as demo
+    from ..ceiling.pipeline import parse_dots
+
+    report = demo(args.out, dots=parse_dots(args.dots), seconds=args.seconds, seed=args.seed,
+                  progress=_frame_progress(desc="demo"))
+    print(report.summary())
+    return 0
