@@ -1,2 +1,60 @@
 """Ceiling system: x, y and heading of a ground robot from laser dots on the ceiling seen by a
 fixed camera (homography calibration, dot detection, tracking, synthetic ceiling videos)."""
+
+from .accuracy import (
+    heading_std_closed_form,
+    known_points_assessment,
+    simulate_heading_error,
+)
+from .calibration import (
+    Calibration,
+    calibrate,
+    load_calibration,
+    read_points_csv,
+    write_points_csv,
+)
+from .demo import run_demo
+from .detect import Dot, DotDetector, Line, LineDetector
+from .grid import CeilingGrid, find_grid_corners
+from .pipeline import read_track_csv, track_frames, track_video, write_track_csv
+from .render import (
+    CeilingScene,
+    SceneConfig,
+    iter_frames,
+    render_video,
+    true_homography,
+)
+from .track import Camera, MultiCameraTracker, Tracker, TrackerConfig
+from .video_io import open_frames
+
+__all__ = [
+    "Calibration",
+    "calibrate",
+    "load_calibration",
+    "read_points_csv",
+    "write_points_csv",
+    "CeilingGrid",
+    "find_grid_corners",
+    "SceneConfig",
+    "CeilingScene",
+    "true_homography",
+    "iter_frames",
+    "render_video",
+    "Dot",
+    "DotDetector",
+    "Line",
+    "LineDetector",
+    "TrackerConfig",
+    "Tracker",
+    "Camera",
+    "MultiCameraTracker",
+    "open_frames",
+    "track_video",
+    "track_frames",
+    "write_track_csv",
+    "read_track_csv",
+    "known_points_assessment",
+    "simulate_heading_error",
+    "heading_std_closed_form",
+    "run_demo",
+]
