@@ -29,6 +29,9 @@ __all__ = ["TRACK_COLUMNS", "TrackResult", "parse_dots", "track_frames", "track_
 
 TRACK_COLUMNS = ("frame", "time_s", "x", "y", "heading_deg", "status")
 KNOWN_COLOURS = ("red", "green")
+LINE_DOTS = ("line",)
+"""``dots`` of case C: one laser line (:class:`~posekit.ceiling.detect.LineDetector` and
+:class:`~posekit.ceiling.linetrack.LineTracker`)."""
 
 
 @dataclass
@@ -91,10 +94,13 @@ class TrackResult:
 
 
 def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
-    """``"red"`` or ``"red,green"`` → a tuple of colours; ConfigError otherwise."""
+    """``"red"`` or ``"red,green"`` → a tuple of colours, ``"line"`` → ``("line",)`` (one
+    laser line, case C); ConfigError otherwise."""
     items = [t.strip() for t in (text.split(",") if isinstance(text, str) else text)]
+    if items == ["line"]:
+        return ("line",)
     if not items or any(c not in KNOWN_COLOURS for c in items) or len(set(items)) != len(items):
-        raise ConfigError(f"--dots: expected 'red' or 'red,green', got {text!r}")
+        raise ConfigError(f"--dots: expected 'red' or 'red,green', got {text!r} (or 'line' for a laser line)")
     return tuple(items)
 
 
@@ -125,7 +131,8 @@ def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str
     cameras : sequence of Camera
         Calibration and image size of each camera.
     dots : sequence of str
-        Colours to track, primary first (``("red",)`` or ``("red", "green")``).
+        Colours to track, primary first (``("red",)`` or ``("red", "green")``), or
+        ``("line",)``: one laser line (case C, :func:`_track_line_frames`).
     config : TrackerConfig, optional
         Tracker tuning; its ``dots`` are replaced by ``dots``.
     detectors : sequence, optional
@@ -142,6 +149,9 @@ def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str
     TrackResult
     """
     dots = parse_dots(dots)
+    if dots == LINE_DOTS:
+        return _track_line_frames(frames, cameras, config=config, detectors=detectors,
+                                  border_margin_px=border_margin_px, use_roi=use_roi, progress=progress)
     cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
     if detectors is None:
         from .detect import DotDetector
@@ -176,6 +186,65 @@ def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str
         if row.status == "ok" and row.camera >= 0:
             uv = np.asarray(cameras[row.camera].calibration.world_to_image(
                 np.array([row.measured[dots[0]]])), dtype=float).reshape(2)
+        rows.append(row)
+        uvs.append(uv)
+    total = time.perf_counter() - t_start
+    return TrackResult(rows=rows, image_uv=np.array(uvs, dtype=float).reshape(-1, 2), seconds_total=total,
+                       seconds_processing=np.array(proc), cameras=[c.name for c in cameras])
+
+
+def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: TrackerConfig | None = None,
+                       detectors: Sequence | None = None, border_margin_px: float = 20.0,
+                       use_roi: bool = True, progress=None) -> TrackResult:
+    """:func:`track_frames` for ``dots=("line",)`` (case C): the longest segment of each
+    camera, end points mapped to the world, :class:`~posekit.ceiling.linetrack.LineTracker`.
+    With several cameras, the one whose segment centre is farthest from its image border is
+    used (the previous one while it stays ``border_margin_px`` inside)."""
+    from .detect import LineDetector
+    from .linetrack import LineTracker, LineTrackerConfig, pick_line
+
+    if detectors is None:
+        detectors = [LineDetector() for _ in cameras]
+    if len(detectors) != len(cameras):
+        raise ConfigError(f"track_frames: {len(detectors)} detectors for {len(cameras)} cameras")
+    lt = LineTracker(LineTrackerConfig(tracker=TrackerConfig() if config is None else config))
+    rows, uvs, proc = [], [], []
+    active = -1
+    t_start = time.perf_counter()
+    it = frames if progress is None else progress(frames)
+    for index, t_s, images in it:
+        if len(cameras) == 1 and isinstance(images, np.ndarray):
+            images = [images]
+        t0 = time.perf_counter()
+        pred = lt.tracker.predict(t_s).get("red")
+        found = []
+        for i, (det, img, cam) in enumerate(zip(detectors, images, cameras)):
+            roi = None
+            if use_roi and pred is not None:
+                uv = cam.to_image(pred[0])[0]
+                if np.all(np.isfinite(uv)) and border_distance(uv[None], cam.image_size)[0] > 0:
+                    roi = {det.colors[0]: uv}
+            lines = det.detect(img, predicted_uv=roi)
+            m = pick_line(lines, cam)
+            if m is not None:
+                bd = float(border_distance(np.array([[lines[0].u, lines[0].v]]), cam.image_size)[0])
+                found.append((i, bd, m, lines[0]))
+        choice = None
+        if found:
+            by_cam = {i: f for i, *f in found}
+            if active in by_cam and by_cam[active][0] >= border_margin_px:
+                choice = (active, *by_cam[active])
+            else:
+                choice = max(found, key=lambda f: f[1])
+        if choice is None:
+            row = lt.step(t_s, None, frame=index)
+        else:
+            active = choice[0]
+            row = lt.step(t_s, choice[2][0], choice[2][1], frame=index, camera=active)
+        proc.append(time.perf_counter() - t0)
+        uv = np.full(2, np.nan)
+        if row.status == "ok" and choice is not None:
+            uv = np.array([choice[3].u, choice[3].v], dtype=float)
         rows.append(row)
         uvs.append(uv)
     total = time.perf_counter() - t_start
@@ -236,8 +305,11 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
     if detector_options is None:
         detectors = None
     else:
-        from .detect import DotDetector
-        detectors = [DotDetector(colors=dots, **detector_options) for _ in cameras]
+        from .detect import DotDetector, LineDetector
+        if dots == LINE_DOTS:
+            detectors = [LineDetector(**detector_options) for _ in cameras]
+        else:
+            detectors = [DotDetector(colors=dots, **detector_options) for _ in cameras]
 
     def frames():
         for group in zip(*streams):

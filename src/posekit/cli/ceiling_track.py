@@ -26,7 +26,8 @@ def add_track_parser(verbs):
     t.add_argument("--input2", action="append", default=[], metavar="INPUT",
                    help="video or image folder of a further camera covering another part of the ceiling "
                         "(case D; synchronised frame by frame with INPUT); may be repeated")
-    t.add_argument("--dots", default="red", help="'red' (position) or 'red,green' (position and heading)")
+    t.add_argument("--dots", default="red", help="'red' (position), 'red,green' (position and heading) or 'line' "
+                        "(one laser line: position and heading, its sense from the motion)")
     t.add_argument("--fps", type=float, default=None,
                    help="frame rate for the timestamps (default: the video's, or 15 for an image folder)")
     t.add_argument("--max-predict-s", type=float, default=1.0,
