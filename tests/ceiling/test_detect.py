@@ -199,3 +199,21 @@ def test_bad_frames():
         det.detect(np.full((40, 64, 3), 120, np.uint8))
     with pytest.raises(InputFileError, match="predicted_uv"):
         det.detect(np.full((48, 64, 3), 120, np.uint8), predicted_uv=(1.0, 2.0, 3.0))
+
+
+def test_line_segment_case_c_by_hough_transform():
+    """The Hough path (cv2.HoughLines on the bar's centre line) agrees with the truth."""
+    config = SceneConfig(dots=("line",), **CLEAN)
+    scene = CeilingScene(config)
+    det = LineDetector(background=scene.reference_image(), method="hough")
+    for k in (0, 20, 270, 400):
+        xy, heading = robot_path(config, [k / config.fps])
+        d = 0.5 * config.line_length_mm * np.array([np.cos(heading[0]), np.sin(heading[0])])
+        ends = scene.project(np.stack([xy[0] - d, xy[0] + d]))
+        (line,) = det.detect(scene.render_frame(k))
+        expected = np.degrees(np.arctan2(*(ends[1] - ends[0])[::-1])) % 180.0
+        assert abs((line.angle_deg - expected + 90.0) % 180.0 - 90.0) < 0.5
+        assert_allclose([line.u, line.v], ends.mean(axis=0), atol=0.5)
+        assert abs(line.length_px - np.linalg.norm(ends[1] - ends[0])) < 0.2 * line.length_px
+    with pytest.raises(ConfigError, match="LineDetector: unknown method 'radon'; expected one of moments, hough"):
+        LineDetector(method="radon")

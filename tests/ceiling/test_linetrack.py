@@ -150,7 +150,8 @@ def test_rendered_line_clip(phase_s, seconds):
     assert e.mean() < 3.0 and e.max() < 8.0
 
 
-def test_cli_track_line(capsys, tmp_path):
+@pytest.mark.parametrize("method", ["moments", "hough"])
+def test_cli_track_line(capsys, tmp_path, method):
     render = pytest.importorskip("posekit.ceiling.render")
     from posekit.ceiling.calibration import calibrate, read_points_csv
     from posekit.ceiling.demo import read_truth_csv
@@ -163,7 +164,7 @@ def test_cli_track_line(capsys, tmp_path):
     add_track_parser(parser.add_subparsers(dest="verb"))
     out = tmp_path / "track.csv"
     args = parser.parse_args(["track", str(paths.video), "--calibration", str(tmp_path / "cal.json"),
-                              "--dots", "line", "--out", str(out)])
+                              "--dots", "line", "--line-method", method, "--out", str(out)])
     assert args.func(args) == 0
     assert "30 frames: 30 ok" in capsys.readouterr().out
     t, truth = read_track_csv(out), read_truth_csv(paths.truth)

@@ -28,6 +28,9 @@ def add_track_parser(verbs):
                         "(case D; synchronised frame by frame with INPUT); may be repeated")
     t.add_argument("--dots", default="red", help="'red' (position), 'red,green' (position and heading) or 'line' "
                         "(one laser line: position and heading, its sense from the motion)")
+    t.add_argument("--line-method", choices=["moments", "hough"], default="moments",
+                   help="with --dots line: measure the segment by its principal axis (default, most precise) "
+                        "or by a Hough transform of its centre line")
     t.add_argument("--fps", type=float, default=None,
                    help="frame rate for the timestamps (default: the video's, or 15 for an image folder)")
     t.add_argument("--max-predict-s", type=float, default=1.0,
@@ -55,8 +58,9 @@ def run_track(args) -> int:
     out = Path(args.out)
     if out.is_dir():
         raise ConfigError(f"--out {out}: is a folder; expected a CSV file name")
+    options = {"method": args.line_method} if dots == ("line",) and args.line_method != "moments" else None
     result = track_video(inputs, args.calibration, dots, fps=args.fps, config=config,
-                         progress=_frame_progress())
+                         detector_options=options, progress=_frame_progress())
     try:
         write_track_csv(result.rows, out)
     except OSError as exc:
