@@ -1,0 +1,193 @@
+"""Forward kinematics and geometric Jacobian of DH chains, against independent references."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from posekit.robots import PRISMATIC, REVOLUTE, DHChain, hiab033, puma560
+
+MODELS = {"puma560": puma560, "hiab033": hiab033}
+
+#: PUMA 560 at q = 0, tool = flange: Corke's Robotics Toolbox ``p560.fkine(p560.qz)``
+#: gives t = (0.4521, -0.15005, 0.4318) m and R = I. Hand check: x = a2 + a3 = 452.12,
+#: y = -d3 = -150.05, z = d4 = 431.8.
+PUMA_QZ_T = np.array(
+    [
+        [1.0, 0.0, 0.0, 452.12],
+        [0.0, 1.0, 0.0, -150.05],
+        [0.0, 0.0, 1.0, 431.8],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+)
+
+
+def naive_fk(chain: DHChain, q) -> np.ndarray:
+    """Independent reference: eq. (24) written out per joint with math.sin/cos, then eq. (23)."""
+    T = np.eye(4)
+    for i in range(chain.n_joints):
+        a, alpha = float(chain.a[i]), float(chain.alpha[i])
+        theta, d = float(chain.theta[i]), float(chain.d[i])
+        if chain.joint_types[i] == REVOLUTE:
+            theta += float(q[i])
+        else:
+            d += float(q[i])
+        ct, st_, ca, sa = (
+            math.cos(theta),
+            math.sin(theta),
+            math.cos(alpha),
+            math.sin(alpha),
+        )
+        A = np.array(
+            [
+                [ct, -st_ * ca, st_ * sa, a * ct],
+                [st_, ct * ca, -ct * sa, a * st_],
+                [0.0, sa, ca, d],
+                [0.0, 0.0, 0.0, 1.0],
+            ]
+        )
+        T = T @ A
+    return T @ chain.T_flange_tool
+
+
+def random_q(chain: DHChain, rng, size=None) -> np.ndarray:
+    lo = np.where(np.isfinite(chain.q_min), chain.q_min, -np.pi)
+    hi = np.where(np.isfinite(chain.q_max), chain.q_max, np.pi)
+    return rng.uniform(lo, hi, size=None if size is None else (size, chain.n_joints))
+
+
+def mixed_chain() -> DHChain:
+    """A chain with prismatic joints, offsets and a tool, to exercise every branch."""
+    T_tool = np.eye(4)
+    T_tool[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    T_tool[:3, 3] = [10.0, -20.0, 150.0]
+    return DHChain(
+        a=[100.0, 0.0, 300.0, 0.0],
+        alpha=[np.pi / 2, -np.pi / 2, 0.3, np.pi / 2],
+        d=[400.0, 50.0, 0.0, 80.0],
+        theta=[0.1, -0.4, 0.0, 0.7],
+        joint_types=(REVOLUTE, PRISMATIC, REVOLUTE, PRISMATIC),
+        q_min=[-3.0, 0.0, -3.0, -200.0],
+        q_max=[3.0, 500.0, 3.0, 200.0],
+        T_flange_tool=T_tool,
+        name="mixed",
+    )
+
+
+CHAINS = {"puma560": puma560, "hiab033": hiab033, "mixed": mixed_chain}
+
+
+def test_puma_zero_pose_reference():
+    np.testing.assert_allclose(
+        puma560().forward_kinematics(np.zeros(6)), PUMA_QZ_T, atol=1e-9
+    )
+
+
+def test_hiab_reach_about_5_m():
+    T = hiab033().forward_kinematics(np.zeros(6))
+    reach = np.hypot(T[0, 3], T[1, 3])
+    assert 4500.0 < reach < 5500.0
+
+
+@pytest.mark.parametrize("name", CHAINS)
+def test_fk_matches_naive_dh_product(name):
+    chain = CHAINS[name]()
+    rng = np.random.default_rng(1)
+    for q in random_q(chain, rng, 25):
+        np.testing.assert_allclose(
+            chain.forward_kinematics(q), naive_fk(chain, q), atol=1e-9, rtol=0
+        )
+
+
+@pytest.mark.parametrize("name", CHAINS)
+def test_batch_fk_equals_stacked_single(name):
+    chain = CHAINS[name]()
+    qs = random_q(chain, np.random.default_rng(2), 50)
+    Ts = chain.forward_kinematics(qs)
+    assert Ts.shape == (50, 4, 4)
+    np.testing.assert_array_equal(
+        Ts, np.stack([chain.forward_kinematics(q) for q in qs])
+    )
+    Ts2, frames = chain.forward_kinematics(qs, all_frames=True)
+    assert frames.shape == (50, chain.n_joints + 1, 4, 4)
+    np.testing.assert_array_equal(Ts2, Ts)
+    np.testing.assert_array_equal(frames[:, 0], np.broadcast_to(np.eye(4), (50, 4, 4)))
+    np.testing.assert_allclose(frames[:, -1] @ chain.T_flange_tool, Ts, atol=1e-12)
+    np.testing.assert_array_equal(
+        chain.forward_kinematics(qs, tool=False), frames[:, -1]
+    )
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_fk_is_rigid_transform(seed):
+    chain = hiab033()
+    T = chain.forward_kinematics(random_q(chain, np.random.default_rng(seed)))
+    R = T[:3, :3]
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) > 0
+    np.testing.assert_array_equal(T[3], [0.0, 0.0, 0.0, 1.0])
+
+
+def fd_jacobian(chain: DHChain, q, h: float = 1e-6) -> np.ndarray:
+    """Central finite differences of FK: linear rows from the position, angular rows from
+    the skew part of dR/dq · Rᵀ (base frame)."""
+    n = chain.n_joints
+    J = np.zeros((6, n))
+    R0 = chain.forward_kinematics(q)[:3, :3]
+    for i in range(n):
+        step = h * (1.0 if chain.joint_types[i] == REVOLUTE else 100.0)
+        dq = np.zeros(n)
+        dq[i] = step
+        Tp, Tm = chain.forward_kinematics(q + dq), chain.forward_kinematics(q - dq)
+        J[:3, i] = (Tp[:3, 3] - Tm[:3, 3]) / (2 * step)
+        W = (Tp[:3, :3] - Tm[:3, :3]) / (2 * step) @ R0.T
+        J[3:, i] = [W[2, 1], W[0, 2], W[1, 0]]
+    return J
+
+
+@pytest.mark.parametrize("name", CHAINS)
+def test_jacobian_matches_finite_differences(name):
+    chain = CHAINS[name]()
+    rng = np.random.default_rng(3)
+    for q in random_q(chain, rng, 10):
+        J = chain.geometric_jacobian(q)
+        assert J.shape == (6, chain.n_joints)
+        J_fd = fd_jacobian(chain, q)
+        # Linear rows in mm/rad (up to ~5000 for the crane): FD error ~1e-6 relative.
+        np.testing.assert_allclose(
+            J[:3], J_fd[:3], atol=1e-5 * max(1.0, np.abs(J_fd[:3]).max())
+        )
+        np.testing.assert_allclose(J[3:], J_fd[3:], atol=1e-7)
+
+
+@pytest.mark.parametrize("name", CHAINS)
+def test_batch_jacobian_equals_stacked_single(name):
+    chain = CHAINS[name]()
+    qs = random_q(chain, np.random.default_rng(4), 20)
+    J = chain.geometric_jacobian(qs)
+    assert J.shape == (20, 6, chain.n_joints)
+    np.testing.assert_allclose(
+        J, np.stack([chain.geometric_jacobian(q) for q in qs]), atol=1e-12
+    )
+
+
+def test_prismatic_columns():
+    chain = mixed_chain()
+    J = chain.geometric_jacobian(random_q(chain, np.random.default_rng(5)))
+    np.testing.assert_array_equal(J[3:, 1], 0.0)
+    np.testing.assert_array_equal(J[3:, 3], 0.0)
+    np.testing.assert_allclose(np.linalg.norm(J[:3, 1]), 1.0)
+
+
+def test_optional_reference_libraries():
+    """Cross-check against roboticstoolbox-python when it is installed (it is optional)."""
+    rtb = pytest.importorskip("roboticstoolbox")
+    robot = rtb.models.DH.Puma560()  # metres; its tool is identity
+    chain = puma560()
+    for q in random_q(chain, np.random.default_rng(6), 5):
+        T_ref = np.array(robot.fkine(q).A)
+        T_ref[:3, 3] *= 1000.0
+        np.testing.assert_allclose(chain.forward_kinematics(q), T_ref, atol=1e-6)
