@@ -20,10 +20,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    from . import bench, ceiling, demo, profiler
+    from . import bench, ceiling, demo, localcal, profiler, seam
     demo.add_parser(sub)
     profiler.add_parser(sub)
     ceiling.add_parser(sub)
+    localcal.add_parser(sub)
+    seam.add_parser(sub)
     bench.add_parser(sub)
     return parser
 

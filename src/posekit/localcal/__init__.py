@@ -1,0 +1,1 @@
+"""Look-then-move positioning of a long-reach manipulator with motion-based local calibration."""
