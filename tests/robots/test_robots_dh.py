@@ -182,12 +182,32 @@ def test_prismatic_columns():
     np.testing.assert_allclose(np.linalg.norm(J[:3, 1]), 1.0)
 
 
-def test_optional_reference_libraries():
-    """Cross-check against roboticstoolbox-python when it is installed (it is optional)."""
-    rtb = pytest.importorskip("roboticstoolbox")
-    robot = rtb.models.DH.Puma560()  # metres; its tool is identity
-    chain = puma560()
-    for q in random_q(chain, np.random.default_rng(6), 5):
-        T_ref = np.array(robot.fkine(q).A)
-        T_ref[:3, 3] *= 1000.0
-        np.testing.assert_allclose(chain.forward_kinematics(q), T_ref, atol=1e-6)
+def _pytransform3d_fk(chain, q):
+    """Standard DH composed with pytransform3d's own elementary transforms (an independent
+    implementation): T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i), chained base -> tool."""
+    pr = pytest.importorskip("pytransform3d.rotations")
+    pt = pytest.importorskip("pytransform3d.transformations")
+    T = np.eye(4)
+    for i in range(chain.n_joints):
+        theta, d = chain.theta[i], chain.d[i]
+        if chain.is_revolute[i]:
+            theta = theta + q[i]
+        else:
+            d = d + q[i]
+        rz = pt.transform_from(pr.active_matrix_from_angle(2, theta), [0.0, 0.0, d])
+        rx = pt.transform_from(pr.active_matrix_from_angle(0, chain.alpha[i]), [chain.a[i], 0.0, 0.0])
+        # pytransform3d's concat(A2B, B2C) is A2C = B2C @ A2B: link i maps frame i into i-1
+        T = pt.concat(pt.concat(rx, rz), T)
+    if chain.T_flange_tool is not None:
+        T = pt.concat(np.asarray(chain.T_flange_tool), T)
+    return T
+
+
+@pytest.mark.parametrize("make", [puma560, hiab033, mixed_chain])
+def test_fk_matches_pytransform3d(make):
+    """Forward kinematics against an independent library (pytransform3d), batched and single."""
+    chain = make()
+    qs = random_q(chain, np.random.default_rng(6), 8)
+    T_ref = np.stack([_pytransform3d_fk(chain, q) for q in qs])
+    np.testing.assert_allclose(chain.forward_kinematics(qs), T_ref, atol=1e-9)
+    np.testing.assert_allclose(chain.forward_kinematics(qs[0]), T_ref[0], atol=1e-9)
