@@ -1,0 +1,309 @@
+"""Figures of the seam-tracking simulation framework (§III-A of the paper), PNG via matplotlib Agg.
+
+* :func:`plot_particle_density` — Fig. 5: for each state dimension, the density of the
+  particles over time as a heatmap with the true coordinate overlaid.
+* :func:`plot_error_distributions` — Fig. 8: the distribution of the tool-pose error per
+  axis for several sensor configurations and trajectories.
+* :func:`plot_trajectories` — Fig. 9: tool positions along x, y, z over the time step.
+* :func:`plot_errors_over_time` — the per-step error of the filter and of the kinematics
+  alone.
+* :func:`plot_pvalue_heatmap` — Fig. 6: log10 p-values of the tuning study's linear models.
+
+Plotting is kept out of the numerical modules; each function writes one PNG and returns its
+path. Angles are shown in degrees, lengths in mm.
+"""
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+
+__all__ = ["AXIS_LABELS", "positions_in_frame", "particle_histogram", "plot_particle_density", "plot_error_distributions",
+           "plot_trajectories", "plot_errors_over_time", "plot_pvalue_heatmap"]
+
+#: Label of each of the six state/error dimensions (translations in mm, rotations in deg).
+AXIS_LABELS = ("x [mm]", "y [mm]", "z [mm]", "rx [deg]", "ry [deg]", "rz [deg]")
+DPI = 100
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    _plt().close(fig)
+    return path
+
+
+def positions_in_frame(T_W_tool: np.ndarray, T_W_ref: np.ndarray | None = None) -> np.ndarray:
+    """Tool positions expressed in a reference frame.
+
+    Parameters
+    ----------
+    T_W_tool : ndarray, shape (T, 4, 4)
+        Tool poses in the world frame W, mm.
+    T_W_ref : ndarray, shape (4, 4), optional
+        The reference frame in W (default: the first tool pose, so the path starts at 0 and
+        its axes are the tool's: y along the travel, z along the tool axis).
+
+    Returns
+    -------
+    ndarray, shape (T, 3)
+        ``R_W_ref^T (p_W - t_W_ref)``, mm.
+    """
+    T = np.asarray(T_W_tool, dtype=float)
+    ref = T[0] if T_W_ref is None else np.asarray(T_W_ref, dtype=float)
+    return (T[:, :3, 3] - ref[:3, 3]) @ ref[:3, :3]
+
+
+def particle_histogram(values: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Fraction of the particles in each bin, per time step.
+
+    Parameters
+    ----------
+    values : ndarray, shape (T, K)
+        One coordinate of K particles at each of T steps (NaN values are left out).
+    edges : ndarray, shape (B + 1,)
+        Increasing bin edges; values outside go to the first or last bin.
+
+    Returns
+    -------
+    ndarray, shape (T, B)
+        Each row sums to 1 (0 for a step without a finite value).
+    """
+    values = np.asarray(values, dtype=float)
+    bins = len(edges) - 1
+    idx = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)
+    ok = np.isfinite(values)
+    counts = np.zeros((values.shape[0], bins))
+    rows = np.broadcast_to(np.arange(values.shape[0])[:, None], values.shape)
+    np.add.at(counts, (rows[ok], idx[ok]), 1.0)
+    return counts / np.maximum(counts.sum(axis=1, keepdims=True), 1.0)
+
+
+def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s: np.ndarray | None = None,
+                          bins: int = 60, title: str = "") -> Path:
+    """Fig. 5: particle density over time per state dimension, the truth as a black line.
+
+    Parameters
+    ----------
+    particles : ndarray, shape (T, K, 6)
+        K recorded particles per time step, ``[x, y, z mm, rx, ry, rz deg]`` (the
+        ``EpisodeResult.particles`` convention).
+    truth : ndarray, shape (T, 6)
+        The true state in the same coordinates (``EpisodeResult.truth_coords``).
+    path : path-like
+        PNG file to write.
+    t_s : ndarray, shape (T,), optional
+        Time of each step, s (default: the step index on the x axis).
+    bins : int
+        Histogram bins along each state dimension.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    particles = np.asarray(particles, dtype=float)
+    truth = np.asarray(truth, dtype=float)
+    if particles.ndim != 3 or particles.shape[2] != 6 or truth.shape != (particles.shape[0], 6):
+        raise ConfigError(f"particle density plot: expected particles (T, K, 6) and truth (T, 6), "
+                          f"got {particles.shape} and {truth.shape}")
+    n_steps = particles.shape[0]
+    x = np.arange(n_steps) if t_s is None else np.asarray(t_s, dtype=float)
+    plt = _plt()
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    for d, ax in enumerate(axes.T.ravel()):
+        vals = np.concatenate([particles[:, :, d].ravel(), truth[:, d]])
+        vals = vals[np.isfinite(vals)]
+        lo, hi = (np.percentile(vals, [0.5, 99.5]) if len(vals) else (-1.0, 1.0))
+        pad = 0.05 * (hi - lo) if hi > lo else 1.0
+        edges = np.linspace(lo - pad, hi + pad, bins + 1)
+        density = particle_histogram(particles[:, :, d], edges)
+        ax.imshow(density.T, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest",
+                  extent=(x[0], x[-1] if n_steps > 1 else x[0] + 1, edges[0], edges[-1]))
+        ax.plot(x, truth[:, d], color="k", lw=1.2, label="truth")
+        ax.set_ylabel(AXIS_LABELS[d])
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]" if t_s is not None else "time step")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    fig.suptitle(title or "Particle density per state dimension (heatmap) and the truth (black)")
+    return _save(fig, path)
+
+
+def plot_error_distributions(groups: Mapping[str, np.ndarray], path, *, title: str = "") -> Path:
+    """Fig. 8: distribution of the tool-pose error per axis, one box per group.
+
+    Parameters
+    ----------
+    groups : mapping of str to ndarray, shape (M, 6)
+        Label (e.g. ``'xy, 2 sensors'``) -> per-step errors of all runs,
+        ``[x, y, z mm, rx, ry, rz deg]`` in the seam frame. Non-finite rows are left out.
+    path : path-like
+        PNG file to write.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    if not groups:
+        raise ConfigError("error distribution plot: expected at least one group of errors, got none")
+    labels = list(groups)
+    data = []
+    for k in labels:
+        e = np.asarray(groups[k], dtype=float)
+        if e.ndim != 2 or e.shape[1] != 6:
+            raise ConfigError(f"error distribution plot: group '{k}' must be (M, 6), got {e.shape}")
+        data.append(e)
+    plt = _plt()
+    fig, axes = plt.subplots(2, 3, figsize=(max(10, 1.1 * len(labels) * 3), 7))
+    colors = [f"C{i % 10}" for i in range(len(labels))]
+    for d, ax in enumerate(axes.ravel()):
+        cols = [e[np.isfinite(e[:, d]), d] for e in data]
+        cols = [c if len(c) else np.array([np.nan]) for c in cols]
+        bp = ax.boxplot(cols, showfliers=False, whis=(2.5, 97.5), patch_artist=True, widths=0.6)
+        for patch, c in zip(bp["boxes"], colors):
+            patch.set_facecolor(c)
+            patch.set_alpha(0.6)
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, ha="right", fontsize=8)
+        ax.set_title(f"error {AXIS_LABELS[d]}", fontsize=10)
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.suptitle(title or "Error distributions (boxes: quartiles, whiskers: 2.5-97.5 %)")
+    return _save(fig, path)
+
+
+def plot_trajectories(series: Mapping[str, np.ndarray], path, *, title: str = "",
+                      styles: Mapping[str, str] | None = None) -> Path:
+    """Fig. 9: distance along each axis (x, y, z) as a function of the time step.
+
+    Parameters
+    ----------
+    series : mapping of str to ndarray, shape (T, 3)
+        Label -> positions in mm (e.g. from :func:`positions_in_frame`).
+    path : path-like
+        PNG file to write.
+    title : str
+        Figure title.
+    styles : mapping of str to str, optional
+        Label -> matplotlib format string (default: solid, dashed, dotted, ... in turn).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    if not series:
+        raise ConfigError("trajectory plot: expected at least one trajectory, got none")
+    plt = _plt()
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    default = ["-", "--", ":", "-."]
+    for i, (label, p) in enumerate(series.items()):
+        p = np.asarray(p, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ConfigError(f"trajectory plot: '{label}' must be (T, 3) positions, got {p.shape}")
+        fmt = (styles or {}).get(label, default[i % len(default)])
+        for d, ax in enumerate(axes):
+            ax.plot(np.arange(len(p)), p[:, d], fmt, color=f"C{i % 10}", lw=1.4, label=label)
+    for d, ax in enumerate(axes):
+        ax.set_ylabel(AXIS_LABELS[d])
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[-1].set_xlabel("time step")
+    fig.suptitle(title or "Trajectories")
+    return _save(fig, path)
+
+
+def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, *, t_s=None,
+                          title: str = "") -> Path:
+    """Per-step tool-pose error of the filter and of the kinematics alone, all runs.
+
+    Parameters
+    ----------
+    error, kinematic_error : ndarray, shape (R, T, 6)
+        Errors of the filter estimate and of the robot's FK-only pose for R runs,
+        ``[x, y, z mm, rx, ry, rz deg]`` in the seam frame.
+    path : path-like
+        PNG file to write.
+    t_s : ndarray, shape (T,), optional
+        Time of each step, s.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    e = np.asarray(error, dtype=float)
+    k = np.asarray(kinematic_error, dtype=float)
+    if e.ndim != 3 or e.shape[2] != 6 or k.shape != e.shape:
+        raise ConfigError(f"error plot: expected two (R, T, 6) error arrays, got {e.shape} and {k.shape}")
+    x = np.arange(e.shape[1]) if t_s is None else np.asarray(t_s, dtype=float)
+    plt = _plt()
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    for d, ax in enumerate(axes.T.ravel()):
+        for r in range(e.shape[0]):
+            ax.plot(x, k[r, :, d], color="C1", lw=0.7, alpha=0.5, label="kinematics only" if r == 0 else None)
+            ax.plot(x, e[r, :, d], color="C0", lw=0.8, alpha=0.7, label="particle filter" if r == 0 else None)
+        ax.axhline(0.0, color="0.4", lw=0.6)
+        ax.set_ylabel(f"error {AXIS_LABELS[d]}")
+        ax.grid(True, alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]" if t_s is not None else "time step")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(title or "Tool-pose error in the seam frame")
+    return _save(fig, path)
+
+
+def plot_pvalue_heatmap(log10_p: np.ndarray, parameters: Sequence[str], errors: Sequence[str], path, *,
+                        title: str = "") -> Path:
+    """Fig. 6: log10 p-values of each parameter (x axis) in the linear model of each error (y axis).
+
+    Parameters
+    ----------
+    log10_p : ndarray, shape (E, P)
+        log10 of the OLS p-value of parameter p in the model of error e (NaN where the model
+        could not be fitted).
+    parameters : sequence of str, length P
+        Parameter names (the factors).
+    errors : sequence of str, length E
+        Error names (the responses).
+    path : path-like
+        PNG file to write.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    lp = np.asarray(log10_p, dtype=float)
+    if lp.shape != (len(errors), len(parameters)):
+        raise ConfigError(f"p-value heatmap: expected log10_p of shape ({len(errors)}, {len(parameters)}), "
+                          f"got {lp.shape}")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(parameters) + 2.5), 0.5 * len(errors) + 2.8))
+    finite = lp[np.isfinite(lp)]
+    vmin = min(-4.0, float(finite.min())) if len(finite) else -4.0
+    im = ax.imshow(lp, cmap="viridis", vmin=vmin, vmax=0.0, aspect="auto")
+    for (i, j), v in np.ndenumerate(lp):
+        if np.isfinite(v):
+            ax.text(j, i, f"{v:.1f}", ha="center", va="center", fontsize=7,
+                    color="w" if v < 0.6 * vmin else "k")
+    ax.set_xticks(range(len(parameters)), parameters, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(errors)), errors)
+    ax.set_xlabel("filter parameter (factor)")
+    ax.set_ylabel("error RMSE (response)")
+    fig.colorbar(im, ax=ax, label="log10 p-value")
+    ax.set_title(title or "Significance of the filter parameters (OLS, log10 p)")
+    return _save(fig, path)

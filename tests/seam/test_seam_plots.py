@@ -1,0 +1,154 @@
+"""Figures and report files of the seam front end (posekit.seam.plots / posekit.seam.report).
+
+Synthetic arrays in the EpisodeResult shapes; the figures must be real PNGs of the expected
+pixel size with content, and the histogram behind Fig. 5 must put the particles where they are.
+"""
+
+import struct
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from posekit.errors import ConfigError
+from posekit.geometry import se3_exp
+from posekit.seam.plots import (
+    particle_histogram,
+    plot_error_distributions,
+    plot_errors_over_time,
+    plot_particle_density,
+    plot_pvalue_heatmap,
+    plot_trajectories,
+    positions_in_frame,
+)
+from posekit.seam.report import (
+    ESTIMATE_COLUMNS,
+    read_estimates_csv,
+    write_estimates_csv,
+    write_html,
+    html_figure,
+    html_table,
+    write_json,
+)
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(path):
+    """(width, height) from the IHDR chunk."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_MAGIC
+    return struct.unpack(">II", data[16:24])
+
+
+def png_pixels(path):
+    import matplotlib.image as mpimg
+    return mpimg.imread(path)
+
+
+def check_png(path, size, min_bytes=15_000):
+    assert path.is_file()
+    assert png_size(path) == size
+    assert path.stat().st_size > min_bytes
+    img = png_pixels(path)
+    assert img[..., :3].std() > 0.05           # not a blank canvas
+
+
+def test_particle_histogram_puts_particles_in_their_bins():
+    edges = np.linspace(0.0, 10.0, 11)
+    values = np.array([[0.5, 0.5, 9.5, np.nan], [3.2, 3.7, 3.9, 3.1], [-5.0, 20.0, 5.0, 5.5]])
+    h = particle_histogram(values, edges)
+    assert h.shape == (3, 10)
+    np.testing.assert_allclose(h.sum(axis=1), 1.0)
+    np.testing.assert_allclose(h[0, [0, 9]], [2 / 3, 1 / 3])
+    assert h[1, 3] == 1.0
+    np.testing.assert_allclose(h[2, [0, 9, 5]], [0.25, 0.25, 0.5])   # outside -> end bins
+
+
+def test_positions_in_frame_start_frame():
+    xi = np.zeros((4, 6))
+    xi[:, 1] = np.arange(4) * 10.0                      # 10 mm steps along y of the start frame
+    T0 = se3_exp(np.array([5.0, -2.0, 1.0, 0.3, -0.2, 0.5]))
+    T = T0 @ se3_exp(xi)
+    p = positions_in_frame(T)
+    np.testing.assert_allclose(p, np.c_[np.zeros(4), 10.0 * np.arange(4), np.zeros(4)], atol=1e-9)
+
+
+def test_fig5_density_png(tmp_path):
+    rng = np.random.default_rng(0)
+    T, K = 40, 50
+    truth = np.c_[np.linspace(0, 5, T)[:, None] * np.ones((1, 3)), 0.1 * np.ones((T, 3))]
+    spread = np.linspace(3.0, 0.3, T)[:, None, None]             # the density narrows over time
+    particles = truth[:, None, :] + spread * rng.standard_normal((T, K, 6))
+    path = plot_particle_density(particles, truth, tmp_path / "fig5.png", bins=30)
+    check_png(path, (1100, 800))
+    with pytest.raises(ConfigError, match=r"expected particles \(T, K, 6\) and truth \(T, 6\), got \(40, 50, 6\) "
+                                          r"and \(39, 6\)"):
+        plot_particle_density(particles, truth[1:], tmp_path / "bad.png")
+
+
+def test_fig8_fig9_errors_and_heatmap_png(tmp_path):
+    rng = np.random.default_rng(1)
+    groups = {f"{traj}, {s} sensors": rng.standard_normal((200, 6)) / (1 + s) for traj in ("xy", "yz")
+              for s in (0, 1, 2)}
+    check_png(plot_error_distributions(groups, tmp_path / "fig8.png"), (1980, 700))
+    with pytest.raises(ConfigError, match="group 'bad' must be \\(M, 6\\), got \\(3, 5\\)"):
+        plot_error_distributions({"bad": np.zeros((3, 5))}, tmp_path / "x.png")
+
+    t = np.arange(100)
+    series = {"xy": np.c_[20 * np.abs(((t / 25) % 2) - 1), 2.0 * t, 0 * t],
+              "yz": np.c_[0 * t, 2.0 * t, 100 * np.sin(t / 16)]}
+    check_png(plot_trajectories(series, tmp_path / "fig9.png"), (800, 700), min_bytes=10_000)
+
+    e = rng.standard_normal((2, 50, 6))
+    check_png(plot_errors_over_time(e, 3 * e, tmp_path / "err.png"), (1100, 800))
+
+    lp = -np.abs(rng.standard_normal((6, 5))) * 3
+    check_png(plot_pvalue_heatmap(lp, list("abcde"), ["x", "y", "z", "rx", "ry", "rz"], tmp_path / "fig6.png"),
+              (700, 580), min_bytes=10_000)
+
+
+def _episode(rng, T=12):
+    xi = rng.standard_normal((T, 6)) * [10, 10, 10, 0.5, 0.5, 0.5]
+    truth = se3_exp(xi)
+    est = truth @ se3_exp(0.01 * rng.standard_normal((T, 6)))
+    return SimpleNamespace(t_s=0.01 * np.arange(T), truth=truth, estimate=est, nominal=truth.copy(),
+                           error=rng.standard_normal((T, 6)), kinematic_error=rng.standard_normal((T, 6)),
+                           spread=np.abs(rng.standard_normal((T, 6))), ess=rng.random(T) * 100,
+                           step_ms=rng.random(T))
+
+
+def test_estimates_csv_round_trip(tmp_path):
+    rng = np.random.default_rng(2)
+    runs = [_episode(rng), _episode(rng, T=7)]
+    path = write_estimates_csv(tmp_path / "estimates.csv", runs)
+    cols = read_estimates_csv(path)
+    assert list(cols) == ESTIMATE_COLUMNS
+    assert len(cols["run"]) == 19
+    np.testing.assert_array_equal(cols["run"], [0] * 12 + [1] * 7)
+    np.testing.assert_array_equal(cols["step"], [*range(12), *range(7)])
+    np.testing.assert_allclose(cols["err_rz_deg"], np.r_[runs[0].error[:, 5], runs[1].error[:, 5]], rtol=1e-9)
+    np.testing.assert_allclose(cols["truth_y_mm"][12:], runs[1].truth[:, 1, 3], rtol=1e-9, atol=1e-12)
+    # quaternions are unit, scalar first, with qw >= 0, and give back the rotation
+    from posekit.geometry import matrix_from_quaternion
+    q = np.c_[cols["estimate_qw"], cols["estimate_qx"], cols["estimate_qy"], cols["estimate_qz"]]
+    assert np.all(q[:, 0] >= 0)
+    R = np.concatenate([r.estimate[:, :3, :3] for r in runs])
+    np.testing.assert_allclose(matrix_from_quaternion(q), R, atol=1e-8)
+
+
+def test_html_report_embeds_figures(tmp_path):
+    rng = np.random.default_rng(3)
+    fig = plot_error_distributions({"a": rng.standard_normal((20, 6))}, tmp_path / "fig8.png")
+    write_json(tmp_path / "m.json", {"v": np.float64(1.5), "n": np.int64(3), "nan": float("nan"),
+                                     "arr": np.arange(2)})
+    import json
+    assert json.loads((tmp_path / "m.json").read_text()) == {"v": 1.5, "n": 3, "nan": None, "arr": [0, 1]}
+    path = write_html(tmp_path, "T <1>", "<p>intro</p>",
+                      [("Fig", html_figure(fig, "caption")),
+                       ("Table", html_table([{"a": 1.23456, "b": "x<y"}], ["a", "b"]))])
+    text = path.read_text()
+    assert path.name == "report.html"
+    assert "<title>T &lt;1&gt;</title>" in text
+    assert text.count('src="data:image/png;base64,') == 1 and 'href="fig8.png"' in text
+    assert "<td>1.235</td><td>x&lt;y</td>" in text
