@@ -1,16 +1,134 @@
-"""Placeholder: filled in by the seam_simulate work (issue 5/6)."""
+"""``posekit seam simulate`` and ``posekit seam demo``: simulated seam tracking with figures.
+
+Precedence of settings: defaults < ``--config`` file < flags.
+"""
+
+import sys
 
 from ..errors import ConfigError
+from ._common import progress
+
+__all__ = ["add_simulate_parser", "add_demo_parser", "build_config", "DEMO_STEPS", "DEMO_PARTICLES"]
+
+TRAJECTORIES = ("xy", "yz", "line", "bend")
+#: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
+DEMO_STEPS = 200
+DEMO_PARTICLES = 300
+
+
+def _episode_flags(p):
+    p.add_argument("--config", default=None, help="YAML configuration (every parameter; see examples/seam/)")
+    p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
+                   help="seam/trajectory kind (overrides trajectory.kind)")
+    p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None,
+                   help="laser sensors ahead of the tool (overrides sensors.count)")
+    p.add_argument("--particles", type=int, default=None, help="particle count (overrides filter.particles)")
+    p.add_argument("--steps", type=int, default=None, help="time steps per episode (overrides trajectory.steps)")
+    p.add_argument("--seed", type=int, default=None, help="seed (overrides seed; same seed, same numbers)")
 
 
 def add_simulate_parser(verbs):
-    p = verbs.add_parser("simulate", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add ``simulate`` to the ``posekit seam`` sub-parsers."""
+    p = verbs.add_parser("simulate", help="simulate seam tracking episodes: metrics.json, estimates.csv, "
+                                          "figures, report.html")
+    _episode_flags(p)
+    p.add_argument("--runs", type=int, default=1, help="Monte-Carlo episodes (default 1)")
+    p.add_argument("--compare", action="store_true",
+                   help="also run trajectories xy, yz with 0, 1, 2 sensors for Fig. 8 (same filter)")
+    p.add_argument("--record-particles", type=int, default=200,
+                   help="particles recorded per step in run 0 for Fig. 5 (default 200; 0: no Fig. 5)")
+    p.add_argument("--dump-config", action="store_true", help="print the effective configuration and exit")
+    p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
+    p.set_defaults(func=run_simulate)
+    return p
+
 
 def add_demo_parser(verbs):
-    p = verbs.add_parser("demo", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add ``demo`` to the ``posekit seam`` sub-parsers."""
+    p = verbs.add_parser("demo", help=f"quick look: 0, 1, 2 sensors on the xy and yz seams "
+                                      f"({DEMO_STEPS} steps, {DEMO_PARTICLES} particles), RMSE per axis")
+    p.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    p.add_argument("--runs", type=int, default=1, help="episodes per configuration (default 1)")
+    p.add_argument("--out", default=None, help="also write figures, metrics.json and report.html here")
+    p.set_defaults(func=run_demo)
+    return p
 
 
-def _missing(args):
-    raise ConfigError("this command is not implemented yet")
+def build_config(args):
+    """The effective :class:`~posekit.seam.config.SeamConfig`: defaults < ``--config`` < flags."""
+    from ..seam.compare import with_sensors
+    from ..seam.config import apply_overrides, config_from_dict, load_config
+
+    cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
+    for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
+                             ("--seed", args.seed, 0)):
+        if value is not None and value < low:
+            raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
+    cfg = apply_overrides(cfg, {"trajectory.kind": args.trajectory, "filter.particles": args.particles,
+                                "trajectory.steps": args.steps, "seed": args.seed})
+    if args.sensors is not None:
+        cfg = with_sensors(cfg, args.sensors)
+    return cfg
+
+
+def _check_runs(runs):
+    if runs < 1:
+        raise ConfigError(f"--runs: expected an integer >= 1, got {runs}")
+
+
+def run_simulate(args) -> int:
+    from ..seam.compare import compare_configurations, run_episodes
+    from ..seam.config import dump_config
+    from ..seam.report import rmse_table_text, write_simulation
+    from ..seam.simulate import metrics
+
+    cfg = build_config(args)
+    if args.dump_config:
+        sys.stdout.write(dump_config(cfg))
+        return 0
+    if not args.out:
+        raise ConfigError("--out: an output folder is required (or use --dump-config)")
+    _check_runs(args.runs)
+    if args.record_particles < 0:
+        raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
+    results = run_episodes(cfg, args.runs, record_particles=args.record_particles, progress=progress,
+                           desc="episodes")
+    m = metrics(results)
+    comparison = compare_configurations(cfg, args.runs, progress=progress) if args.compare else None
+    paths = write_simulation(args.out, results, m, dump_config(cfg), comparison=comparison)
+    sets = [(f"{cfg.trajectory.kind}, {cfg.sensors.count} sensors", m)]
+    if comparison:
+        sets += [(s.label, s.metrics) for s in comparison]
+    print(f"seam simulate: {args.runs} run(s) × {cfg.trajectory.steps} steps, {cfg.filter.particles} particles, "
+          f"filter step median {m['step_ms_median']:.3f} ms")
+    print("RMSE per axis in the seam frame (mm, deg):")
+    print(rmse_table_text(sets, kinematics=not comparison))
+    print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
+    return 0
+
+
+def run_demo(args) -> int:
+    from ..seam.compare import compare_configurations
+    from ..seam.config import apply_overrides, config_from_dict, dump_config
+    from ..seam.report import rmse_table_text, write_simulation
+
+    _check_runs(args.runs)
+    if args.seed < 0:
+        raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
+    cfg = apply_overrides(config_from_dict({}, "defaults"),
+                          {"trajectory.steps": DEMO_STEPS, "filter.particles": DEMO_PARTICLES, "seed": args.seed})
+    sets = compare_configurations(cfg, args.runs, record_particles=200 if args.out else 0, progress=progress)
+    print(f"seam demo: {args.runs} run(s) × {DEMO_STEPS} steps, {DEMO_PARTICLES} particles, sensors 20/40 mm ahead")
+    print("RMSE per axis in the seam frame (mm, deg):")
+    print(rmse_table_text([(s.label, s.metrics) for s in sets], kinematics=False))
+    fk = sets[0].metrics
+    if "kinematic_rmse_mm" in fk:
+        print(rmse_table_text([("xy, FK only", {"rmse_mm": fk["kinematic_rmse_mm"],
+                                                "rmse_deg": fk["kinematic_rmse_deg"]})],
+                              kinematics=False).splitlines()[1])
+    if args.out:
+        main = next(s for s in sets if s.trajectory == "xy" and s.sensors == 2)
+        paths = write_simulation(args.out, main.results, main.metrics, dump_config(main.config), comparison=sets,
+                                 title="Seam tracking demo")
+        print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
+    return 0

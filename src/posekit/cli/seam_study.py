@@ -1,12 +1,87 @@
-"""Placeholder: filled in by the seam_study work (issue 5/6)."""
+"""``posekit seam study``: Monte-Carlo tuning study of the filter parameters (Fig. 6)."""
+
+import sys
 
 from ..errors import ConfigError
 
+__all__ = ["add_study_parser", "parse_factors"]
+
 
 def add_study_parser(verbs):
-    p = verbs.add_parser("study", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add ``study`` to the ``posekit seam`` sub-parsers."""
+    p = verbs.add_parser("study", help="randomly perturbed filter parameters on Dask, OLS of each error RMSE, "
+                                       "Fig. 6 p-value heatmap, ranked parameters (CSV, PNG, report.html)")
+    p.add_argument("--config", default=None, help="base YAML configuration (default: the paper's setup)")
+    p.add_argument("--trajectory", choices=("xy", "yz", "line", "bend"), default=None,
+                   help="overrides trajectory.kind")
+    p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None, help="overrides sensors.count")
+    p.add_argument("--particles", type=int, default=None, help="overrides filter.particles")
+    p.add_argument("--steps", type=int, default=None, help="overrides trajectory.steps")
+    p.add_argument("--runs", type=int, default=100, help="random parameter draws (default 100)")
+    p.add_argument("--episodes", type=int, default=1, help="episodes per draw, errors pooled (default 1)")
+    p.add_argument("--parameters", default=None,
+                   help="comma-separated dotted keys to perturb, each optionally KEY=LOW:HIGH "
+                        "(default: the filter's noise, force, plateau and initial widths, ESS threshold)")
+    p.add_argument("--spread", type=float, default=0.5,
+                   help="relative half-range of a perturbation around the base value (default 0.5)")
+    p.add_argument("--seed", type=int, default=0, help="study seed (default 0; same seed, same table)")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local cluster (default: one per core)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=run_study)
+    return p
 
 
-def _missing(args):
-    raise ConfigError("this command is not implemented yet")
+def parse_factors(text: str | None):
+    """``'filter.d0_mm,filter.k_force_t=0:1e-5'`` -> (names, {name: (low, high)})."""
+    if text is None:
+        return None, {}
+    names, ranges = [], {}
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        name, _, rng = item.partition("=")
+        names.append(name.strip())
+        if rng:
+            try:
+                lo, hi = (float(v) for v in rng.split(":"))
+            except ValueError:
+                raise ConfigError(f"--parameters: expected KEY or KEY=LOW:HIGH, got '{item}'") from None
+            ranges[name.strip()] = (lo, hi)
+    if not names:
+        raise ConfigError(f"--parameters: expected at least one dotted key, got '{text}'")
+    return names, ranges
+
+
+def run_study(args) -> int:
+    from ..seam.report import ERROR_AXES
+    from ..seam.study import make_factors, seam_study, write_study
+    from .seam_simulate import build_config
+
+    if args.workers is not None and args.scheduler is not None:
+        raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+    for flag, v in (("--runs", args.runs), ("--episodes", args.episodes)):
+        if v < 1:
+            raise ConfigError(f"{flag}: expected an integer >= 1, got {v}")
+    cfg = build_config(args)
+    names, ranges = parse_factors(args.parameters)
+    factors = make_factors(cfg.model_dump(mode="json"), names, spread=args.spread, ranges=ranges)
+    study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
+                       scheduler=args.scheduler, n_workers=args.workers)
+    report = write_study(study, args.out)
+    failed = sum(s != "ok" for s in study.status)
+    print(f"seam study: {len(study.X)} runs × {study.episodes} episode(s), {len(factors)} parameters, "
+          f"{failed} failed; {study.wall_s:.1f} s wall, {study.task_cpu_s:.1f} s CPU in the tasks")
+    if study.effects is None:
+        print(f"no linear models: {study.effects_error}")
+    else:
+        print(f"{'rank':>4}  {'parameter':<28}{'min log10 p':>12}  most affected   " +
+              "".join(f"{'lg p ' + a:>9}" for a in ERROR_AXES))
+        for r in study.ranked:
+            print(f"{r['rank']:>4}  {r['parameter']:<28}{r['min_log10_p']:>12.2f}  {r['most_affected']:<14}  "
+                  + "".join(f"{r['log10_p_' + a]:>9.2f}" for a in ERROR_AXES))
+    print(f"wrote {report.parent}: fig6_pvalues.png, parameters_ranked.csv, runs.csv, report.html")
+    sys.stdout.flush()
+    return 0

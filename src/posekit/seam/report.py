@@ -20,7 +20,8 @@ import numpy as np
 from ..geometry import quaternion_from_matrix
 
 __all__ = ["ERROR_AXES", "ERROR_COLUMNS", "ESTIMATE_COLUMNS", "write_estimates_csv", "read_estimates_csv",
-           "write_csv", "write_json", "write_html", "html_table", "html_figure"]
+           "write_csv", "write_json", "write_html", "html_table", "html_figure", "write_simulation",
+           "rmse_table_text"]
 
 #: The six error axes of the seam frame: translations (mm) then rotations (deg).
 ERROR_AXES = ("x", "y", "z", "rx", "ry", "rz")
@@ -165,3 +166,123 @@ def write_html(out, title: str, intro: str, sections: Iterable[tuple[str, str]])
     path = out / "report.html"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def _rmse_rows(metrics: Mapping) -> list[dict]:
+    rows = []
+    for i, a in enumerate(ERROR_AXES):
+        unit, key = ("mm", "rmse_mm") if i < 3 else ("deg", "rmse_deg")
+        rows.append({"axis": f"{a} [{unit}]", "filter": float(metrics[key][a]),
+                     "kinematics only": float(metrics.get(f"kinematic_{key}", {}).get(a, float("nan")))})
+    return rows
+
+
+def rmse_table_text(sets: Sequence[tuple[str, Mapping]], *, kinematics: bool = True) -> str:
+    """A plain-text table of the RMSE per axis (mm, deg), one line per (label, metrics) pair,
+    followed by a kinematics-only line per label when ``kinematics``."""
+    head = f"{'configuration':<24}" + "".join(f"{a + (' mm' if i < 3 else ' deg'):>10}"
+                                               for i, a in enumerate(ERROR_AXES))
+    lines = [head]
+    for label, m in sets:
+        vals = [m["rmse_mm"][a] for a in ERROR_AXES[:3]] + [m["rmse_deg"][a] for a in ERROR_AXES[3:]]
+        lines.append(f"{label:<24}" + "".join(f"{v:>10.4g}" for v in vals))
+    if kinematics:
+        for label, m in sets:
+            if "kinematic_rmse_mm" in m:
+                vals = ([m["kinematic_rmse_mm"][a] for a in ERROR_AXES[:3]]
+                        + [m["kinematic_rmse_deg"][a] for a in ERROR_AXES[3:]])
+                lines.append(f"{(label + ' (FK only)')[:24]:<24}" + "".join(f"{v:>10.4g}" for v in vals))
+    return "\n".join(lines)
+
+
+def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str = "", *,
+                     comparison: Sequence | None = None, title: str = "Seam tracking simulation") -> dict:
+    """Write the files of ``posekit seam simulate`` / ``demo`` into folder ``out``.
+
+    Parameters
+    ----------
+    out : path-like
+        Output folder (created).
+    results : sequence of EpisodeResult
+        The episodes of the main configuration (run 0 may carry recorded particles).
+    metrics : mapping
+        ``posekit.seam.simulate.metrics(results)`` (the metrics.json contract); written as is,
+        plus ``comparison`` (label -> RMSE per axis) when ``comparison`` is given.
+    config_yaml : str
+        The effective configuration, shown in the report and written to ``config.yaml``.
+    comparison : sequence of ConfigurationSet, optional
+        Trajectory × sensor-count sets for Fig. 8 (and both trajectories in Fig. 9).
+    title : str
+        Title of the report.
+
+    Returns
+    -------
+    dict
+        Name -> path of every file written: ``metrics``, ``estimates``, ``config``, ``fig5``
+        (only when run 0 recorded particles), ``fig8``, ``fig9``, ``errors``, ``report``.
+    """
+    from . import plots
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    data = dict(metrics)
+    if comparison:
+        data["comparison"] = {s.label: {k: s.metrics[k] for k in ("rmse_mm", "rmse_deg", "kinematic_rmse_mm",
+                                                                  "kinematic_rmse_deg") if k in s.metrics}
+                              for s in comparison}
+    paths = {"metrics": write_json(out / "metrics.json", data),
+             "estimates": write_estimates_csv(out / "estimates.csv", results)}
+    if config_yaml:
+        paths["config"] = out / "config.yaml"
+        paths["config"].write_text(config_yaml, encoding="utf-8")
+    r0 = results[0]
+    sections = []
+    if getattr(r0, "particles", None) is not None:
+        paths["fig5"] = plots.plot_particle_density(
+            r0.particles, r0.truth_coords, out / "fig5_density.png",
+            title="Run 0: particle density per state dimension (heatmap), truth (black)")
+        sections.append(("Fig. 5 — particle density over time", html_figure(
+            paths["fig5"], "Recorded particles of run 0 per state dimension, in the seam frame")))
+    if comparison:
+        groups = {s.label: s.errors() for s in comparison}
+        caption = "Error distributions per trajectory and sensor count (same filter parameters)"
+        series = {}
+        for s in comparison:
+            series.setdefault(s.trajectory, plots.positions_in_frame(s.results[0].nominal))
+        fig9_caption = "Nominal trajectories in the tool frame at the start"
+    else:
+        groups = {"particle filter": np.concatenate([r.error for r in results]),
+                  "kinematics only": np.concatenate([r.kinematic_error for r in results])}
+        caption = "Error distributions of the filter and of the robot kinematics alone, all runs"
+        ref = r0.nominal[0]
+        series = {k: plots.positions_in_frame(getattr(r0, k), ref) for k in ("nominal", "truth", "estimate",
+                                                                            "kinematic")}
+        fig9_caption = "Run 0: nominal, true, estimated and kinematics-only tool positions (start tool frame)"
+    paths["fig8"] = plots.plot_error_distributions(groups, out / "fig8_errors.png")
+    paths["fig9"] = plots.plot_trajectories(series, out / "fig9_trajectories.png")
+    paths["errors"] = plots.plot_errors_over_time(np.stack([r.error for r in results]),
+                                                  np.stack([r.kinematic_error for r in results]),
+                                                  out / "errors_time.png", t_s=r0.t_s)
+    sections.insert(0, ("RMSE per axis (seam frame, all runs and steps)",
+                        html_table(_rmse_rows(metrics), ["axis", "filter", "kinematics only"])))
+    if comparison:
+        rows = []
+        for s in comparison:
+            row = {"configuration": s.label}
+            row.update({a: float(s.metrics["rmse_mm"][a]) for a in ERROR_AXES[:3]})
+            row.update({a: float(s.metrics["rmse_deg"][a]) for a in ERROR_AXES[3:]})
+            rows.append(row)
+        sections.append(("RMSE per configuration (mm, deg)", html_table(rows, ["configuration", *ERROR_AXES])))
+    sections += [("Fig. 8 — error distributions", html_figure(paths["fig8"], caption)),
+                 ("Fig. 9 — trajectories", html_figure(paths["fig9"], fig9_caption)),
+                 ("Errors over time", html_figure(paths["errors"], "Per-step error of every run"))]
+    if config_yaml:
+        sections.append(("Configuration", f"<pre>{html.escape(config_yaml)}</pre>"))
+    skip = {"rmse_mm", "rmse_deg", "kinematic_rmse_mm", "kinematic_rmse_deg", "comparison"}
+    facts = "".join(f"<li><code>{html.escape(str(k))}</code> = {html.escape(json.dumps(_jsonable(v)))}</li>"
+                    for k, v in metrics.items() if k not in skip)
+    cfg_link = ", <a href='config.yaml'>config.yaml</a>" if config_yaml else ""
+    intro = (f"<p>Files: <a href='metrics.json'>metrics.json</a>, <a href='estimates.csv'>estimates.csv</a>"
+             f"{cfg_link}.</p><ul>{facts}</ul>")
+    paths["report"] = write_html(out, title, intro, sections)
+    return paths
