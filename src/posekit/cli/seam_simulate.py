@@ -77,10 +77,7 @@ def _check_runs(runs):
 
 
 def run_simulate(args) -> int:
-    from ..seam.compare import compare_configurations, run_episodes
     from ..seam.config import dump_config
-    from ..seam.report import rmse_table_text, write_simulation
-    from ..seam.simulate import metrics
 
     cfg = build_config(args)
     if args.dump_config:
@@ -91,6 +88,10 @@ def run_simulate(args) -> int:
     _check_runs(args.runs)
     if args.record_particles < 0:
         raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
+    from ..seam.compare import compare_configurations, run_episodes
+    from ..seam.report import rmse_table_text, write_simulation
+    from ..seam.simulate import metrics
+
     results = run_episodes(cfg, args.runs, record_particles=args.record_particles, progress=progress,
                            desc="episodes")
     m = metrics(results)
