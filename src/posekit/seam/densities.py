@@ -1,0 +1,313 @@
+"""The densities of the particle filter (paper §II-C), vectorised over particles.
+
+Transition (eq. 3)
+    ``x+ = T+ x exp(ξ)``, ``T+ = Fk(q̄+) Fk(q̄)^-1``, ``ξ ~ N(0, diag(σt², σr²))`` in the tool
+    frame with ``σt = sigma_t_mm + k_force_t ‖f‖``, ``σr = sigma_r + k_force_r ‖f‖``.
+Robot measurement (eq. 5, 7, 8)
+    mean ``μ = Fk(q + Cj(τ))`` (``τ = J_vᵀ f``, Cj a compliance hook), error in twist
+    coordinates of the base frame ``Δ = [p - p_μ, log(R R_μᵀ)]`` (the geometric Jacobian's
+    convention), covariance ``J Σq Jᵀ`` (+ a floor). The time-correlated errors (kinematic
+    model, deflection) are the uniform plateau of eq. 8 with radius ``d(f) = d0 + kd ‖f‖``;
+    translation (mm) and rotation (rad) are two 3-D blocks, each with its own radius,
+    because a single radius over mixed units has no meaning.
+Laser (eq. 9, Fig. 4)
+    ``m̂ = x T_T_S [m_x, 0, m_z, 1]ᵀ`` (the seam point the particle believes the sensor saw),
+    ``pi`` the intersection of the particle's laser plane with the seam polyline,
+    ``e = m̂ - pi`` Gaussian with ``σ = laser_sigma_mm`` in the laser plane.
+Angle
+    The workpiece rotation about the laser-plane normal: ``atan2(ν·x_S, ν·z_S)`` for the
+    seam surface normal ``ν``; Gaussian error.
+"""
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from scipy.special import gammaln
+
+from posekit.robots import DHChain
+
+from .particles import exp_small, rotvec_from_matrix_fast
+from .seamline import SeamLine
+
+__all__ = [
+    "plateau_logpdf",
+    "plateau_pdf_1d",
+    "ball_volume",
+    "transition",
+    "fk_and_jacobian",
+    "RobotMeasurement",
+    "robot_measurement",
+    "robot_loglik",
+    "laser_loglik",
+    "angle_loglik",
+    "joint_compliance",
+]
+
+
+def ball_volume(d: float, k: int) -> float:
+    """Volume ``V(d, k)`` of a k-dimensional ball of radius ``d``."""
+    if d <= 0.0:
+        return 0.0
+    return float(np.exp(0.5 * k * np.log(np.pi) - gammaln(0.5 * k + 1.0) + k * np.log(d)))
+
+
+def plateau_logpdf(delta: np.ndarray, d: float, Sigma: np.ndarray) -> np.ndarray:
+    """Log of the Gaussian + uniform plateau density of eq. (8).
+
+    ``p = D`` inside the ball ``‖Δ‖ <= d``, ``D exp(-½ δᵀ Σ⁻¹ δ)`` outside, with
+    ``δ = (1 - d/‖Δ‖) Δ`` and ``D = 1 / ((2π)^(k/2) √det Σ + V(d, k))``. In one dimension this
+    is eq. (7) and integrates to 1; with ``d = 0`` it is the Gaussian ``N(0, Σ)``.
+
+    Parameters
+    ----------
+    delta : ndarray, shape (N, k)
+        Errors ``Δ = x - μ`` (any unit, the same as ``d`` and ``√Σ``).
+    d : float
+        Plateau radius, >= 0.
+    Sigma : ndarray, shape (k, k)
+        Covariance of the Gaussian tails, positive definite.
+
+    Returns
+    -------
+    logp : ndarray, shape (N,)
+    """
+    k = delta.shape[1]
+    r = np.sqrt((delta * delta).sum(axis=1))
+    shrink = np.where(r > d, 1.0 - d / np.where(r > 0, r, 1.0), 0.0)
+    dd = delta * shrink[:, None]
+    Sinv = np.linalg.inv(Sigma)
+    maha = ((dd @ Sinv) * dd).sum(axis=1)
+    logD = -np.log((2.0 * np.pi) ** (0.5 * k) * np.sqrt(np.linalg.det(Sigma)) + ball_volume(d, k))
+    return logD - 0.5 * maha
+
+
+def plateau_pdf_1d(x, mu: float, d: float, sigma: float) -> np.ndarray:
+    """Eq. (7): ``C`` for ``|x - μ| <= d``, ``C exp(-(|x - μ| - d)² / 2σ²)`` outside,
+    ``C = 1 / (√(2π) σ + 2d)``. ``x`` any shape; returns the same shape."""
+    x = np.asarray(x, dtype=np.float64)
+    flat = (x.reshape(-1, 1) - mu)
+    return np.exp(plateau_logpdf(flat, d, np.array([[sigma * sigma]]))).reshape(x.shape)
+
+
+def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma_r_rad: float,
+               rng: np.random.Generator) -> np.ndarray:
+    """Sample the state transition of eq. (3) for all particles.
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle poses ``T_base_tool`` (mm).
+    T_increment : ndarray, shape (4, 4)
+        ``T+ = Fk(q̄+) Fk(q̄)^-1`` in the base frame.
+    sigma_t_mm, sigma_r_rad : float
+        Noise widths (translation mm, rotation rad) in the tool frame, already scaled with
+        the force.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    Ts_new : ndarray, shape (N, 4, 4)
+    """
+    n = Ts.shape[0]
+    xi = rng.standard_normal((n, 6))
+    xi[:, :3] *= sigma_t_mm
+    xi[:, 3:] *= sigma_r_rad
+    return np.matmul(np.matmul(T_increment, Ts), exp_small(xi))
+
+
+def fk_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tool pose and geometric Jacobian at one joint vector, fast (no validation).
+
+    Same results as ``chain.forward_kinematics(q)`` and ``chain.geometric_jacobian(q)``
+    (revolute and prismatic joints), a few times faster for a single ``q``.
+
+    Parameters
+    ----------
+    chain : DHChain
+    q : ndarray, shape (n,)
+        Joint vector (rad / mm).
+
+    Returns
+    -------
+    T_base_tool : ndarray, shape (4, 4)
+        Translation in mm.
+    J : ndarray, shape (6, n)
+        ``[v (mm/rad); ω (rad/rad)]`` rows in the base frame.
+    """
+    n = chain.n_joints
+    rev = chain._revolute
+    theta = np.where(rev, chain.theta + q, chain.theta)
+    dlen = np.where(rev, chain.d, chain.d + q)
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(chain.alpha), np.sin(chain.alpha)
+    A = np.zeros((n, 4, 4))
+    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, chain.a * ct
+    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, chain.a * st
+    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, dlen
+    A[:, 3, 3] = 1.0
+    z = np.empty((n, 3))
+    o = np.empty((n, 3))
+    T = np.eye(4)
+    for i in range(n):  # over the joints (6), never over particles
+        z[i] = T[:3, 2]
+        o[i] = T[:3, 3]
+        T = T @ A[i]
+    T = T @ chain.T_flange_tool
+    p = T[:3, 3]
+    J = np.empty((6, n))
+    J[:3] = np.where(rev[:, None], np.cross(z, p - o), z).T
+    J[3:] = np.where(rev[:, None], z, 0.0).T
+    return T, J
+
+
+def joint_compliance(c_rad_per_nm: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """A diagonal joint compliance model ``Cj(q, τ) = c τ`` with ``c`` in rad/(N·m).
+
+    The returned callable takes ``q (n,)`` (rad) and ``τ (n,)`` in N·mm (the unit of
+    ``J_vᵀ f`` with J in mm/rad) and returns ``Δq (n,)`` in rad."""
+
+    def cj(q: np.ndarray, tau_nmm: np.ndarray) -> np.ndarray:
+        return (c_rad_per_nm * 1e-3) * tau_nmm
+
+    return cj
+
+
+class RobotMeasurement:
+    """The robot measurement density for one time step (eq. 5, 7, 8).
+
+    Attributes
+    ----------
+    T_mean : ndarray, shape (4, 4)
+        ``μ = Fk(q + Cj(τ))`` in the base frame (the kinematics-only tool pose), mm.
+    Sigma_t : ndarray, shape (3, 3)
+        Translation covariance (mm²), ``[J Σq Jᵀ]_tt + floor²``.
+    Sigma_r : ndarray, shape (3, 3)
+        Rotation covariance (rad²), ``[J Σq Jᵀ]_rr + floor²``.
+    d_t_mm, d_r_rad : float
+        Plateau radii ``d(f)``.
+    """
+
+    __slots__ = ("T_mean", "Sigma_t", "Sigma_r", "d_t_mm", "d_r_rad")
+
+    def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad):
+        self.T_mean = T_mean
+        self.Sigma_t = Sigma_t
+        self.Sigma_r = Sigma_r
+        self.d_t_mm = d_t_mm
+        self.d_r_rad = d_r_rad
+
+
+def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *, joint_sigma_rad: float,
+                      floor_t_mm: float, floor_r_rad: float, d0_mm: float, kd_mm_per_n: float,
+                      d0_rad: float, kd_rad_per_n: float,
+                      compliance: Callable | None = None) -> RobotMeasurement:
+    """Build the robot measurement density from joint readings and the measured force.
+
+    Parameters
+    ----------
+    chain : DHChain
+        Nominal robot model with its tool.
+    q_meas : ndarray, shape (n,)
+        Measured joints (rad).
+    force_n : ndarray, shape (3,)
+        Measured process force on the tool in the base frame, N.
+    joint_sigma_rad : float
+        Joint measurement noise (Σq = σ² I), rad.
+    floor_t_mm, floor_r_rad : float
+        Standard deviations added to the Gaussian tails (keep Σ well conditioned).
+    d0_mm, kd_mm_per_n, d0_rad, kd_rad_per_n : float
+        Plateau radii ``d(f) = d0 + kd ‖f‖`` for translation and rotation.
+    compliance : callable ``Cj(q (n,), τ (n,) in N·mm) -> Δq (n,)``, optional
+        The compliance model hook of eq. (5); None: no deflection model.
+
+    Returns
+    -------
+    RobotMeasurement
+    """
+    T, J = fk_and_jacobian(chain, q_meas)
+    if compliance is not None:
+        tau = J[:3].T @ force_n  # N·mm: J_v is mm/rad
+        T, J = fk_and_jacobian(chain, q_meas + compliance(q_meas, tau))
+    S = (joint_sigma_rad ** 2) * (J @ J.T)
+    fn = float(np.linalg.norm(force_n))
+    return RobotMeasurement(
+        T,
+        S[:3, :3] + floor_t_mm ** 2 * np.eye(3),
+        S[3:, 3:] + floor_r_rad ** 2 * np.eye(3),
+        d0_mm + kd_mm_per_n * fn,
+        d0_rad + kd_rad_per_n * fn,
+    )
+
+
+def robot_loglik(Ts: np.ndarray, meas: RobotMeasurement) -> np.ndarray:
+    """Log-likelihood ``log p(q, f | x)`` of each particle (eq. 8, two 3-D blocks).
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle poses in the base frame, mm.
+    meas : RobotMeasurement
+
+    Returns
+    -------
+    loglik : ndarray, shape (N,)
+    """
+    mu = meas.T_mean
+    dt = Ts[:, :3, 3] - mu[:3, 3]
+    dr = rotvec_from_matrix_fast(np.matmul(Ts[:, :3, :3], mu[:3, :3].T))
+    return plateau_logpdf(dt, meas.d_t_mm, meas.Sigma_t) + plateau_logpdf(dr, meas.d_r_rad, meas.Sigma_r)
+
+
+def laser_loglik(Ts: np.ndarray, m_mm: np.ndarray, distance_mm: float, seam: SeamLine,
+                 segments: np.ndarray, sigma_mm: float, miss_mm: float) -> np.ndarray:
+    """Log-likelihood ``log p(m | x)`` of one laser measurement for each particle (eq. 9).
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle tool poses ``T_base_tool``, mm.
+    m_mm : ndarray, shape (2,)
+        Measured seam position in the laser plane (across = x_S, along the tool axis = z_S), mm.
+    distance_mm : float
+        Sensor distance ahead of the TCP along +y of the tool (sensor frame = tool frame
+        shifted by ``[0, distance, 0]``; the laser plane is its x–z plane).
+    seam : SeamLine
+        Seam polyline in the base frame (the trend-filter knots).
+    segments : ndarray of int, shape (M,)
+        Candidate segments (:meth:`SeamLine.candidates`).
+    sigma_mm : float
+        Laser measurement standard deviation, mm.
+    miss_mm : float
+        Error charged to a particle whose laser plane meets no candidate segment.
+
+    Returns
+    -------
+    loglik : ndarray, shape (N,)
+    """
+    R = Ts[:, :3, :3]
+    local = np.array([m_mm[0], distance_mm, m_mm[1]])
+    m_hat = Ts[:, :3, 3] + R @ local
+    normals = R[:, :, 1]
+    hit = seam.intersect(m_hat, normals, segments)
+    e = m_hat - hit.point
+    ex = (e * R[:, :, 0]).sum(axis=1)
+    ez = (e * R[:, :, 2]).sum(axis=1)
+    e2 = np.where(hit.found, ex * ex + ez * ez, miss_mm * miss_mm)
+    return -0.5 * e2 / (sigma_mm * sigma_mm) - math.log(2.0 * math.pi * sigma_mm * sigma_mm)
+
+
+def angle_loglik(Ts: np.ndarray, angle_rad: float, surface_normal: np.ndarray, sigma_rad: float) -> np.ndarray:
+    """Log-likelihood of an angle measurement for each particle.
+
+    The predicted angle is the workpiece rotation about the laser-plane normal (y of the
+    tool/sensor): ``atan2(ν·x, ν·z)`` for the surface normal ``ν`` (base frame, unit).
+
+    Returns
+    -------
+    loglik : ndarray, shape (N,)
+    """
+    R = Ts[:, :3, :3]
+    pred = np.arctan2(R[:, :, 0] @ surface_normal, R[:, :, 2] @ surface_normal)
+    e = (angle_rad - pred + np.pi) % (2.0 * np.pi) - np.pi
+    return -0.5 * (e / sigma_rad) ** 2 - math.log(math.sqrt(2.0 * math.pi) * sigma_rad)

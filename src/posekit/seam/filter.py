@@ -1,0 +1,215 @@
+"""The particle filter on SE(3) for the tool pose relative to the seam (paper Algorithm 1).
+
+One step: propagate every particle with the nominal increment and force-dependent noise
+(eq. 3); weight with the robot measurement (eq. 5, 8) and each available laser (and angle)
+measurement (eq. 9); normalise the log-weights (recovering from vanishing weights); estimate
+the weighted mean on SE(3) and its spread; resample by name when the effective sample size
+falls below ``ess_threshold · N``.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from posekit.errors import ConfigError
+
+from .config import SeamConfig
+from .densities import (
+    angle_loglik,
+    joint_compliance,
+    laser_loglik,
+    robot_loglik,
+    robot_measurement,
+    transition,
+)
+from .particles import RESAMPLERS, exp_small, normalize_log_weights, weighted_mean_se3
+from .seamline import SeamLine
+from .trajectories import tool_chain
+
+__all__ = ["StepInputs", "StepEstimate", "SeamParticleFilter"]
+
+
+@dataclass
+class StepInputs:
+    """Everything the filter reads at one time step.
+
+    Attributes
+    ----------
+    T_increment : ndarray, shape (4, 4)
+        Nominal increment ``Fk(q̄+) Fk(q̄)^-1`` (base frame, mm); identity at the first step.
+    T_nominal : ndarray, shape (4, 4)
+        Nominal tool pose ``Fk(q̄+)`` (centres the laser seam search), mm.
+    q_meas : ndarray, shape (n,)
+        Measured joints, rad.
+    force_n : ndarray, shape (3,)
+        Measured process force on the tool in the base frame, N.
+    laser_mm : ndarray, shape (S, 2), optional
+        Laser measurements (across, along the tool axis) in mm, one row per sensor, NaN rows
+        where a sensor has no measurement.
+    angle_rad : ndarray, shape (S,), optional
+        Angle measurements (rad), NaN where missing.
+    """
+
+    T_increment: np.ndarray
+    T_nominal: np.ndarray
+    q_meas: np.ndarray
+    force_n: np.ndarray
+    laser_mm: np.ndarray | None = None
+    angle_rad: np.ndarray | None = None
+
+
+@dataclass
+class StepEstimate:
+    """Output of one filter step.
+
+    Attributes
+    ----------
+    T : ndarray, shape (4, 4)
+        Weighted mean tool pose ``T_base_tool`` (mm).
+    spread : ndarray, shape (6,)
+        Weighted standard deviation around the mean in its frame: x, y, z (mm), rx, ry, rz (rad).
+    ess : float
+        Effective sample size after the measurement update, in [1, N].
+    resampled : bool
+        Whether the particles were resampled at this step.
+    recovered : bool
+        Whether all weights vanished and were reset to uniform at this step.
+    T_kinematic : ndarray, shape (4, 4)
+        The robot measurement mean ``Fk(q + Cj(τ))`` (kinematics-only pose), mm.
+    lasers_used : int
+        Number of laser measurements used.
+    """
+
+    T: np.ndarray
+    spread: np.ndarray
+    ess: float
+    resampled: bool
+    recovered: bool
+    T_kinematic: np.ndarray
+    lasers_used: int
+
+
+class SeamParticleFilter:
+    """Particle filter for the 6-DoF tool pose ``T_base_tool``.
+
+    Parameters
+    ----------
+    cfg : SeamConfig
+        ``filter`` (densities, particles, resampling), ``sensors`` (distances, angle) and
+        ``robot`` (model, tool) sections are used.
+    seam_polyline : array_like, shape (K, 3)
+        Nominal seam polyline in the base frame (the trend-filter knots), mm.
+    rng : numpy.random.Generator or int or None
+    T_init : array_like, shape (4, 4), optional
+        Centre of the initial particle cloud (spread ``init_sigma_t_mm``,
+        ``init_sigma_r_deg`` in the tool frame); call :meth:`reset` otherwise.
+    seam_normal : array_like, shape (3,), optional
+        Workpiece surface normal (base frame) for the angle measurement.
+    compliance : callable ``Cj(q (n,), τ (n,) N·mm) -> Δq (n,) rad``, optional
+        Compliance model hook of eq. (5); default: ``filter.compliance_rad_per_nm`` as a
+        diagonal model (none when 0).
+
+    Attributes
+    ----------
+    T : ndarray, shape (N, 4, 4)
+        The particles.
+    logw : ndarray, shape (N,)
+        Normalised log-weights.
+    recoveries : int
+        How many times vanishing weights were reset to uniform.
+    resamplings : int
+        How many times the particles were resampled.
+    """
+
+    def __init__(self, cfg: SeamConfig, seam_polyline, rng=None, *, T_init=None, seam_normal=None,
+                 compliance=None):
+        f = cfg.filter
+        if f.resampler not in RESAMPLERS:
+            raise ConfigError(f"filter.resampler: expected one of {sorted(RESAMPLERS)}, got {f.resampler!r}")
+        self.cfg = cfg
+        self.rng = np.random.default_rng(rng)
+        self.seam = SeamLine(seam_polyline)
+        self.chain = tool_chain(cfg.robot)
+        self.distances_mm = np.array(cfg.sensors.resolved_distances_mm(), dtype=np.float64)
+        self.seam_normal = (np.array([0.0, 0.0, -1.0]) if seam_normal is None
+                            else np.asarray(seam_normal, dtype=np.float64))
+        if compliance is None and f.compliance_rad_per_nm > 0.0:
+            compliance = joint_compliance(f.compliance_rad_per_nm)
+        self.compliance = compliance
+        self._resample = RESAMPLERS[f.resampler]
+        deg = math.pi / 180.0
+        self._sigma_r = f.sigma_r_deg * deg
+        self._k_force_r = f.k_force_r * deg
+        self._robot_kw = dict(
+            joint_sigma_rad=f.joint_sigma_deg * deg, floor_t_mm=f.robot_floor_t_mm,
+            floor_r_rad=f.robot_floor_r_deg * deg, d0_mm=f.d0_mm, kd_mm_per_n=f.kd_mm_per_n,
+            d0_rad=f.d0_deg * deg, kd_rad_per_n=f.kd_deg_per_n * deg,
+        )
+        self._angle_sigma = cfg.sensors.angle and f.angle_sigma_deg * deg
+        self.n = f.particles
+        self.recoveries = 0
+        self.resamplings = 0
+        self.T = np.repeat(np.eye(4)[None], self.n, axis=0)
+        self.logw = np.full(self.n, -math.log(self.n))
+        if T_init is not None:
+            self.reset(T_init)
+
+    def reset(self, T_center) -> None:
+        """Draw the particles around ``T_center`` (4, 4) with the initial spread; uniform weights."""
+        f = self.cfg.filter
+        xi = self.rng.standard_normal((self.n, 6))
+        xi[:, :3] *= f.init_sigma_t_mm
+        xi[:, 3:] *= math.radians(f.init_sigma_r_deg)
+        self.T = np.matmul(np.asarray(T_center, dtype=np.float64), exp_small(xi))
+        self.logw = np.full(self.n, -math.log(self.n))
+
+    def step(self, inputs: StepInputs) -> StepEstimate:
+        """Propagate, weight, estimate and (if needed) resample; see the module docstring."""
+        f = self.cfg.filter
+        force = np.asarray(inputs.force_n, dtype=np.float64)
+        fn = math.sqrt(float(force @ force))
+        # 1. state transition (eq. 3)
+        self.T = transition(self.T, inputs.T_increment, f.sigma_t_mm + f.k_force_t * fn,
+                            self._sigma_r + self._k_force_r * fn, self.rng)
+        # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
+        meas = robot_measurement(self.chain, np.asarray(inputs.q_meas, dtype=np.float64), force,
+                                 compliance=self.compliance, **self._robot_kw)
+        logw = self.logw + robot_loglik(self.T, meas)
+        used = 0
+        if inputs.laser_mm is not None and self.distances_mm.size:
+            Tn = inputs.T_nominal
+            for i, dist in enumerate(self.distances_mm):
+                m = inputs.laser_mm[i]
+                if not (np.isfinite(m[0]) and np.isfinite(m[1])):
+                    continue
+                centre = Tn[:3, 3] + Tn[:3, :3] @ np.array([m[0], dist, m[1]])
+                segs = self.seam.candidates(centre, Tn[:3, 1], f.search_window_mm)
+                logw = logw + laser_loglik(self.T, m, dist, self.seam, segs, f.laser_sigma_mm,
+                                           f.search_window_mm)
+                used += 1
+        if self._angle_sigma and inputs.angle_rad is not None:
+            for a in np.asarray(inputs.angle_rad, dtype=np.float64):
+                if np.isfinite(a):
+                    logw = logw + angle_loglik(self.T, a, self.seam_normal, self._angle_sigma)
+        # 3. normalise (recover from vanishing weights), estimate
+        norm = normalize_log_weights(logw)
+        self.recoveries += norm.recovered
+        w = norm.w
+        T_mean, spread = weighted_mean_se3(self.T, w)
+        ess = 1.0 / float(w @ w)
+        # 4. resample
+        resampled = ess < f.ess_threshold * self.n
+        if resampled:
+            idx = self._resample(w, self.rng)
+            self.T = self.T[idx]
+            self.logw = np.full(self.n, -math.log(self.n))
+            self.resamplings += 1
+        else:
+            self.logw = norm.logw
+        return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used)
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalised weights ``exp(logw)``, shape (N,)."""
+        return np.exp(self.logw)

@@ -1,0 +1,262 @@
+"""Particle-set primitives on SE(3): log-weights, effective sample size, resampling, mean.
+
+Particles are one array ``Ts (N, 4, 4)`` of rigid transforms and one array ``logw (N,)`` of
+log-weights. Resamplers share one signature ``resample(w, rng) -> indices (N,)`` and are chosen
+by name from :data:`RESAMPLERS`; all work on the cumulative sum with ``np.searchsorted``
+(filterpy's loops are the counter-example). Nothing here loops over particles in Python.
+"""
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from posekit.errors import ConfigError
+
+__all__ = [
+    "RESAMPLERS",
+    "NormalizedWeights",
+    "normalize_log_weights",
+    "effective_sample_size",
+    "systematic_resample",
+    "stratified_resample",
+    "residual_resample",
+    "resample",
+    "exp_small",
+    "rotvec_from_matrix_fast",
+    "weighted_mean_se3",
+]
+
+
+class NormalizedWeights(NamedTuple):
+    """Result of :func:`normalize_log_weights`.
+
+    logw : ndarray, shape (N,)
+        Log-weights with ``logsumexp(logw) == 0``.
+    w : ndarray, shape (N,)
+        The weights ``exp(logw)``, summing to 1.
+    recovered : bool
+        True when no weight was usable (all -inf or NaN) and the set was reset to uniform.
+    """
+
+    logw: np.ndarray
+    w: np.ndarray
+    recovered: bool
+
+
+def normalize_log_weights(logw) -> NormalizedWeights:
+    """Normalise log-weights; recover from vanishing weights instead of failing.
+
+    NaN entries count as ``-inf`` (weight 0). When every weight is 0 (all ``-inf``/NaN, or
+    ``+inf`` overflow), the weights are reset to uniform and ``recovered`` is True.
+
+    Parameters
+    ----------
+    logw : array_like, shape (N,)
+        Unnormalised log-weights.
+
+    Returns
+    -------
+    NormalizedWeights
+    """
+    logw = np.asarray(logw, dtype=np.float64)
+    n = logw.shape[0]
+    logw = np.where(np.isnan(logw) | (logw == np.inf), -np.inf, logw)
+    top = logw.max() if n else -np.inf
+    if not np.isfinite(top):
+        uniform = np.full(n, -np.log(n))
+        return NormalizedWeights(uniform, np.full(n, 1.0 / n), True)
+    w = np.exp(logw - top)
+    total = w.sum()
+    w /= total
+    return NormalizedWeights(logw - top - np.log(total), w, False)
+
+
+def effective_sample_size(w) -> float:
+    """Effective sample size ``1 / Σ w_i²`` of normalised weights ``w (N,)``; in [1, N]."""
+    w = np.asarray(w, dtype=np.float64)
+    return float(1.0 / np.dot(w, w))
+
+
+def _from_positions(w: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Indices ``i`` with ``cumsum[i-1] <= u < cumsum[i]`` for sorted ``positions`` in [0, 1)."""
+    c = np.cumsum(w)
+    c[-1] = 1.0  # guard against round-off: every position < 1 finds an index
+    return np.searchsorted(c, positions, side="right")
+
+
+def systematic_resample(w, rng=None, *, offset: float | None = None) -> np.ndarray:
+    """Systematic resampling: one uniform offset, positions ``(offset + i) / N``.
+
+    Parameters
+    ----------
+    w : array_like, shape (N,)
+        Normalised weights.
+    rng : numpy.random.Generator or int or None
+        Source of the offset.
+    offset : float in [0, 1), optional
+        Use this offset instead of drawing one (for cross-checks).
+
+    Returns
+    -------
+    indices : ndarray of int, shape (N,)
+        Ancestor indices in [0, N), sorted.
+    """
+    w = np.asarray(w, dtype=np.float64)
+    n = w.shape[0]
+    u = np.random.default_rng(rng).random() if offset is None else float(offset)
+    return _from_positions(w, (u + np.arange(n)) / n)
+
+
+def stratified_resample(w, rng=None, *, uniforms=None) -> np.ndarray:
+    """Stratified resampling: one uniform per stratum, positions ``(u_i + i) / N``.
+
+    ``uniforms (N,)`` in [0, 1) replaces the draws (for cross-checks). Returns sorted
+    ancestor indices, shape (N,).
+    """
+    w = np.asarray(w, dtype=np.float64)
+    n = w.shape[0]
+    u = np.random.default_rng(rng).random(n) if uniforms is None else np.asarray(uniforms, float)
+    return _from_positions(w, (u + np.arange(n)) / n)
+
+
+def residual_resample(w, rng=None) -> np.ndarray:
+    """Residual resampling: ``floor(N w_i)`` copies of each particle, the rest drawn
+    (multinomially, by sorted uniforms) from the residual weights.
+
+    Returns ancestor indices, shape (N,), the deterministic copies first.
+    """
+    w = np.asarray(w, dtype=np.float64)
+    n = w.shape[0]
+    copies = np.floor(n * w).astype(np.int64)
+    fixed = np.repeat(np.arange(n), copies)
+    rest = n - fixed.shape[0]
+    if rest == 0:
+        return fixed
+    residual = n * w - copies
+    residual /= residual.sum()
+    u = np.sort(np.random.default_rng(rng).random(rest))
+    return np.concatenate([fixed, _from_positions(residual, u)])
+
+
+#: Resampling schemes by name, all ``fn(w (N,), rng) -> indices (N,)``.
+RESAMPLERS: dict[str, Callable] = {
+    "systematic": systematic_resample,
+    "stratified": stratified_resample,
+    "residual": residual_resample,
+}
+
+
+def resample(name: str, w, rng=None) -> np.ndarray:
+    """Ancestor indices ``(N,)`` drawn by the resampler ``name`` (one of :data:`RESAMPLERS`).
+
+    Raises
+    ------
+    ConfigError
+        Unknown name.
+    """
+    try:
+        fn = RESAMPLERS[name]
+    except (KeyError, TypeError):
+        raise ConfigError(
+            f"unknown resampler {name!r}, expected one of {sorted(RESAMPLERS)}"
+        ) from None
+    return fn(w, rng)
+
+
+def exp_small(xi: np.ndarray) -> np.ndarray:
+    """Fast exponential of small twists for particle noise (no validation; hot path).
+
+    Rotation by Rodrigues' formula (exact); the translation is ``rho`` itself (the ``V``
+    factor of the exact map differs from I by O(|phi| |rho|), negligible for noise).
+
+    Parameters
+    ----------
+    xi : ndarray, shape (N, 6)
+        ``[rho (mm), phi (rad)]`` per row.
+
+    Returns
+    -------
+    T : ndarray, shape (N, 4, 4)
+    """
+    n = xi.shape[0]
+    phi = xi[:, 3:]
+    theta2 = (phi * phi).sum(1)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    x, y, z = phi[:, 0], phi[:, 1], phi[:, 2]
+    T = np.zeros((n, 4, 4))
+    # R = I + a K + b K^2, K = hat(phi); K^2 = phi phi^T - theta^2 I
+    bx, by = b * x, b * y
+    T[:, 0, 0] = 1.0 - b * (y * y + z * z)
+    T[:, 1, 1] = 1.0 - b * (x * x + z * z)
+    T[:, 2, 2] = 1.0 - b * (x * x + y * y)
+    T[:, 0, 1] = bx * y - a * z
+    T[:, 1, 0] = bx * y + a * z
+    T[:, 0, 2] = bx * z + a * y
+    T[:, 2, 0] = bx * z - a * y
+    T[:, 1, 2] = by * z - a * x
+    T[:, 2, 1] = by * z + a * x
+    T[:, :3, 3] = xi[:, :3]
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def rotvec_from_matrix_fast(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (rad) of rotation matrices ``R (..., 3, 3)`` with angles < ~179°.
+
+    No validation (hot path); accurate for small angles, where the filter works. Returns
+    shape ``(..., 3)``.
+    """
+    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    c = np.clip(0.5 * (tr - 1.0), -1.0, 1.0)
+    theta = np.arccos(c)
+    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    small = theta < 1e-6
+    scale = np.where(small, 0.5 + theta * theta / 12.0, 0.5 * theta / np.where(small, 1.0, s))
+    v = np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
+    return v * scale[..., None]
+
+
+def weighted_mean_se3(Ts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted mean of rigid transforms and the spread around it.
+
+    Translation: the weighted mean of the positions. Rotation: the chordal L2 mean, the
+    rotation nearest (SVD projection) to ``Σ w_i R_i``. Spread: weighted standard deviation
+    of each particle's offset from the mean expressed in the mean's frame, translation
+    ``R̄ᵀ (p_i - p̄)`` (mm) and rotation vector of ``R̄ᵀ R_i`` (rad).
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle poses, e.g. ``T_base_tool``, translation in mm.
+    w : ndarray, shape (N,)
+        Normalised weights (sum 1).
+
+    Returns
+    -------
+    T_mean : ndarray, shape (4, 4)
+        Mean pose in the same frame as ``Ts``.
+    spread : ndarray, shape (6,)
+        ``[sx, sy, sz (mm), srx, sry, srz (rad)]`` in the mean's frame.
+    """
+    p = Ts[:, :3, 3]
+    p_mean = w @ p
+    M = np.tensordot(w, Ts[:, :3, :3], axes=1)
+    U, _, Vt = np.linalg.svd(M)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R_mean = U @ D @ Vt
+    T_mean = np.eye(4)
+    T_mean[:3, :3] = R_mean
+    T_mean[:3, 3] = p_mean
+    dp = (p - p_mean) @ R_mean
+    dr = rotvec_from_matrix_fast(np.matmul(R_mean.T, Ts[:, :3, :3]))
+    d = np.concatenate([dp, dr], axis=1)
+    spread = np.sqrt(np.maximum(w @ (d * d) - (w @ d) ** 2, 0.0))
+    return T_mean, spread

@@ -1,0 +1,349 @@
+"""Seam-tracking episodes: simulate the robot, the process and the sensors; run the filter.
+
+One episode (:func:`run_episode`):
+
+1. the nominal program along the seam (:func:`~posekit.seam.trajectories.nominal_trajectory`)
+   and its trend-filtered knot polyline (eq. 10);
+2. the true robot: the nominal DH model with kinematic errors (drawn per episode); the
+   motors track the joint stream ``q̄`` exactly, the process force (tool frame, slow drift +
+   noise) deflects the joints (``Δq = c J_vᵀ f``) and the tool (an unmodelled Cartesian part),
+   ``T_true = Fk_true(q̄ + Δq) exp(ξ_cart)``;
+3. measurements: joints ``q̄ + noise`` (motor side, blind to deflection), a force sensor, laser
+   seam trackers on the true seam (missing without an intersection, beyond the range or by
+   dropout) and optionally angles;
+4. the particle filter, timed per step.
+
+Errors are in the nominal seam frame (DESIGN/SEAM contract): translation
+``R_nomᵀ (p_est - p_true)`` in mm, rotation vector of ``R_trueᵀ R_est`` in degrees.
+"""
+
+import math
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from posekit.robots import DHChain
+
+from .config import RobotConfig, SeamConfig, TrajectoryConfig
+from .filter import SeamParticleFilter, StepInputs
+from .particles import exp_small, rotvec_from_matrix_fast, systematic_resample
+from .seamline import SeamLine
+from .trajectories import NominalTrajectory, nominal_trajectory
+from .trend import TrendResult, trend_filter
+
+__all__ = ["EpisodeResult", "SimulatedData", "run_episode", "simulate_data", "seam_knots", "metrics",
+           "pose_errors", "pose_coords", "AXES"]
+
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+@dataclass
+class SimulatedData:
+    """The simulated world of one episode (before filtering).
+
+    Attributes
+    ----------
+    nominal : NominalTrajectory
+    truth : ndarray, shape (T, 4, 4)
+        True tool poses ``T_base_tool``, mm.
+    q_meas : ndarray, shape (T, 6)
+        Measured joints, rad.
+    force_n : ndarray, shape (T, 3)
+        True process force on the tool in the base frame, N.
+    force_meas_n : ndarray, shape (T, 3)
+        Force-sensor reading, base frame, N.
+    laser_mm : ndarray, shape (T, S, 2)
+        Laser measurements (across, along the tool axis) in mm; NaN where missing.
+    angle_rad : ndarray, shape (T, S)
+        Angle measurements (rad); NaN where missing or not measured.
+    true_chain : DHChain
+        The robot with kinematic errors.
+    """
+
+    nominal: NominalTrajectory
+    truth: np.ndarray
+    q_meas: np.ndarray
+    force_n: np.ndarray
+    force_meas_n: np.ndarray
+    laser_mm: np.ndarray
+    angle_rad: np.ndarray
+    true_chain: DHChain
+
+
+@dataclass
+class EpisodeResult:
+    """One simulated episode and its estimates (see SEAM.md).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (T,)
+    truth, estimate, kinematic, nominal : ndarray, shape (T, 4, 4)
+        True, filtered, kinematics-only (robot measurement mean) and nominal tool poses, mm.
+    seam : ndarray, shape (K, 3)
+        True seam polyline (base frame, mm).
+    error, kinematic_error : ndarray, shape (T, 6)
+        ``[x, y, z (mm), rx, ry, rz (deg)]`` of the estimate / kinematic pose against the truth
+        in the nominal seam frame.
+    spread : ndarray, shape (T, 6)
+        Filter spread ``[x, y, z (mm), rx, ry, rz (deg)]`` in the estimate's frame.
+    ess : ndarray, shape (T,)
+    step_ms : ndarray, shape (T,)
+        Wall time of each filter step, ms.
+    particles : ndarray, shape (T, P, 6) or None
+        P recorded particles per step (drawn by weight), coordinates as ``truth_coords``.
+    truth_coords, estimate_coords : ndarray, shape (T, 6)
+        Offset from the nominal pose in its frame: ``R_nomᵀ (p - p_nom)`` (mm) and the rotation
+        vector of ``R_nomᵀ R`` (deg).
+    knots_kept : int
+        Vertices of the trend-filter polyline the filter searches.
+    trend_max_error_mm : float
+    laser_mm : ndarray, shape (T, S, 2)
+        The laser measurements (NaN = missing).
+    resampled : ndarray of bool, shape (T,)
+    recoveries : int
+        Steps at which all weights vanished (reset to uniform).
+    seed : int
+    config : SeamConfig
+    """
+
+    t_s: np.ndarray
+    truth: np.ndarray
+    estimate: np.ndarray
+    kinematic: np.ndarray
+    nominal: np.ndarray
+    seam: np.ndarray
+    error: np.ndarray
+    kinematic_error: np.ndarray
+    spread: np.ndarray
+    ess: np.ndarray
+    step_ms: np.ndarray
+    particles: np.ndarray | None
+    knots_kept: int
+    trend_max_error_mm: float
+    truth_coords: np.ndarray
+    estimate_coords: np.ndarray
+    laser_mm: np.ndarray
+    resampled: np.ndarray
+    recoveries: int
+    seed: int
+    config: SeamConfig
+
+
+def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
+    """Errors ``[R_nomᵀ (p_est - p_true) mm, rotvec(R_trueᵀ R_est) deg]``, shape (T, 6),
+    for poses of shape (T, 4, 4)."""
+    dp = np.matmul(np.swapaxes(T_nom[:, :3, :3], 1, 2), (T_est[:, :3, 3] - T_true[:, :3, 3])[..., None])[..., 0]
+    dr = rotvec_from_matrix_fast(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]))
+    return np.concatenate([dp, np.degrees(dr)], axis=-1)
+
+
+def pose_coords(Ts: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
+    """Offsets of poses ``Ts (..., 4, 4)`` from nominal poses ``T_nom`` (broadcastable):
+    ``[R_nomᵀ (p - p_nom) mm, rotvec(R_nomᵀ R) deg]``, shape (..., 6)."""
+    Rn_t = np.swapaxes(T_nom[..., :3, :3], -1, -2)
+    dp = np.matmul(Rn_t, (Ts[..., :3, 3] - T_nom[..., :3, 3])[..., None])[..., 0]
+    dr = rotvec_from_matrix_fast(np.matmul(Rn_t, Ts[..., :3, :3]))
+    return np.concatenate([dp, np.degrees(dr)], axis=-1)
+
+
+@lru_cache(maxsize=16)
+def _knots_cached(traj: TrajectoryConfig, robot: RobotConfig, lam: float, eps: float, extra: float) -> TrendResult:
+    nt = nominal_trajectory(traj, robot, extra)
+    res = trend_filter(nt.seam, lam=lam, eps_mm=eps)
+    for a in (res.z, res.knots, res.polyline):
+        a.setflags(write=False)
+    return res
+
+
+def seam_knots(cfg: SeamConfig) -> TrendResult:
+    """The trend-filtered nominal seam of ``cfg`` (cached; arrays read-only)."""
+    return _knots_cached(cfg.trajectory, cfg.robot, cfg.filter.trend_lambda, cfg.filter.trend_eps_mm,
+                         cfg.trajectory.seam_extension_mm)
+
+
+def _true_chain(chain: DHChain, robot: RobotConfig, rng: np.random.Generator) -> DHChain:
+    n = chain.n_joints
+    s_mm, s_rad = robot.kinematic_error_mm, math.radians(robot.kinematic_error_deg)
+    return DHChain(
+        chain.a + s_mm * rng.standard_normal(n), chain.alpha + s_rad * rng.standard_normal(n),
+        chain.d + s_mm * rng.standard_normal(n), chain.theta + s_rad * rng.standard_normal(n),
+        chain.joint_types, None, None, chain.T_flange_tool, chain.name + " (true)",
+    )
+
+
+def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
+    """Simulate the true tool poses and all measurements of one episode.
+
+    Parameters
+    ----------
+    cfg : SeamConfig
+    seed : int
+        Episode seed; the same seed gives the same numbers.
+
+    Returns
+    -------
+    SimulatedData
+    """
+    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
+    n = nt.q.shape[0]
+    chain = nt.chain
+    true_chain = _true_chain(chain, cfg.robot, rng)
+    pr = cfg.process
+    # process force in the tool frame: mean, slow drift, white noise; then base frame
+    phase = rng.uniform(0.0, 2.0 * np.pi)
+    drift = 1.0 + pr.force_drift * np.sin(2.0 * np.pi * np.arange(n) / n + phase)
+    f_T = np.asarray(pr.force_n)[None, :] * drift[:, None] + pr.force_noise_n * rng.standard_normal((n, 3))
+    R_nom = nt.T_nominal[:, :3, :3]
+    f_W = np.matmul(R_nom, f_T[..., None])[..., 0]
+    # joint deflection through the true robot's Jacobian, Cartesian (unmodelled) deflection
+    J = true_chain.geometric_jacobian(nt.q)  # (T, 6, 6)
+    tau = np.matmul(np.swapaxes(J[:, :3, :], 1, 2), f_W[..., None])[..., 0]  # N·mm
+    q_arm = nt.q + pr.joint_compliance_rad_per_nm * 1e-3 * tau
+    xi = np.zeros((n, 6))
+    xi[:, :3] = pr.cartesian_compliance_mm_per_n * f_T
+    xi[:, 3:] = math.radians(pr.cartesian_compliance_deg_per_n) * np.cross([0.0, 0.0, 1.0], f_T)
+    truth = np.matmul(true_chain.forward_kinematics(q_arm), exp_small(xi))
+    q_meas = nt.q + math.radians(cfg.robot.joint_noise_deg) * rng.standard_normal(nt.q.shape)
+    force_meas = f_W + pr.force_sensor_noise_n * rng.standard_normal((n, 3))
+    # laser sensors on the true seam
+    sc = cfg.sensors
+    dists = sc.resolved_distances_mm()
+    laser = np.full((n, len(dists), 2), np.nan)
+    angle = np.full((n, len(dists)), np.nan)
+    seam = SeamLine(nt.seam)
+    R_true = truth[:, :3, :3]
+    for i, dist in enumerate(dists):  # over the sensors (<= 4)
+        origin = truth[:, :3, 3] + R_true[:, :, 1] * dist
+        hit = seam.intersect(origin, R_true[:, :, 1])
+        e = hit.point - origin
+        m = np.stack([(e * R_true[:, :, 0]).sum(1), (e * R_true[:, :, 2]).sum(1)], axis=1)
+        m += sc.noise_mm * rng.standard_normal((n, 2))
+        ok = hit.found & (np.abs(m).max(axis=1) <= sc.range_mm)
+        ok &= rng.random(n) >= sc.dropout
+        laser[ok, i] = m[ok]
+        if sc.angle:
+            nu = nt.seam_normal
+            a = np.arctan2(R_true[:, :, 0] @ nu, R_true[:, :, 2] @ nu)
+            a += math.radians(sc.angle_noise_deg) * rng.standard_normal(n)
+            angle[ok, i] = a[ok]
+    return SimulatedData(nt, truth, q_meas, f_W, force_meas, laser, angle, true_chain)
+
+
+def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: int = 0,
+                data: SimulatedData | None = None) -> EpisodeResult:
+    """Simulate one episode and run the particle filter over it.
+
+    Parameters
+    ----------
+    cfg : SeamConfig
+    seed : int, optional
+        Episode seed (default ``cfg.seed``); same seed, same numbers (except ``step_ms``).
+    record_particles : int
+        Record this many particles per step (drawn by weight) for density plots; 0: none.
+    data : SimulatedData, optional
+        Reuse already simulated data (same cfg and seed).
+
+    Returns
+    -------
+    EpisodeResult
+    """
+    seed = cfg.seed if seed is None else int(seed)
+    data = simulate_data(cfg, seed) if data is None else data
+    nt = data.nominal
+    knots = seam_knots(cfg)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
+    Tn = nt.T_nominal
+    n = Tn.shape[0]
+    pf = SeamParticleFilter(cfg, knots.polyline, rng, T_init=Tn[0], seam_normal=nt.seam_normal)
+    estimate = np.empty((n, 4, 4))
+    kinematic = np.empty((n, 4, 4))
+    spread = np.empty((n, 6))
+    ess = np.empty(n)
+    step_ms = np.empty(n)
+    resampled = np.zeros(n, bool)
+    rec = int(record_particles)
+    particles = np.empty((n, rec, 6)) if rec > 0 else None
+    rec_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
+    eye = np.eye(4)
+    has_lasers = data.laser_mm.shape[1] > 0
+    for k in range(n):
+        inc = eye if k == 0 else Tn[k] @ np.linalg.inv(Tn[k - 1])
+        inputs = StepInputs(inc, Tn[k], data.q_meas[k], data.force_meas_n[k],
+                            data.laser_mm[k] if has_lasers else None,
+                            data.angle_rad[k] if cfg.sensors.angle and has_lasers else None)
+        t0 = time.perf_counter()
+        est = pf.step(inputs)
+        step_ms[k] = (time.perf_counter() - t0) * 1e3
+        estimate[k] = est.T
+        kinematic[k] = est.T_kinematic
+        spread[k] = est.spread
+        ess[k] = est.ess
+        resampled[k] = est.resampled
+        if rec:
+            idx = systematic_resample(pf.weights, rec_rng)[:: max(1, pf.n // rec)][:rec]
+            if idx.shape[0] < rec:
+                idx = np.resize(idx, rec)
+            particles[k] = pose_coords(pf.T[idx], Tn[k])
+    spread[:, 3:] = np.degrees(spread[:, 3:])
+    truth = data.truth
+    return EpisodeResult(
+        t_s=nt.t_s.copy(), truth=truth, estimate=estimate, kinematic=kinematic, nominal=Tn.copy(),
+        seam=nt.seam.copy(), error=pose_errors(estimate, truth, Tn),
+        kinematic_error=pose_errors(kinematic, truth, Tn), spread=spread, ess=ess, step_ms=step_ms,
+        particles=particles, knots_kept=int(knots.knots.shape[0]), trend_max_error_mm=knots.max_error_mm,
+        truth_coords=pose_coords(truth, Tn), estimate_coords=pose_coords(estimate, Tn),
+        laser_mm=data.laser_mm, resampled=resampled, recoveries=pf.recoveries, seed=seed, config=cfg,
+    )
+
+
+def _rmse(errors: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.nanmean(errors ** 2, axis=0))
+
+
+def metrics(results: list[EpisodeResult]) -> dict:
+    """Pooled accuracy and speed of episodes in the DESIGN.md ``metrics.json`` shape.
+
+    Returns
+    -------
+    dict
+        ``rmse_mm {x, y, z}``, ``rmse_deg {rx, ry, rz}``, ``kinematic_rmse_mm``,
+        ``kinematic_rmse_deg``, ``step_ms_median``, ``step_ms_p95``, ``runs``, ``steps``,
+        ``particles``, ``sensors``, ``sensor_distances_mm``, ``trajectory``, ``resampler``,
+        ``knots_kept``, ``trend_max_error_mm``, ``recoveries``, ``laser_missing_fraction``,
+        ``spread_median_mm``, ``spread_median_deg``.
+    """
+    if not results:
+        from posekit.errors import EstimationError
+
+        raise EstimationError("metrics: expected at least one episode result, got none")
+    cfg = results[0].config
+    err = _rmse(np.concatenate([r.error for r in results]))
+    kin = _rmse(np.concatenate([r.kinematic_error for r in results]))
+    step = np.concatenate([r.step_ms for r in results])
+    spread = np.median(np.concatenate([r.spread for r in results]), axis=0)
+    laser = np.concatenate([r.laser_mm.reshape(-1, 2) for r in results])
+    fl = lambda v: float(round(float(v), 6))  # noqa: E731
+    return {
+        "rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], err[:3])},
+        "rmse_deg": {a: fl(v) for a, v in zip(AXES[3:], err[3:])},
+        "kinematic_rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], kin[:3])},
+        "kinematic_rmse_deg": {a: fl(v) for a, v in zip(AXES[3:], kin[3:])},
+        "step_ms_median": fl(np.median(step)),
+        "step_ms_p95": fl(np.percentile(step, 95)),
+        "runs": len(results),
+        "steps": int(results[0].t_s.shape[0]),
+        "particles": cfg.filter.particles,
+        "sensors": cfg.sensors.count,
+        "sensor_distances_mm": list(cfg.sensors.resolved_distances_mm()),
+        "trajectory": cfg.trajectory.kind,
+        "resampler": cfg.filter.resampler,
+        "knots_kept": results[0].knots_kept,
+        "trend_max_error_mm": fl(results[0].trend_max_error_mm),
+        "recoveries": int(sum(r.recoveries for r in results)),
+        "laser_missing_fraction": fl(np.mean(~np.isfinite(laser[:, 0]))) if laser.size else 0.0,
+        "spread_median_mm": {a: fl(v) for a, v in zip(AXES[:3], spread[:3])},
+        "spread_median_deg": {a: fl(v) for a, v in zip(AXES[3:], spread[3:])},
+    }

@@ -1,0 +1,210 @@
+"""Seams and nominal robot programs along them (paper §II-D and §III-B, Fig. 9).
+
+A seam is a curve given in the tool frame ``T0`` at the start of the weld (y along the travel,
+z along the tool axis, x across), parametrised by its length parameter ``u`` in mm:
+
+``xy``    ``(A tri(u), u, 0)``: 200 mm along y, a smooth triangle wave of amplitude 20 mm in x
+``yz``    ``(0, u, A sin(2π u / P))``: 200 mm along y, a sine of amplitude 100 mm in z
+``line``  ``(0, u, 0)``
+``bend``  straight along y up to ``u_b``, then at ``bend_deg`` about the tool z axis (a corner)
+
+The robot program (what a robot simulator would export) is the Cartesian path of the TCP
+along the seam with the tool orientation of ``T0`` held constant; it is turned into a joint
+stream by resolved-rate inverse kinematics (:func:`posekit.robots.resolved_rate_step`, one
+damped Gauss–Newton step per sample) on the PUMA 560 with a tool of ``tool_length_mm`` along
+the flange z axis, and the nominal trajectory is the forward kinematics of that stream.
+The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sensors
+ahead of the tool keep seeing it.
+"""
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from posekit.errors import TrajectoryError
+from posekit.robots import DHChain, RateGains, resolved_rate_step, robot_model
+
+from .config import RobotConfig, TrajectoryConfig
+
+__all__ = [
+    "NominalTrajectory",
+    "seam_points_T0",
+    "start_pose",
+    "tool_chain",
+    "nominal_trajectory",
+    "IK_SEED_DEG",
+]
+
+#: Joint guess (deg) from which the first program pose is solved: elbow up, wrist down.
+IK_SEED_DEG = (0.0, 45.0, -160.0, 0.0, -60.0, 0.0)
+#: Spacing (mm of the parameter u) of the dense seam polyline.
+SEAM_SPACING_MM = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class NominalTrajectory:
+    """The nominal robot program and the seam it follows.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (T,)
+        Sample times in s.
+    u_mm : ndarray, shape (T,)
+        Seam parameter of each sample, mm.
+    q : ndarray, shape (T, 6)
+        Joint stream (rad) from the inverse kinematics: the reference ``q̄``.
+    T_program : ndarray, shape (T, 4, 4)
+        Programmed TCP poses ``T_base_tool`` (mm).
+    T_nominal : ndarray, shape (T, 4, 4)
+        ``Fk(q̄)``: the nominal trajectory the filter propagates along (mm).
+    seam : ndarray, shape (K, 3)
+        Dense seam polyline in the base frame (mm), beyond the program's end.
+    seam_normal : ndarray, shape (3,)
+        Workpiece surface normal in the base frame (the programmed tool z axis), unit.
+    T_base_T0 : ndarray, shape (4, 4)
+        The start frame T0 in which the seam is defined.
+    chain : DHChain
+        The nominal robot model with its tool.
+    ik_max_error_mm : float
+        Largest TCP position error of the joint stream against the program, mm.
+    """
+
+    t_s: np.ndarray
+    u_mm: np.ndarray
+    q: np.ndarray
+    T_program: np.ndarray
+    T_nominal: np.ndarray
+    seam: np.ndarray
+    seam_normal: np.ndarray
+    T_base_T0: np.ndarray
+    chain: DHChain
+    ik_max_error_mm: float
+
+
+def _smooth_triangle(u: np.ndarray, period: float, blend: float) -> np.ndarray:
+    """Triangle wave of unit amplitude (peak at ``u = period / 4``), its corners rounded by a
+    moving average of width ``blend * period``: exactly linear between the corners, close to
+    parabolic at them."""
+    tri = lambda v: (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))  # noqa: E731
+    if blend <= 0.0:
+        return tri(u)
+    nodes = (np.arange(64) + 0.5) / 64 - 0.5  # midpoint rule over [-1/2, 1/2]
+    return tri(u[..., None] + blend * period * nodes).mean(axis=-1)
+
+
+def seam_points_T0(cfg: TrajectoryConfig, u) -> np.ndarray:
+    """Seam points in the start tool frame T0 at parameters ``u``.
+
+    Parameters
+    ----------
+    cfg : TrajectoryConfig
+    u : array_like, shape (M,)
+        Seam parameter in mm (0 at the start; along y, or along the path for ``bend``).
+
+    Returns
+    -------
+    p_T0 : ndarray, shape (M, 3)
+        ``(x across, y along, z tool axis)`` in mm.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    p = np.zeros(u.shape + (3,))
+    A, P = cfg.resolved_amplitude_mm(), cfg.resolved_period_mm()
+    if cfg.kind == "bend":
+        ub = cfg.bend_at * cfg.length_mm
+        b = np.deg2rad(cfg.bend_deg)
+        after = np.maximum(u - ub, 0.0)
+        p[..., 0] = np.sin(b) * after
+        p[..., 1] = np.minimum(u, ub) + np.cos(b) * after
+        return p
+    p[..., 1] = u
+    if cfg.kind == "xy":
+        p[..., 0] = A * _smooth_triangle(u, P, cfg.corner_smoothing)
+    elif cfg.kind == "yz":
+        p[..., 2] = A * np.sin(2.0 * np.pi * u / P)
+    return p
+
+
+def start_pose(cfg: TrajectoryConfig) -> np.ndarray:
+    """``T_base_T0`` (4, 4): the tool at the seam start, tool axis down (-z of the base),
+    travel along +y of the base, translation ``start_mm`` (mm)."""
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
+    T[:3, 3] = cfg.start_mm
+    return T
+
+
+def tool_chain(robot: RobotConfig) -> DHChain:
+    """The nominal robot model with its tool ``tool_length_mm`` along the flange z axis."""
+    T_flange_tool = np.eye(4)
+    T_flange_tool[2, 3] = robot.tool_length_mm
+    return robot_model(robot.model).with_tool(T_flange_tool)
+
+
+def _readonly(*arrays):
+    for a in arrays:
+        a.setflags(write=False)
+
+
+@lru_cache(maxsize=16)
+def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float) -> NominalTrajectory:
+    chain = tool_chain(robot)
+    T0 = start_pose(traj)
+    n = traj.steps
+    t_s = np.arange(n) * traj.dt_s
+    u = np.linspace(0.0, traj.length_mm, n)
+    p_T0 = seam_points_T0(traj, u)
+    T_program = np.repeat(T0[None], n, axis=0)
+    T_program[:, :3, 3] = p_T0 @ T0[:3, :3].T + T0[:3, 3]
+
+    gains = RateGains(1.0 / traj.dt_s, 1.0 / traj.dt_s)  # k dt = 1: a full Gauss–Newton step
+    q = np.deg2rad(IK_SEED_DEG)
+    for _ in range(60):  # converge on the first pose
+        q, err = resolved_rate_step(chain, q, T_program[0], gains, traj.dt_s, damping=1e-2)
+        if np.abs(err).max() < 1e-9:
+            break
+    qs = np.empty((n, chain.n_joints))
+    for k in range(n):
+        q, _err = resolved_rate_step(chain, q, T_program[k], gains, traj.dt_s, damping=1e-3)
+        qs[k] = q
+    T_nominal = chain.forward_kinematics(qs)
+    ik_err = float(np.linalg.norm(T_nominal[:, :3, 3] - T_program[:, :3, 3], axis=1).max())
+    if ik_err > 1e-2:
+        raise TrajectoryError(
+            f"trajectory '{traj.kind}' from start_mm {list(traj.start_mm)}: the inverse kinematics "
+            f"misses the program by {ik_err:.3g} mm (expected < 0.01 mm); the path leaves the "
+            f"{robot.model} workspace or passes a singularity"
+        )
+    n_seam = int(np.ceil((traj.length_mm + extra_mm) / SEAM_SPACING_MM)) + 1
+    u_seam = np.linspace(0.0, traj.length_mm + extra_mm, n_seam)
+    if traj.kind == "bend":  # keep the corner exactly as a vertex
+        u_seam = np.unique(np.append(u_seam, traj.bend_at * traj.length_mm))
+    seam = seam_points_T0(traj, u_seam) @ T0[:3, :3].T + T0[:3, 3]
+    normal = T0[:3, 2].copy()
+    _readonly(t_s, u, qs, T_program, T_nominal, seam, normal, T0)
+    return NominalTrajectory(t_s, u, qs, T_program, T_nominal, seam, normal, T0, chain, ik_err)
+
+
+def nominal_trajectory(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float | None = None) -> NominalTrajectory:
+    """The nominal trajectory of a robot program along the configured seam.
+
+    Cached per (trajectory, robot) configuration: the arrays are read-only.
+
+    Parameters
+    ----------
+    traj : TrajectoryConfig
+    robot : RobotConfig
+    extra_mm : float, optional
+        Seam length beyond the program's end (default ``traj.seam_extension_mm``).
+
+    Returns
+    -------
+    NominalTrajectory
+
+    Raises
+    ------
+    TrajectoryError
+        The inverse kinematics cannot follow the program (workspace, singularity).
+    """
+    extra = traj.seam_extension_mm if extra_mm is None else float(extra_mm)
+    return _nominal_cached(traj, robot, extra)
