@@ -1,0 +1,263 @@
+"""Benchmark behind ``posekit bench seam``.
+
+Times one step of the seam-tracking particle filter (propagate with the nominal increment and
+force-dependent noise, weight with the robot measurement and **two** laser sensors 20 mm and
+40 mm ahead of the tool, normalise, weighted mean on SE(3) with its spread, resample) at
+N = 100, 1,000 and 10,000 particles on one thread, along the paper's xy seam (default
+configuration: PUMA 560, process force, the trend-filtered knot polyline). In the same run it
+times the same step written the way a user would with the usual Python tools:
+``scipy.spatial.transform.Rotation`` objects for the particle orientations (composition,
+``as_rotvec``, ``Rotation.mean``) and ``filterpy.monte_carlo.systematic_resample``, NumPy for
+the rest (:class:`UserStepFilter`, defined here only). Both resample at every step (ESS
+threshold 1: the worst case of a step), read the same inputs and evaluate the same densities
+(checked in tests/seam/test_seam_bench.py).
+
+Medians and p99 are reported; the machines are shared and noisy, so compare ratios.
+``realtime_factor`` is the paper's sensor period (100 Hz, 10 ms) over our median step time;
+``realtime_factor_1khz`` the same against a 1 kHz control loop (target: >= 1 at N = 1,000).
+"""
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SENSOR_PERIOD_MS = 10.0          # the paper's h = 0.01 s
+CONTROL_PERIOD_MS = 1.0          # a 1 kHz robot control loop
+SIZES = (100, 1_000, 10_000)
+DEFAULT_STEPS = 300
+
+
+class Scenario:
+    """Inputs of every step of one episode along a seam, and the filter's seam polyline.
+
+    The tool follows the nominal trajectory; the joint readings carry the configured noise,
+    the force is the configured process force (base frame), and each laser measures the true
+    (dense) seam in its plane with Gaussian noise.
+    """
+
+    def __init__(self, cfg, steps: int, seed: int = 0):
+        from posekit.seam.filter import StepInputs
+        from posekit.seam.seamline import SeamLine
+        from posekit.seam.trajectories import nominal_trajectory
+        from posekit.seam.trend import trend_filter
+
+        rng = np.random.default_rng(seed)
+        nom = nominal_trajectory(cfg.trajectory, cfg.robot)
+        self.cfg = cfg
+        self.nominal = nom
+        self.polyline = trend_filter(nom.seam, lam=cfg.filter.trend_lambda,
+                                     eps_mm=cfg.filter.trend_eps_mm).polyline
+        dense = SeamLine(nom.seam)
+        dist = np.array(cfg.sensors.resolved_distances_mm())
+        T = nom.T_nominal
+        n_steps = min(int(steps), len(T) - 1)
+        force_T = np.array(cfg.process.force_n, dtype=float)
+        joint_sigma = math.radians(cfg.robot.joint_noise_deg)
+        self.inputs = []
+        for k in range(1, n_steps + 1):
+            Tk = T[k]
+            origins = Tk[:3, 3] + (Tk[:3, :3] @ np.c_[np.zeros(len(dist)), dist, np.zeros(len(dist))].T).T
+            normals = np.repeat(Tk[None, :3, 1], len(dist), axis=0)
+            hit = dense.intersect(origins, normals)
+            e = hit.point - origins
+            laser = np.c_[e @ Tk[:3, 0], e @ Tk[:3, 2]] + cfg.sensors.noise_mm * rng.standard_normal((len(dist), 2))
+            laser[~hit.found] = np.nan
+            self.inputs.append(StepInputs(T_increment=Tk @ np.linalg.inv(T[k - 1]), T_nominal=Tk,
+                                          q_meas=nom.q[k] + joint_sigma * rng.standard_normal(nom.q.shape[1]),
+                                          force_n=Tk[:3, :3] @ force_T, laser_mm=laser))
+        self.T_start = T[0]
+
+
+class UserStepFilter:
+    """The same filter step written with scipy ``Rotation`` objects and filterpy's resampling.
+
+    State: ``R`` (a ``Rotation`` of N orientations) and ``p`` (N, 3) positions, mm. The
+    densities are those of :mod:`posekit.seam.densities` (eq. 3, 8, 9), written out here.
+    """
+
+    def __init__(self, cfg, polyline, T_init, seed=0):
+        from scipy.spatial.transform import Rotation
+
+        from posekit.seam.trajectories import tool_chain
+
+        self.Rotation = Rotation
+        self.cfg = cfg
+        f = cfg.filter
+        self.rng = np.random.default_rng(seed)
+        np.random.seed(seed)                    # filterpy draws from the global NumPy generator
+        self.chain = tool_chain(cfg.robot)
+        self.dist = np.array(cfg.sensors.resolved_distances_mm())
+        self.P = np.asarray(polyline, dtype=float)
+        self.n = f.particles
+        xi = self.rng.standard_normal((self.n, 6))
+        R0 = Rotation.from_matrix(T_init[:3, :3])
+        self.R = R0 * Rotation.from_rotvec(xi[:, 3:] * math.radians(f.init_sigma_r_deg))
+        self.p = T_init[:3, 3] + R0.apply(xi[:, :3] * f.init_sigma_t_mm)
+        self.logw = np.full(self.n, -math.log(self.n))
+
+    # -- densities
+    @staticmethod
+    def _plateau(delta, d, Sigma):
+        from scipy.special import gammaln
+        k = delta.shape[1]
+        r = np.linalg.norm(delta, axis=1)
+        dd = delta * np.where(r > d, 1.0 - d / np.maximum(r, 1e-300), 0.0)[:, None]
+        maha = np.einsum("ni,ij,nj->n", dd, np.linalg.inv(Sigma), dd)
+        vol = math.exp(0.5 * k * math.log(math.pi) - gammaln(0.5 * k + 1) + k * math.log(d)) if d > 0 else 0.0
+        return -math.log((2 * math.pi) ** (0.5 * k) * math.sqrt(np.linalg.det(Sigma)) + vol) - 0.5 * maha
+
+    def propagate(self, inputs):
+        f = self.cfg.filter
+        fn = float(np.linalg.norm(inputs.force_n))
+        st = f.sigma_t_mm + f.k_force_t * fn
+        sr = math.radians(f.sigma_r_deg) + math.radians(f.k_force_r) * fn
+        xi = self.rng.standard_normal((self.n, 6))
+        R_inc = self.Rotation.from_matrix(inputs.T_increment[:3, :3])
+        t_inc = inputs.T_increment[:3, 3]
+        self.p = R_inc.apply(self.p + self.R.apply(xi[:, :3] * st)) + t_inc
+        self.R = R_inc * self.R * self.Rotation.from_rotvec(xi[:, 3:] * sr)
+
+    def loglik(self, inputs):
+        f = self.cfg.filter
+        deg = math.pi / 180
+        q = np.asarray(inputs.q_meas, dtype=float)
+        T_mu = self.chain.forward_kinematics(q)
+        J = self.chain.geometric_jacobian(q)
+        S = (f.joint_sigma_deg * deg) ** 2 * (J @ J.T)
+        fn = float(np.linalg.norm(inputs.force_n))
+        R_mu = self.Rotation.from_matrix(T_mu[:3, :3])
+        dt = self.p - T_mu[:3, 3]
+        dr = (self.R * R_mu.inv()).as_rotvec()
+        logw = (self._plateau(dt, f.d0_mm + f.kd_mm_per_n * fn, S[:3, :3] + f.robot_floor_t_mm ** 2 * np.eye(3))
+                + self._plateau(dr, (f.d0_deg + f.kd_deg_per_n * fn) * deg,
+                                S[3:, 3:] + (f.robot_floor_r_deg * deg) ** 2 * np.eye(3)))
+        if inputs.laser_mm is None:
+            return logw
+        Rm = self.R.as_matrix()
+        a, v = self.P[:-1], self.P[1:] - self.P[:-1]
+        sig2 = f.laser_sigma_mm ** 2
+        for i, dist in enumerate(self.dist):
+            m = inputs.laser_mm[i]
+            if not np.all(np.isfinite(m)):
+                continue
+            m_hat = self.p + self.R.apply([m[0], dist, m[1]])
+            n = Rm[:, :, 1]
+            sa = n @ a.T - (n * m_hat).sum(1)[:, None]
+            nv = n @ v.T
+            cross = (sa * (sa + nv) <= 0) & (nv != 0)
+            pts = a[None] + (-sa / np.where(nv == 0, 1.0, nv))[..., None] * v[None]
+            d2 = np.where(cross, ((pts - m_hat[:, None]) ** 2).sum(2), np.inf)
+            j = np.argmin(d2, axis=1)
+            found = np.isfinite(d2[np.arange(self.n), j])
+            e = m_hat - pts[np.arange(self.n), j]
+            e_local = self.R.inv().apply(e)
+            e2 = np.where(found, e_local[:, 0] ** 2 + e_local[:, 2] ** 2, f.search_window_mm ** 2)
+            logw = logw - 0.5 * e2 / sig2 - math.log(2 * math.pi * sig2)
+        return logw
+
+    def step(self, inputs):
+        from filterpy.monte_carlo import systematic_resample
+        from scipy.special import logsumexp
+
+        self.propagate(inputs)
+        logw = self.logw + self.loglik(inputs)
+        logw = logw - logsumexp(logw)
+        w = np.exp(logw)
+        p_mean = w @ self.p
+        R_mean = self.R.mean(weights=w)
+        d = np.c_[R_mean.inv().apply(self.p - p_mean), (R_mean.inv() * self.R).as_rotvec()]
+        spread = np.sqrt(np.maximum(w @ d ** 2 - (w @ d) ** 2, 0.0))
+        ess = 1.0 / float(w @ w)
+        if ess < self.cfg.filter.ess_threshold * self.n:
+            idx = systematic_resample(w)
+            self.R, self.p = self.R[idx], self.p[idx]
+            self.logw = np.full(self.n, -math.log(self.n))
+        else:
+            self.logw = logw
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R_mean.as_matrix(), p_mean
+        return T, spread, ess
+
+
+def bench_config(particles: int):
+    """The default configuration (xy seam, two sensors at 20 and 40 mm) with N particles and
+    resampling at every step."""
+    from posekit.seam.config import apply_overrides, config_from_dict
+    return apply_overrides(config_from_dict({}, "defaults"), {"filter.particles": int(particles),
+                                                               "filter.ess_threshold": 1.0})
+
+
+def _time(step, inputs):
+    ts = np.empty(len(inputs))
+    for k, inp in enumerate(inputs):
+        t0 = time.perf_counter_ns()
+        step(inp)
+        ts[k] = (time.perf_counter_ns() - t0) * 1e-6
+    return ts
+
+
+def _errors(estimates, scenario):
+    """Median position error of the estimates against the nominal poses, mm (a sanity check)."""
+    T = scenario.nominal.T_nominal[1:len(estimates) + 1]
+    return float(np.median(np.linalg.norm(np.array([e[:3, 3] for e in estimates]) - T[:, :3, 3], axis=1)))
+
+
+def run(count=None, verbose=True, sizes=SIZES):
+    """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract).
+
+    ``count``: filter steps timed per particle count (default 300; the peer at N = 10,000 runs
+    at most 100 of them). ``sizes``: the particle counts.
+    """
+    from posekit.seam.filter import SeamParticleFilter
+
+    steps = DEFAULT_STEPS if count is None else max(int(count), 3)
+    rows = []
+    scen = Scenario(bench_config(sizes[0]), steps)
+    for n in sizes:
+        cfg = bench_config(n)
+        peer_steps = scen.inputs[:min(len(scen.inputs), 100 if n >= 10_000 and count is None else len(scen.inputs))]
+        # warm-up (caches, allocator, CPU clock): a few steps of each, thrown away
+        warm = scen.inputs[:5]
+        for s in (SeamParticleFilter(cfg, scen.polyline, 1, T_init=scen.T_start, seam_normal=scen.nominal.seam_normal),
+                  UserStepFilter(cfg, scen.polyline, scen.T_start, seed=1)):
+            for inp in warm:
+                s.step(inp)
+        ours = SeamParticleFilter(cfg, scen.polyline, 0, T_init=scen.T_start, seam_normal=scen.nominal.seam_normal)
+        est = []
+        t_ours = _time(lambda inp: est.append(ours.step(inp).T), scen.inputs)
+        peer = UserStepFilter(cfg, scen.polyline, scen.T_start, seed=0)
+        est_peer = []
+        t_peer = _time(lambda inp: est_peer.append(peer.step(inp)[0]), peer_steps)
+        m, b = float(np.median(t_ours)), float(np.median(t_peer))
+        rows.append({"name": f"seam.step.N{n}", "ours_ms": m, "ours_p99_ms": float(np.percentile(t_ours, 99)),
+                     "baseline": "scipy Rotation + filterpy systematic_resample (same densities)",
+                     "baseline_ms": b, "baseline_p99_ms": float(np.percentile(t_peer, 99)), "speedup": b / m,
+                     "realtime_factor": SENSOR_PERIOD_MS / m, "realtime_factor_1khz": CONTROL_PERIOD_MS / m,
+                     "particles": n, "sensors": int(cfg.sensors.count), "steps": len(t_ours),
+                     "baseline_steps": len(t_peer), "ours_median_error_mm": _errors(est, scen),
+                     "baseline_median_error_mm": _errors(est_peer, scen)})
+    if verbose:
+        print(f"posekit bench seam: one filter step (propagate, robot + 2 laser measurements 20/40 mm, normalise, "
+              f"SE(3) mean + spread, resample every step), xy seam, one thread; medians over "
+              f"{rows[0]['steps']} steps")
+        print(f"{'N':>7}{'posekit':>11}{'p99':>10}{'user peer':>12}{'p99':>10}{'speedup':>9}"
+              f"{'RT@100Hz':>10}{'RT@1kHz':>9}")
+        for r in rows:
+            print(f"{r['particles']:>7}{r['ours_ms']:>9.3f}ms{r['ours_p99_ms']:>8.3f}ms{r['baseline_ms']:>10.3f}ms"
+                  f"{r['baseline_p99_ms']:>8.3f}ms{r['speedup']:>8.1f}x{r['realtime_factor']:>9.1f}x"
+                  f"{r['realtime_factor_1khz']:>8.2f}x")
+        r1 = next((r for r in rows if r["particles"] == 1000), rows[0])
+        print(f"target: <= 1 ms per step at N = 1,000 (1 kHz) -> measured {r1['ours_ms']:.3f} ms at N = {r1['particles']} "
+              f"({'met' if r1['ours_ms'] <= 1.0 else 'NOT met'}); paper's 100 Hz: {r1['realtime_factor']:.0f}x real time")
+    return rows
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.path.insert(0, str(HERE.parent / "src"))
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    run()

@@ -1,0 +1,89 @@
+"""The seam benchmark (benchmarks/seam.py): its user-written peer computes the same filter step
+as posekit, and its rows carry the ``posekit bench`` contract keys. No timing is asserted."""
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from posekit.cli.main import main
+
+BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "seam.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("posekit_bench_seam_test", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def scenario(bench):
+    return bench.Scenario(bench.bench_config(50), steps=4)
+
+
+def test_peer_step_equals_posekit_step(bench, scenario):
+    """Zero transition noise, no resampling: from the same particles both filters give the same
+    log-weights, ESS, mean position and (up to chordal vs quaternion mean) mean rotation."""
+    from posekit.seam.config import apply_overrides
+    from posekit.seam.filter import SeamParticleFilter
+
+    cfg = apply_overrides(bench.bench_config(64), {"filter.sigma_t_mm": 0.0, "filter.sigma_r_deg": 0.0,
+                                                   "filter.k_force_t": 0.0, "filter.k_force_r": 0.0,
+                                                   "filter.ess_threshold": 1e-9})
+    peer = bench.UserStepFilter(cfg, scenario.polyline, scenario.T_start, seed=3)
+    ours = SeamParticleFilter(cfg, scenario.polyline, 0, seam_normal=scenario.nominal.seam_normal)
+    Ts = np.repeat(np.eye(4)[None], 64, axis=0)
+    Ts[:, :3, :3] = peer.R.as_matrix()
+    Ts[:, :3, 3] = peer.p
+    ours.T = Ts
+    for inp in scenario.inputs[:3]:
+        est = ours.step(inp)
+        T_peer, spread_peer, ess_peer = peer.step(inp)
+        assert est.lasers_used == 2
+        np.testing.assert_allclose(ours.logw, peer.logw, rtol=1e-9, atol=1e-9)
+        assert est.ess == pytest.approx(ess_peer, rel=1e-9)
+        np.testing.assert_allclose(est.T[:3, 3], T_peer[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(est.T[:3, :3], T_peer[:3, :3], atol=1e-6)
+        np.testing.assert_allclose(est.spread, spread_peer, rtol=1e-3, atol=1e-6)
+        np.testing.assert_allclose(ours.T[:, :3, 3], peer.p, atol=1e-9)
+
+
+def test_scenario_lasers_see_the_seam(scenario):
+    assert len(scenario.inputs) == 4
+    laser = np.array([inp.laser_mm for inp in scenario.inputs])
+    assert laser.shape == (4, 2, 2) and np.all(np.isfinite(laser))
+    # xy seam: a triangle wave of 20 mm amplitude and 100 mm period (slope 0.8) under a tool that
+    # keeps its orientation: at the start the seam is 0.8 * 20 = 16 mm across at the 20 mm sensor and
+    # 20 - 0.8 * (40 - 25) = 8 mm across at the 40 mm one (past the crest); on the surface (z ~ 0)
+    np.testing.assert_allclose(laser[0, :, 0], [16.0, 8.0], atol=0.7)
+    assert np.all(np.abs(laser[:, :, 1]) < 0.2)
+
+
+def test_bench_rows_contract(bench, capsys):
+    rows = bench.run(count=3, verbose=True, sizes=(40, 80))
+    out = capsys.readouterr().out
+    assert "posekit bench seam" in out and "target: <= 1 ms per step at N = 1,000" in out
+    assert [r["name"] for r in rows] == ["seam.step.N40", "seam.step.N80"]
+    for r in rows:
+        assert {"name", "ours_ms", "baseline", "baseline_ms", "speedup", "realtime_factor",
+                "realtime_factor_1khz"} <= set(r)
+        assert r["speedup"] == pytest.approx(r["baseline_ms"] / r["ours_ms"])
+        assert r["realtime_factor"] == pytest.approx(10.0 / r["ours_ms"])
+        assert r["realtime_factor_1khz"] == pytest.approx(1.0 / r["ours_ms"])
+        assert r["sensors"] == 2 and r["steps"] == 3
+        assert math.isfinite(r["ours_median_error_mm"]) and r["ours_median_error_mm"] < 5.0
+        json.dumps(r)
+
+
+def test_bench_cli_knows_seam(capsys):
+    from posekit.cli.bench import BENCHMARKS
+    assert "seam" in BENCHMARKS
+    rc = main(["bench", "nosuch"])
+    assert rc == 2
+    assert "'seam'" in capsys.readouterr().err
