@@ -1,0 +1,478 @@
+"""Simulated heavy-duty long-reach (hydraulic) manipulator with non-kinematic errors.
+
+The controller knows only the **nominal** rigid-body DH model (``posekit.robots.hiab033()``
+by default). The simulated "true" arm differs from it the way the paper says long-reach
+hydraulic cranes do (Sec. 1, ref. [9]):
+
+joint offsets
+    The encoder zero of joint i is off by ``joint_offsets_rad[i]``: the true link angle is
+    the actuator angle plus this offset.
+backlash
+    The link follows the actuator through a dead band of full width ``backlash_rad[i]``
+    (play operator): on reversal the link stays put until the play is taken up, so the
+    error depends on the direction of the last motion.
+bending
+    Link droop under gravity and payload: the lift and tilt joints (indices 1 and 2 of
+    ``bending_joints``) get an extra rotation about their own axes
+    ``δ_i = c_i · τ_i / 1000``, where ``τ_i = z_i · ((p_TCP - o_i) × (-e_z))`` is the lever
+    arm (mm) of a unit load at the TCP about joint axis i in the base frame (``e_z`` up) and
+    ``c_i = bending_rad_per_m[i]`` the compliance in rad per metre of lever arm. The droop is
+    therefore largest with the booms stretched out horizontally and vanishes with the load
+    straight above/below the joint.
+
+Motion (eq. 4–6, 25): a move is a quintic point-to-point Cartesian path (position and
+orientation about a fixed axis) sampled every ``dt_s``; resolved-rate control on the nominal
+model integrates the commanded joints ``q_d``; a joint P servo ``u = K_v (q_d - q_meas)``
+drives first-order-lag (PT-1) hydraulic joints ``τ v̇ + v = u``, ``q̇ = v`` with a velocity
+limit. The loop is closed only at the joints (open loop in Cartesian space, as in the paper),
+so after a move the *nominal* pose at the encoder readings reaches the reference to ~1 mm
+while the *true* tool is off by centimetres.
+
+Frames: B robot base, F the TCP frame at the end of the DH chain. mm and rad.
+"""
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from posekit.errors import ConfigError, GeometryError
+from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix
+from posekit.robots import DHChain, hiab033, quintic_trajectory
+
+from ._arm_kernel import simulate_moves
+from ._checks import rigid_transform as _rigid
+
+__all__ = [
+    "DEFAULT_Q0",
+    "ArmLog",
+    "LongReachArm",
+    "NonKinematicErrors",
+    "sample_nonkinematic_errors",
+]
+
+#: Default start configuration of the HIAB033-like crane (rad): lift boom up 20°, tilt boom
+#: down, wrist pitched so that the last joint's torsion axis points forward and slightly
+#: down, ~4.9 m from the slewing axis.
+DEFAULT_Q0 = np.array([0.0, 0.35, -0.7, 0.0, 0.2, 0.0])
+
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def _vector(value, name: str, n: int) -> np.ndarray:
+    try:
+        a = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy()
+    except (TypeError, ValueError):
+        raise ConfigError(
+            f"{name}: expected a number or {n} numbers, got {value!r}"
+        ) from None
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"{name}: expected finite values, got {a.tolist()}")
+    return a
+
+
+@dataclass(frozen=True)
+class NonKinematicErrors:
+    """The true arm's deviations from its nominal DH model (see the module docs).
+
+    Parameters
+    ----------
+    joint_offsets_rad : array_like, shape (n,)
+        Encoder zero errors: true link angle = actuator angle + offset, rad.
+    backlash_rad : array_like, shape (n,)
+        Full width of each joint's dead band, rad, >= 0.
+    bending_rad_per_m : array_like, shape (len(bending_joints),)
+        Compliance of the bending joints: droop angle in rad per metre of TCP lever arm, >= 0.
+    bending_joints : tuple of int
+        Joint indices (0-based) that droop; (1, 2) = lift and tilt of the HIAB033 model.
+    """
+
+    joint_offsets_rad: np.ndarray
+    backlash_rad: np.ndarray
+    bending_rad_per_m: np.ndarray
+    bending_joints: tuple[int, ...] = (1, 2)
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        off = np.asarray(self.joint_offsets_rad, dtype=np.float64)
+        n = off.shape[0] if off.ndim == 1 else -1
+        if n < 1 or not np.all(np.isfinite(off)):
+            raise ConfigError(
+                f"joint_offsets_rad: expected finite values of shape (n,), got {off.tolist()}"
+            )
+        back = np.asarray(self.backlash_rad, dtype=np.float64)
+        if back.shape != (n,) or not np.all(np.isfinite(back)) or np.any(back < 0):
+            raise ConfigError(
+                f"backlash_rad: expected {n} finite values >= 0, got {back.tolist()}"
+            )
+        joints = tuple(int(j) for j in self.bending_joints)
+        if any(j < 0 or j >= n for j in joints):
+            raise ConfigError(
+                f"bending_joints: expected joint indices in [0, {n - 1}], got {list(joints)}"
+            )
+        bend = np.asarray(self.bending_rad_per_m, dtype=np.float64)
+        if bend.shape != (len(joints),) or not np.all(np.isfinite(bend)) or np.any(bend < 0):
+            raise ConfigError(
+                f"bending_rad_per_m: expected {len(joints)} finite values >= 0, got {bend.tolist()}"
+            )
+        set_(self, "joint_offsets_rad", off)
+        set_(self, "backlash_rad", back)
+        set_(self, "bending_rad_per_m", bend)
+        set_(self, "bending_joints", joints)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints ``n``."""
+        return self.joint_offsets_rad.shape[0]
+
+    @classmethod
+    def none(cls, n_joints: int = 6) -> "NonKinematicErrors":
+        """No errors: the true arm equals the nominal model (except for encoder noise)."""
+        return cls(np.zeros(n_joints), np.zeros(n_joints), np.zeros(2))
+
+
+def sample_nonkinematic_errors(rng=None, scale: float = 1.0, n_joints: int = 6) -> NonKinematicErrors:
+    """Draw plausible non-kinematic errors for the HIAB033-like crane.
+
+    Sized so that the nominal model mis-predicts the true TCP position by ~2–6 cm at typical
+    poses (``scale=1``): joint offsets N(0, 1.5 mrad) on the booms and slewing joint and
+    N(0, 2 mrad) on the wrist; backlash widths U(1, 3) mrad on the booms and slewing joint,
+    U(0.5, 1.5) mrad on the wrist; droop compliance U(0.8, 1.4) mrad/m on the lift joint and
+    U(1.0, 1.8) mrad/m on the tilt joint (≈ 4 + 4 mrad of droop at ~4.5 m / ~2.5 m lever
+    arms, i.e. ~2–3 cm at the tip).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator or int or None
+        Random source or seed.
+    scale : float
+        Multiplies every error (>= 0); 0 gives no errors.
+    n_joints : int
+        Number of joints (>= 3; the first three are the slewing, lift and tilt joints).
+
+    Returns
+    -------
+    NonKinematicErrors
+    """
+    if not (np.ndim(scale) == 0 and np.isfinite(scale) and scale >= 0):
+        raise ConfigError(f"scale must be a finite number >= 0, got {scale!r}")
+    if int(n_joints) != n_joints or n_joints < 3:
+        raise ConfigError(f"n_joints must be an integer >= 3, got {n_joints!r}")
+    rng = np.random.default_rng(rng)
+    n = int(n_joints)
+    big = np.arange(n) < 3
+    offsets = rng.normal(0.0, np.where(big, 1.5e-3, 2.0e-3))
+    backlash = np.where(big, rng.uniform(1.0e-3, 3.0e-3, n), rng.uniform(0.5e-3, 1.5e-3, n))
+    bending = np.array([rng.uniform(0.8e-3, 1.4e-3), rng.uniform(1.0e-3, 1.8e-3)])
+    return NonKinematicErrors(scale * offsets, scale * backlash, scale * bending)
+
+
+class ArmLog(NamedTuple):
+    """Samples of one move, one row per controller period (the start state first).
+
+    t_s : ndarray, shape (T,)
+        Time since the arm was created, s.
+    q_measured : ndarray, shape (T, n)
+        Encoder readings, rad.
+    T_B_F_nominal : ndarray, shape (T, 4, 4)
+        TCP pose by the nominal DH model at the encoder readings, base frame, mm.
+    T_B_F_true : ndarray, shape (T, 4, 4)
+        True TCP pose (offsets, backlash, bending), base frame, mm.
+    """
+
+    t_s: np.ndarray
+    q_measured: np.ndarray
+    T_B_F_nominal: np.ndarray
+    T_B_F_true: np.ndarray
+
+
+def _concat_logs(logs: list[ArmLog]) -> ArmLog:
+    return ArmLog(*(np.concatenate(parts, axis=0) for parts in zip(*logs)))
+
+
+@dataclass(eq=False)
+class LongReachArm:
+    """A hydraulic long-reach manipulator: nominal model, true (erroneous) arm, joint servos.
+
+    Parameters
+    ----------
+    model : DHChain, optional
+        The nominal model the controller knows; ``hiab033()`` by default.
+    errors : NonKinematicErrors, optional
+        The true arm's deviations; ``sample_nonkinematic_errors(seed)`` by default.
+    dt_s : float
+        Controller period, s (100 Hz by default).
+    tau_s : float or array_like, shape (n,)
+        PT-1 time constant of each hydraulic joint (eq. 25), s.
+    kv : float or array_like, shape (n,)
+        Joint P-servo gain ``K_v`` of eq. (6), 1/s.
+    v_max_rad_s : float or array_like, shape (n,)
+        Joint velocity limit, rad/s.
+    encoder_noise_rad : float
+        Standard deviation of the encoder noise, rad.
+    rate_gains : (float, float)
+        Resolved-rate feedback gains ``(K_p, K_θ)`` of eq. (4), 1/s.
+    q0 : array_like, shape (n,), optional
+        Start configuration (actuator angles), rad; :data:`DEFAULT_Q0` for the 6-joint crane.
+    seed : int or numpy.random.Generator
+        Seeds the errors (when not given), the initial backlash state and the encoder noise.
+    """
+
+    model: DHChain | None = None
+    errors: NonKinematicErrors | None = None
+    dt_s: float = 0.01
+    tau_s: float | np.ndarray = 0.1
+    kv: float | np.ndarray = 4.0
+    v_max_rad_s: float | np.ndarray = 0.3
+    encoder_noise_rad: float = 2e-5
+    rate_gains: tuple[float, float] = (10.0, 10.0)
+    q0: np.ndarray | None = None
+    seed: int | np.random.Generator = 0
+    _state: dict = field(init=False, repr=False)
+
+    def __post_init__(self):
+        if self.model is None:
+            self.model = hiab033()
+        if not isinstance(self.model, DHChain):
+            raise ConfigError(f"model: expected a DHChain, got {type(self.model).__name__}")
+        n = self.model.n_joints
+        rng = np.random.default_rng(self.seed)
+        err_rng, state_rng, self._rng = rng.spawn(3)
+        if self.errors is None:
+            self.errors = sample_nonkinematic_errors(err_rng, n_joints=n)
+        if not isinstance(self.errors, NonKinematicErrors) or self.errors.n_joints != n:
+            raise ConfigError(
+                f"errors: expected NonKinematicErrors for {n} joints, got {self.errors!r}"
+            )
+        if not (np.ndim(self.dt_s) == 0 and np.isfinite(self.dt_s) and self.dt_s > 0):
+            raise ConfigError(f"dt_s must be a finite number > 0, got {self.dt_s!r}")
+        tau = _vector(self.tau_s, "tau_s", n)
+        if np.any(tau <= 0):
+            raise ConfigError(f"tau_s: expected values > 0 s, got {tau.tolist()}")
+        kv = _vector(self.kv, "kv", n)
+        vmax = _vector(self.v_max_rad_s, "v_max_rad_s", n)
+        if np.any(kv <= 0) or np.any(vmax <= 0):
+            raise ConfigError(
+                f"kv and v_max_rad_s: expected values > 0, got {kv.tolist()} and {vmax.tolist()}"
+            )
+        if not (np.ndim(self.encoder_noise_rad) == 0 and np.isfinite(self.encoder_noise_rad)
+                and self.encoder_noise_rad >= 0):
+            raise ConfigError(
+                f"encoder_noise_rad must be a finite number >= 0, got {self.encoder_noise_rad!r}"
+            )
+        gains = _vector(self.rate_gains, "rate_gains", 2)
+        if np.any(gains <= 0) or np.any(gains * self.dt_s > 1.0):
+            raise ConfigError(
+                f"rate_gains: expected 0 < gain <= 1/dt_s = {1.0 / self.dt_s:g} 1/s, "
+                f"got {gains.tolist()}"
+            )
+        if self.q0 is None:
+            if n != DEFAULT_Q0.shape[0]:
+                raise ConfigError(f"q0: required for a {n}-joint model")
+            q0 = DEFAULT_Q0.copy()
+        else:
+            q0 = self.model.check_q(self.q0, "q0")
+            if q0.ndim != 1:
+                raise ConfigError(f"q0: expected shape ({n},), got shape {q0.shape}")
+        half = 0.5 * self.errors.backlash_rad
+        m = self.model
+        self._kernel_model = (
+            m.a, m.alpha, m.d, m.theta, m.is_revolute, m.q_min, m.q_max, m.T_flange_tool
+        )
+        self._params = {
+            "gains": np.repeat(gains, 3),
+            "kv": kv,
+            "lag": np.exp(-self.dt_s / tau),
+            "v_max": vmax,
+            "half_play": half,
+        }
+        self._state = {
+            "t": 0.0,
+            "q_cmd": q0.copy(),
+            "q_act": q0.copy(),
+            "v": np.zeros(n),
+            # the link rests somewhere inside its dead band at the start
+            "q_link": q0 + state_rng.uniform(-1.0, 1.0, n) * half,
+            "q_meas": q0 + self._rng.normal(0.0, self.encoder_noise_rad, n),
+        }
+
+    # ------------------------------------------------------------------ state
+    @property
+    def n_joints(self) -> int:
+        """Number of joints ``n``."""
+        return self.model.n_joints
+
+    @property
+    def t_s(self) -> float:
+        """Simulated time since the arm was created, s."""
+        return self._state["t"]
+
+    def q_measured(self) -> np.ndarray:
+        """Encoder readings, shape (n,), rad."""
+        return self._state["q_meas"].copy()
+
+    def nominal_pose(self) -> np.ndarray:
+        """``T_B_F`` by the nominal DH model at the encoder readings, (4, 4), mm."""
+        return self.model.forward_kinematics(self._state["q_meas"], check=False)
+
+    def true_pose(self) -> np.ndarray:
+        """The true ``T_B_F`` (joint offsets, backlash state, bending), (4, 4), mm."""
+        return self.true_kinematics(self._state["q_link"])
+
+    def true_kinematics(self, q_link) -> np.ndarray:
+        """True TCP poses for link-side joint angles (before offsets and droop).
+
+        Parameters
+        ----------
+        q_link : array_like, shape (n,) or (N, n)
+            Actuator angles after the backlash dead band, rad.
+
+        Returns
+        -------
+        T_B_F : ndarray, shape (4, 4) or (N, 4, 4)
+            True TCP poses in the base frame, mm.
+        """
+        e = self.errors
+        q = np.asarray(q_link, dtype=np.float64) + e.joint_offsets_rad
+        if np.any(e.bending_rad_per_m):
+            T, frames = self.model.forward_kinematics(q, all_frames=True, check=False)
+            p = T[..., None, :3, 3]
+            idx = list(e.bending_joints)
+            F = np.take(frames, idx, axis=-3)  # frames i-1 whose z axes are joints idx
+            z, o = F[..., :3, 2], F[..., :3, 3]
+            torque_mm = np.einsum("...k,...k->...", z, np.cross(p - o, -_UP))
+            q = q.copy()
+            q[..., idx] += e.bending_rad_per_m * torque_mm / 1000.0
+        return self.model.forward_kinematics(q, check=False)
+
+    # ------------------------------------------------------------------ motion
+    def _default_duration(self, T0: np.ndarray, T1: np.ndarray) -> float:
+        dist = np.linalg.norm(T1[:3, 3] - T0[:3, 3])
+        angle = np.linalg.norm(rotation_vector_from_matrix(T0[:3, :3].T @ T1[:3, :3], check=False))
+        # peak speed of a quintic is 1.875 x the mean: ~150 mm/s and ~0.15 rad/s peaks
+        return float(max(1.0, 1.875 * dist / 150.0, 1.875 * angle / 0.15))
+
+    def _cartesian_path(self, T0, T1, duration_s, settle_s):
+        """Quintic Cartesian reference sampled at the end of every step."""
+        dt = self.dt_s
+        k_move = int(np.ceil(duration_s / dt - 1e-9))
+        k_settle = int(np.ceil(settle_s / dt - 1e-9))
+        t_rel = dt * np.arange(1, k_move + k_settle + 1)
+        rv = rotation_vector_from_matrix(T0[:3, :3].T @ T1[:3, :3], check=False)
+        dp = T1[:3, 3] - T0[:3, 3]
+        s = quintic_trajectory(np.zeros(6), np.concatenate([dp, rv]), k_move * dt, t_rel)
+        p = T0[:3, 3] + s.q[:, :3]
+        R = T0[:3, :3] @ matrix_from_rotation_vector(s.q[:, 3:])
+        twist = np.concatenate([s.qd[:, :3], s.qd[:, 3:] @ T0[:3, :3].T], axis=1)
+        # exact end pose (no round-off drift of the axis-angle interpolation)
+        p[k_move - 1:] = T1[:3, 3]
+        R[k_move - 1:] = T1[:3, :3]
+        return t_rel, np.ascontiguousarray(p), np.ascontiguousarray(R), np.ascontiguousarray(twist)
+
+    def _run(self, t_rel, p, R, twist) -> ArmLog:
+        st, par = self._state, self._params
+        K, n = len(t_rel), self.n_joints
+        noise = self._rng.normal(0.0, self.encoder_noise_rad, (K, n))
+        q_meas0, q_link0, t0 = st["q_meas"].copy(), st["q_link"].copy(), st["t"]
+        q_meas, q_link, _ = simulate_moves(
+            *self._kernel_model, p, R, twist, par["gains"], 1e-3, self.dt_s,
+            par["kv"], par["lag"], par["v_max"], par["half_play"], noise,
+            st["q_cmd"], st["q_act"], st["v"], st["q_link"], st["q_meas"],
+        )
+        st["t"] = t0 + t_rel[-1]
+        q_meas = np.vstack([q_meas0, q_meas])
+        q_link = np.vstack([q_link0, q_link])
+        return ArmLog(
+            np.concatenate([[t0], t0 + t_rel]),
+            q_meas,
+            self.model.forward_kinematics(q_meas, check=False),
+            self.true_kinematics(q_link),
+        )
+
+    def move_to(self, T_B_ref, *, duration_s: float | None = None, settle_s: float = 1.5) -> ArmLog:
+        """Point-to-point move of the TCP to a reference pose (nominal model, eq. 4–6, 25).
+
+        The path starts at the nominal pose of the current *commanded* joints (equal to the
+        encoder pose once the arm has settled) and follows a quintic in position and in the
+        rotation angle about a fixed axis; after ``duration_s`` the reference holds for
+        ``settle_s`` while the hydraulic joints settle.
+
+        Parameters
+        ----------
+        T_B_ref : array_like, shape (4, 4)
+            Reference TCP pose ``T_B_F`` in the base frame, mm.
+        duration_s : float, optional
+            Motion time, s; by default from the distance and rotation angle (peak speeds
+            ~150 mm/s and ~0.15 rad/s, at least 1 s).
+        settle_s : float
+            Time to hold the final reference, s (>= 0).
+
+        Returns
+        -------
+        ArmLog
+            The samples of this move (start state first).
+
+        Raises
+        ------
+        GeometryError
+            ``T_B_ref`` is not a rigid transform.
+        ConfigError
+            ``duration_s <= 0`` or ``settle_s < 0``.
+        """
+        T1 = _rigid(T_B_ref, "T_B_ref")
+        T0 = self.model.forward_kinematics(self._state["q_cmd"], check=False)
+        duration_s, settle_s = self._check_times(duration_s, settle_s, T0, T1)
+        return self._run(*self._cartesian_path(T0, T1, duration_s, settle_s))
+
+    def _check_times(self, duration_s, settle_s, T0, T1):
+        if duration_s is None:
+            duration_s = self._default_duration(T0, T1)
+        if not (np.ndim(duration_s) == 0 and np.isfinite(duration_s) and duration_s > 0):
+            raise ConfigError(f"duration_s must be a finite number > 0 s, got {duration_s!r}")
+        if not (np.ndim(settle_s) == 0 and np.isfinite(settle_s) and settle_s >= 0):
+            raise ConfigError(f"settle_s must be a finite number >= 0 s, got {settle_s!r}")
+        return float(duration_s), float(settle_s)
+
+    def follow(self, T_B_path, *, segment_s: float | None = None, settle_s: float = 1.5) -> ArmLog:
+        """Point-to-point motion through waypoints (each segment a quintic, eq. 4–6, 25).
+
+        Parameters
+        ----------
+        T_B_path : array_like, shape (K, 4, 4)
+            Waypoint TCP poses in the base frame, mm, visited in order.
+        segment_s : float, optional
+            Duration of every segment, s; by default each from its length (as in
+            :meth:`move_to`).
+        settle_s : float
+            Hold time after the last waypoint, s (no hold between waypoints).
+
+        Returns
+        -------
+        ArmLog
+            All samples of the motion (start state first).
+
+        Raises
+        ------
+        GeometryError
+            A waypoint is not a rigid transform (the message names its index).
+        ConfigError
+            An empty path, ``segment_s <= 0`` or ``settle_s < 0``.
+        """
+        try:
+            path = np.asarray(T_B_path, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise GeometryError(
+                f"T_B_path: expected an array of shape (K, 4, 4), got {type(T_B_path).__name__}"
+            ) from None
+        if path.ndim != 3 or path.shape[1:] != (4, 4) or path.shape[0] == 0:
+            raise GeometryError(f"T_B_path: expected shape (K, 4, 4) with K >= 1, got shape {path.shape}")
+        for k in range(path.shape[0]):
+            _rigid(path[k], f"T_B_path[{k}]")
+        logs = []
+        for k in range(path.shape[0]):
+            T0 = self.model.forward_kinematics(self._state["q_cmd"], check=False)
+            last = k == path.shape[0] - 1
+            dur, hold = self._check_times(segment_s, settle_s if last else 0.0, T0, path[k])
+            log = self._run(*self._cartesian_path(T0, path[k], dur, hold))
+            logs.append(log if k == 0 else ArmLog(*(a[1:] for a in log)))
+        return _concat_logs(logs)

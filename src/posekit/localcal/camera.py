@@ -1,0 +1,396 @@
+"""Eye-in-hand camera: ArUco markers rendered with OpenCV, detected with OpenCV's ArUco
+detector and located with ``cv2.solvePnP`` (IPPE_SQUARE).
+
+Frames: C is the camera in the OpenCV optical convention (x right, y down, z along the
+optical axis); a marker frame M follows OpenCV ArUco's convention (origin at the marker
+centre, x to the right and y up on the printed face, z out of the face), so a marker seen
+head-on has ``R_C_M ≈ diag(1, -1, -1)``. Marker corners in M, in the order ArUco reports
+them and IPPE_SQUARE expects (top-left, top-right, bottom-right, bottom-left):
+``(-s/2, s/2, 0), (s/2, s/2, 0), (s/2, -s/2, 0), (-s/2, -s/2, 0)`` with ``s`` the side of
+the black square in mm. mm and rad; pixels for image coordinates.
+
+Noise: the rendered image has sub-pixel jitter of the marker corners (``noise_px``, standing
+in for vibration and rolling shutter), a Gaussian blur (``blur_px``) and grey-level noise
+(``noise_gray``). The pose noise of a marker then grows with its distance, as it does with
+a real camera: a fixed corner noise in pixels is a lateral noise ∝ Z and a depth noise
+∝ Z² / (f s).
+"""
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from posekit.errors import ConfigError, EstimationError, InputFileError
+
+from ._checks import rigid_transform as _rigid
+
+__all__ = [
+    "ARUCO_DICTIONARY",
+    "CameraIntrinsics",
+    "MarkerDetector",
+    "marker_corners",
+    "render_markers",
+    "zed2_720p",
+]
+
+#: The ArUco dictionary of every marker (ids 0–49).
+ARUCO_DICTIONARY = "DICT_4X4_50"
+_N_IDS = 50
+_CELLS = 6  # 4x4 data bits + 1-cell black border on each side
+_NEAR_MM = 10.0
+
+
+def _dictionary():
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, ARUCO_DICTIONARY))
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics of a rectified camera image.
+
+    Parameters
+    ----------
+    fx, fy : float
+        Focal lengths, px.
+    cx, cy : float
+        Principal point, px (pixel centres at integer coordinates, OpenCV convention).
+    width, height : int
+        Image size, px.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+
+    def __post_init__(self):
+        vals = (self.fx, self.fy, self.cx, self.cy)
+        if not all(np.isfinite(v) for v in vals) or self.fx <= 0 or self.fy <= 0:
+            raise ConfigError(
+                f"camera intrinsics: expected finite fx, fy > 0 and finite cx, cy, got {vals}"
+            )
+        if int(self.width) != self.width or int(self.height) != self.height or min(self.width, self.height) < 16:
+            raise ConfigError(
+                f"camera intrinsics: expected integer width, height >= 16 px, got {self.width}x{self.height}"
+            )
+
+    @property
+    def K(self) -> np.ndarray:
+        """Camera matrix, shape (3, 3), px."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def dist(self) -> np.ndarray:
+        """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)``, shape (5,): zeros (rectified)."""
+        return np.zeros(5)
+
+    def project(self, p_C) -> np.ndarray:
+        """Pixel coordinates of points in the camera frame.
+
+        Parameters
+        ----------
+        p_C : array_like, shape (..., 3)
+            Points in the camera frame C, mm (z > 0 in front of the camera).
+
+        Returns
+        -------
+        uv : ndarray, shape (..., 2)
+            Pixel coordinates (u right, v down), px.
+        """
+        p = np.asarray(p_C, dtype=np.float64)
+        return np.stack(
+            [self.fx * p[..., 0] / p[..., 2] + self.cx, self.fy * p[..., 1] / p[..., 2] + self.cy],
+            axis=-1,
+        )
+
+
+def zed2_720p() -> CameraIntrinsics:
+    """Left lens of a ZED 2 stereo camera at 720p (HD720, 1280×720), rectified.
+
+    ``fx = fy = 528 px``, ``cx = 640 px``, ``cy = 360 px``, no distortion (the ZED SDK delivers
+    rectified images). The focal length is representative of the factory calibration files
+    of ZED 2 units at HD720 (about 527–530 px, i.e. ~100° × 69° field of view after
+    rectification); it is not one unit's calibration.
+    """
+    return CameraIntrinsics(fx=528.0, fy=528.0, cx=640.0, cy=360.0, width=1280, height=720)
+
+
+def marker_corners(size_mm: float) -> np.ndarray:
+    """Corners of a square marker of side ``size_mm`` in its own frame M, shape (4, 3), mm.
+
+    Order top-left, top-right, bottom-right, bottom-left (ArUco / IPPE_SQUARE order).
+    """
+    h = 0.5 * float(size_mm)
+    return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
+
+
+def _check_marker(marker_id, size_mm, name: str) -> tuple[int, float]:
+    if isinstance(marker_id, bool) or not isinstance(marker_id, (int, np.integer)) or not 0 <= marker_id < _N_IDS:
+        raise ConfigError(
+            f"{name}: marker id {marker_id!r} is not in {ARUCO_DICTIONARY} (expected an integer 0-{_N_IDS - 1})"
+        )
+    try:
+        size = float(size_mm)
+    except (TypeError, ValueError):
+        size = float("nan")
+    if not (np.isfinite(size) and size > 0):
+        raise ConfigError(
+            f"{name}: marker {int(marker_id)} has size {size_mm!r}, expected a finite size > 0 mm"
+        )
+    return int(marker_id), size
+
+
+def _check_image(image) -> np.ndarray:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or not (
+        image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)
+    ):
+        what = (
+            f"{image.dtype} of shape {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
+        )
+        raise InputFileError(
+            f"image: expected a (H, W) uint8 grey image or (H, W, 3) uint8 BGR image, got {what}"
+        )
+    return image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+
+
+def _background(intr: CameraIntrinsics, rng: np.random.Generator) -> np.ndarray:
+    """Smooth grey clutter, (H, W) float32 grey levels in ~[70, 180]."""
+    coarse = rng.uniform(70.0, 180.0, (9, 16)).astype(np.float32)
+    return cv2.resize(coarse, (intr.width, intr.height), interpolation=cv2.INTER_CUBIC)
+
+
+def render_markers(
+    intr: CameraIntrinsics,
+    markers: Sequence[tuple[int, float, np.ndarray]],
+    rng=None,
+    *,
+    noise_px: float = 0.15,
+    noise_gray: float = 3.0,
+    blur_px: float = 0.6,
+    background: np.ndarray | None = None,
+) -> np.ndarray:
+    """Render ArUco markers into a grey camera image.
+
+    Each marker (black square of side ``size_mm`` plus a white quiet zone of one cell) is
+    drawn with ``cv2.aruco.generateImageMarker`` and warped with ``cv2.warpPerspective``
+    onto the background, far markers first (nearer ones occlude them). A marker behind the
+    camera, seen from its back, or entirely out of view is not drawn; a partly visible one
+    is clipped.
+
+    Parameters
+    ----------
+    intr : CameraIntrinsics
+        The camera.
+    markers : sequence of (marker_id, size_mm, T_C_M)
+        ``marker_id`` an integer of :data:`ARUCO_DICTIONARY`; ``size_mm`` the side of the
+        black square, mm; ``T_C_M`` array_like (4, 4), the marker frame in the camera
+        frame, mm.
+    rng : numpy.random.Generator or int or None
+        Random source for the background, the corner jitter and the image noise.
+    noise_px : float
+        Standard deviation of the jitter of each projected corner, px.
+    noise_gray : float
+        Standard deviation of the additive grey-level noise (0–255 scale).
+    blur_px : float
+        Gaussian blur sigma (optics), px; 0 for none.
+    background : ndarray, shape (H, W), optional
+        Background grey levels; smooth random clutter by default.
+
+    Returns
+    -------
+    image : ndarray, shape (H, W), uint8
+        The grey image.
+
+    Raises
+    ------
+    ConfigError
+        An unknown marker id, a non-positive marker size or negative noise settings.
+    GeometryError
+        A ``T_C_M`` that is not a (4, 4) rigid transform.
+    """
+    for name, value in (("noise_px", noise_px), ("noise_gray", noise_gray), ("blur_px", blur_px)):
+        if not (np.ndim(value) == 0 and np.isfinite(value) and value >= 0):
+            raise ConfigError(f"{name} must be a finite number >= 0, got {value!r}")
+    rng = np.random.default_rng(rng)
+    checked = []
+    for k, item in enumerate(markers):
+        try:
+            marker_id, size_mm, T_C_M = item
+        except (TypeError, ValueError):
+            raise ConfigError(
+                f"markers[{k}]: expected (marker_id, size_mm, T_C_M), got {item!r}"
+            ) from None
+        marker_id, size = _check_marker(marker_id, size_mm, f"markers[{k}]")
+        checked.append((marker_id, size, _rigid(T_C_M, f"markers[{k}] T_C_M")))
+    H, W = intr.height, intr.width
+    if background is None:
+        img = _background(intr, rng)
+    else:
+        img = np.asarray(background, dtype=np.float32)
+        if img.shape != (H, W):
+            raise ConfigError(f"background: expected shape ({H}, {W}), got {img.shape}")
+        img = img.copy()
+    dictionary = _dictionary()
+    # far markers first, so that nearer ones are drawn over them
+    for marker_id, size, T in sorted(checked, key=lambda m: -m[2][2, 3]):
+        R, t = T[:3, :3], T[:3, 3]
+        if R[:, 2] @ t >= 0.0:  # seen from behind (or edge-on)
+            continue
+        cell = size / _CELLS
+        quiet = marker_corners(size + 2.0 * cell)  # black square + 1-cell white quiet zone
+        p_C = quiet @ R.T + t
+        if np.any(p_C[:, 2] < _NEAR_MM):
+            continue
+        corners = marker_corners(size) @ R.T + t
+        uv = intr.project(corners) + rng.normal(0.0, noise_px, (4, 2))
+        uv_quiet = intr.project(p_C)
+        lo = np.floor(uv_quiet.min(axis=0)).astype(int) - 1
+        hi = np.ceil(uv_quiet.max(axis=0)).astype(int) + 2
+        x0, y0 = max(lo[0], 0), max(lo[1], 0)
+        x1, y1 = min(hi[0], W), min(hi[1], H)
+        if x0 >= x1 or y0 >= y1:
+            continue  # entirely out of view
+        side_px = max(uv_quiet.max(axis=0) - uv_quiet.min(axis=0))
+        ppc = int(np.clip(np.ceil(side_px / (_CELLS + 2)), 2, 40))  # texture px per cell
+        tex = cv2.aruco.generateImageMarker(dictionary, marker_id, _CELLS * ppc, borderBits=1)
+        tex = cv2.copyMakeBorder(tex, ppc, ppc, ppc, ppc, cv2.BORDER_CONSTANT, value=255)
+        tex = (25.0 + tex.astype(np.float32) * (205.0 / 255.0)).astype(np.float32)
+        n = tex.shape[0]
+        # texture pixel centres: the black square spans [ppc - 0.5, n - ppc - 0.5]
+        a, b = ppc - 0.5, n - ppc - 0.5
+        src = np.array([[a, a], [b, a], [b, b], [a, b]], dtype=np.float32)
+        dst = (uv - [x0, y0]).astype(np.float32)
+        Hm = cv2.getPerspectiveTransform(src, dst)
+        size_roi = (x1 - x0, y1 - y0)
+        warped = cv2.warpPerspective(tex, Hm, size_roi, flags=cv2.INTER_LINEAR)
+        mask = cv2.warpPerspective(
+            np.ones((n, n), np.float32), Hm, size_roi, flags=cv2.INTER_LINEAR
+        )
+        roi = img[y0:y1, x0:x1]
+        roi += mask * (warped - roi)
+    if blur_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), blur_px)
+    if noise_gray > 0:
+        img += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(noise_gray)
+    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+
+
+class MarkerDetector:
+    """Detect ArUco markers and estimate their poses (OpenCV ArUco + solvePnP IPPE_SQUARE).
+
+    Parameters
+    ----------
+    intr : CameraIntrinsics
+        The camera (known intrinsics, as in the paper).
+    sizes_mm : mapping of int to float
+        Side of the black square of each marker to locate, mm. Detected markers with other
+        ids are ignored.
+    refine : bool
+        Sub-pixel corner refinement in the ArUco detector (``CORNER_REFINE_SUBPIX``).
+
+    Raises
+    ------
+    ConfigError
+        An id outside the dictionary or a size that is not a finite number > 0.
+    """
+
+    def __init__(self, intr: CameraIntrinsics, sizes_mm: Mapping[int, float], *, refine: bool = True):
+        if not isinstance(intr, CameraIntrinsics):
+            raise ConfigError(f"intr: expected CameraIntrinsics, got {type(intr).__name__}")
+        if not isinstance(sizes_mm, Mapping) or not sizes_mm:
+            raise ConfigError(f"sizes_mm: expected a non-empty mapping id -> size in mm, got {sizes_mm!r}")
+        self.intr = intr
+        self.sizes_mm = dict(_check_marker(i, s, "sizes_mm") for i, s in sizes_mm.items())
+        params = cv2.aruco.DetectorParameters()
+        if refine:
+            params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+            params.cornerRefinementWinSize = 4
+        self._detector = cv2.aruco.ArucoDetector(_dictionary(), params)
+        self._K, self._dist = intr.K, intr.dist
+
+    def detect_corners(self, image) -> dict[int, np.ndarray]:
+        """Image corners of the known markers in an image.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, 3), uint8
+            Grey or BGR image.
+
+        Returns
+        -------
+        corners : dict of int to ndarray, shape (4, 2)
+            Corners (top-left, top-right, bottom-right, bottom-left), px, per detected known
+            id; if an id is detected twice the larger one is kept.
+
+        Raises
+        ------
+        InputFileError
+            ``image`` is not a uint8 grey or BGR image.
+        """
+        grey = _check_image(image)
+        corners, ids, _ = self._detector.detectMarkers(grey)
+        found: dict[int, np.ndarray] = {}
+        if ids is None:
+            return found
+        for c, i in zip(corners, ids.ravel()):
+            i = int(i)
+            if i not in self.sizes_mm:
+                continue
+            c = c.reshape(4, 2).astype(np.float64)
+            if i in found and cv2.contourArea(found[i].astype(np.float32)) >= cv2.contourArea(c.astype(np.float32)):
+                continue
+            found[i] = c
+        return found
+
+    def pose_from_corners(self, marker_id: int, corners) -> np.ndarray:
+        """``T_C_M`` of one marker from its four image corners (solvePnP IPPE_SQUARE).
+
+        Parameters
+        ----------
+        marker_id : int
+            A known marker id.
+        corners : array_like, shape (4, 2)
+            Image corners in ArUco order, px.
+
+        Returns
+        -------
+        T_C_M : ndarray, shape (4, 4)
+            Marker pose in the camera frame, mm.
+        """
+        if marker_id not in self.sizes_mm:
+            raise ConfigError(
+                f"marker {marker_id!r} has no known size; known markers: {sorted(self.sizes_mm)}"
+            )
+        obj = marker_corners(self.sizes_mm[marker_id])
+        img = np.asarray(corners, dtype=np.float64).reshape(4, 1, 2)
+        ok, rvec, tvec = cv2.solvePnP(obj, img, self._K, self._dist, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+        if not ok:
+            raise EstimationError(f"marker {marker_id}: solvePnP (IPPE_SQUARE) found no pose")
+        T = np.eye(4)
+        T[:3, :3] = cv2.Rodrigues(rvec)[0]
+        T[:3, 3] = tvec.ravel()
+        return T
+
+    def detect(self, image) -> dict[int, np.ndarray]:
+        """Poses of the known markers visible in an image.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, 3), uint8
+            Grey or BGR image.
+
+        Returns
+        -------
+        poses : dict of int to ndarray, shape (4, 4)
+            ``T_C_M`` (mm) for every detected known marker id.
+
+        Raises
+        ------
+        InputFileError
+            ``image`` is not a uint8 grey or BGR image.
+        """
+        return {i: self.pose_from_corners(i, c) for i, c in self.detect_corners(image).items()}
