@@ -1,0 +1,188 @@
+"""Closed-form and robust alignment of corresponding point sets (Umeyama), and path checks.
+
+``umeyama`` is the weighted least-squares similarity/rigid transform of Umeyama (1991, PAMI 13(4))
+with the reflection guard, so ``det R = +1`` always. ``robust_umeyama`` wraps it in a trimmed
+re-fit that rejects gross outliers by a median-based threshold.
+"""
+
+import numpy as np
+
+from posekit.errors import TrajectoryError
+
+__all__ = [
+    "INLIER_SIGMAS",
+    "MIN_POSES",
+    "check_path_shape",
+    "robust_principal_axes",
+    "robust_umeyama",
+    "umeyama",
+]
+
+#: Fewest poses (or pose pairs) a trajectory match accepts.
+MIN_POSES = 6
+#: Inlier gate, in robust standard deviations of the 3D residual. Meant for gross outliers only:
+#: real SLAM residuals are heavy-tailed (TUM fr1/xyz RGB-D SLAM: median 11 mm, max 36 mm), and a
+#: 4-sigma gate (chi-3 99.9 %) would drop 2 % of good pairs there and turn R by 0.22 deg.
+INLIER_SIGMAS = 6.0
+#: Median of the chi distribution with 3 degrees of freedom: median |e| = 1.538 sigma.
+_CHI3_MEDIAN = 1.5382
+#: A path whose second principal extent is below this fraction of the first is a straight line.
+LINE_RATIO = 0.01
+#: A path whose first principal extent (std) is below this, mm, does not move.
+STILL_MM = 1e-3
+
+
+def umeyama(src, dst, *, weights=None, with_scale: bool = False):
+    """Least-squares rigid (or similarity) transform with ``dst ≈ s R src + t``.
+
+    Parameters
+    ----------
+    src, dst : array_like, shape (N, 3)
+        Corresponding points, src frame and dst frame, mm; N >= 3.
+    weights : array_like, shape (N,), optional
+        Non-negative weights (default all 1).
+    with_scale : bool
+        Also estimate the scale ``s`` (Sim(3)); otherwise ``s = 1``.
+
+    Returns
+    -------
+    R : ndarray, shape (3, 3)
+        Rotation ``R_dst_src`` with ``det R = +1`` (never a reflection).
+    t : ndarray, shape (3,)
+        Translation ``t_dst_src``, mm.
+    s : float
+        Scale (1.0 unless ``with_scale``).
+    """
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    w = np.ones(len(src)) if weights is None else np.asarray(weights, dtype=np.float64)
+    w = w / w.sum()
+    mu_s = w @ src
+    mu_d = w @ dst
+    a = src - mu_s
+    b = dst - mu_d
+    cov = (b * w[:, None]).T @ a                       # sum w (dst - mu_d)(src - mu_s)^T
+    U, S, Vt = np.linalg.svd(cov)
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
+    R = (U * d) @ Vt
+    s = 1.0
+    if with_scale:
+        var_s = w @ np.einsum("ij,ij->i", a, a)
+        s = float((S * d).sum() / var_s)
+    t = mu_d - s * R @ mu_s
+    return R, t, s
+
+
+def robust_umeyama(src, dst, *, with_scale: bool = False, outlier_fraction: float = 0.05,
+                   max_iter: int = 30):
+    """Umeyama with gross-outlier rejection (trimmed start, then a median-based gate).
+
+    The first fit uses every pair; the worst ``2 * outlier_fraction`` of the pairs are dropped
+    for the second; then pairs whose residual exceeds ``INLIER_SIGMAS`` robust standard deviations
+    (``sigma = median |e| / 1.538`` over the current inliers, the chi-3 median) are rejected, until
+    the inlier set no longer changes.
+
+    Parameters
+    ----------
+    src, dst : array_like, shape (N, 3)
+        Corresponding points, mm.
+    with_scale : bool
+        Estimate a scale too.
+    outlier_fraction : float
+        Expected fraction of gross outliers, for the trimmed start.
+    max_iter : int
+        Cap on the re-fits.
+
+    Returns
+    -------
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+        mm.
+    s : float
+    inliers : ndarray, shape (N,), bool
+    residuals : ndarray, shape (N,)
+        ``|dst - (s R src + t)|`` of every pair, mm.
+    """
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    n = len(src)
+    R, t, s = umeyama(src, dst, with_scale=with_scale)
+    res = np.linalg.norm(dst - (s * src @ R.T + t), axis=1)
+    keep = max(3, int(np.ceil(n * (1.0 - 2.0 * outlier_fraction))))
+    inl = np.zeros(n, dtype=bool)
+    inl[np.argsort(res)[:keep]] = True
+    for _ in range(max_iter):
+        R, t, s = umeyama(src[inl], dst[inl], with_scale=with_scale)
+        res = np.linalg.norm(dst - (s * src @ R.T + t), axis=1)
+        sigma = np.median(res[inl]) / _CHI3_MEDIAN
+        new = res <= INLIER_SIGMAS * sigma + 1e-9
+        if new.sum() < 3:
+            break
+        if np.array_equal(new, inl):
+            break
+        inl = new
+    return R, t, s, inl, res
+
+
+def robust_principal_axes(p, n_iter: int = 3):
+    """Centroid and principal axes of a point set, ignoring gross outliers.
+
+    Points beyond a Mahalanobis distance of 4 (chi-square 3-dof 99.9 % is 16.3) from the current
+    mean and covariance are dropped, three times.
+
+    Parameters
+    ----------
+    p : ndarray, shape (N, 3)
+        Points, mm.
+
+    Returns
+    -------
+    mean : ndarray, shape (3,)
+        mm.
+    axes : ndarray, shape (3, 3)
+        Columns are the principal directions, largest variance first.
+    std : ndarray, shape (3,)
+        Standard deviations along ``axes``, mm, descending.
+    keep : ndarray, shape (N,), bool
+        The points used.
+    """
+    keep = np.ones(len(p), dtype=bool)
+    for _ in range(n_iter):
+        mean = p[keep].mean(axis=0)
+        cov = np.cov(p[keep].T, bias=True)
+        cov_r = cov + np.eye(3) * (1e-9 * np.trace(cov) + 1e-12)
+        d = p - mean
+        m2 = np.einsum("ij,ij->i", d @ np.linalg.inv(cov_r), d)
+        new = m2 <= 16.3
+        if new.sum() < 3 or np.array_equal(new, keep):
+            break
+        keep = new
+    mean = p[keep].mean(axis=0)
+    lam, V = np.linalg.eigh(np.cov(p[keep].T, bias=True))
+    order = np.argsort(lam)[::-1]
+    return mean, V[:, order], np.sqrt(np.clip(lam[order], 0.0, None)), keep
+
+
+def check_path_shape(p, name: str) -> None:
+    """Raise TrajectoryError if a path is too short, does not move, or is a straight line.
+
+    Parameters
+    ----------
+    p : ndarray, shape (N, 3)
+        Positions, mm.
+    name : str
+        What the path is, for the message (a file name).
+    """
+    if len(p) < MIN_POSES:
+        raise TrajectoryError(f"{name}: {len(p)} poses, at least {MIN_POSES} are needed for "
+                              f"trajectory matching")
+    _, _, std, _ = robust_principal_axes(p)
+    if std[0] < STILL_MM:
+        raise TrajectoryError(f"{name}: all positions are equal (the body does not move); "
+                              f"trajectory matching needs a planar or 3D path")
+    if std[1] < LINE_RATIO * std[0]:
+        raise TrajectoryError(
+            f"{name}: the path is a straight line (spread {std[1]:.3g} mm across vs {std[0]:.3g} mm "
+            f"along it), so the rotation about it is undetermined; trajectory matching needs a planar "
+            f"or 3D path")

@@ -1,0 +1,152 @@
+"""Coarse frame alignment of two point sets without correspondences, never mirrored.
+
+The principal axes of each (outlier-trimmed) set give ``R = V_dst D V_src^T``. The sign matrix ``D``
+is chosen among the sign patterns with ``det R = +1`` only, so a reflection is never even a
+candidate; axes whose spreads are nearly equal (a round path) are also tried rotated by 90 degrees
+about the remaining axis. Each candidate is refined by a short CPD run and scored by the
+negative log-likelihood of the hybrid mixture (positions, and orientations when they vary), and
+the best one is kept.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .alignment import robust_principal_axes
+from .cpd import rigid_cpd
+
+__all__ = ["CoarseAlignment", "coarse_align", "pca_candidates"]
+
+#: Two principal spreads closer than this ratio are treated as ambiguous (axes may swap).
+_NEAR_EQUAL = 0.8
+#: Short CPD run per candidate.
+_CANDIDATE_ITERS = 30
+
+
+class CoarseAlignment(NamedTuple):
+    """Best coarse transform ``x_dst ≈ s R x_src + t`` and how the candidates scored."""
+
+    R: np.ndarray            #: (3, 3), det +1
+    t: np.ndarray            #: (3,), mm
+    s: float
+    sigma2: float            #: mixture variance reached by the best candidate's CPD run, mm^2
+    scores: np.ndarray       #: (K,) mean negative log-likelihood of each candidate (lower is better)
+    best: int
+
+
+def _swap(i, j):
+    """Rotation by +90 deg in the plane of axes i and j (a proper rotation)."""
+    Q = np.eye(3)
+    Q[i, i] = Q[j, j] = 0.0
+    Q[i, j], Q[j, i] = -1.0, 1.0
+    return Q
+
+
+def pca_candidates(p_src, p_dst, *, with_scale: bool = False):
+    """Proper-rotation candidates from the principal axes of two point sets.
+
+    Parameters
+    ----------
+    p_src : ndarray, shape (M, 3)
+        Source points, mm.
+    p_dst : ndarray, shape (N, 3)
+        Destination points, mm.
+    with_scale : bool
+        Also give the scale from the ratio of the spreads.
+
+    Returns
+    -------
+    Rs : ndarray, shape (K, 3, 3)
+        Candidate rotations ``R_dst_src``, every one with det +1.
+    ts : ndarray, shape (K, 3)
+        Matching translations (centroid to centroid), mm.
+    s : float
+        Scale (1.0 without ``with_scale``).
+    """
+    mu_s, Vs, sd_s, _ = robust_principal_axes(p_src)
+    mu_d, Vd, sd_d, _ = robust_principal_axes(p_dst)
+    s = float(np.sqrt((sd_d ** 2).sum() / (sd_s ** 2).sum())) if with_scale else 1.0
+    base = []
+    for d1 in (1.0, -1.0):
+        for d2 in (1.0, -1.0):
+            d3 = d1 * d2 * np.sign(np.linalg.det(Vd) * np.linalg.det(Vs))
+            base.append(np.diag([d1, d2, d3]))
+    extra = [np.eye(3)]
+    spread = np.maximum(sd_s, sd_d)
+    low = np.minimum(sd_s, sd_d)
+    if low[1] > _NEAR_EQUAL * spread[0] or sd_s[1] > _NEAR_EQUAL * sd_s[0] or sd_d[1] > _NEAR_EQUAL * sd_d[0]:
+        extra.append(_swap(0, 1))
+    if sd_s[2] > _NEAR_EQUAL * sd_s[1] or sd_d[2] > _NEAR_EQUAL * sd_d[1]:
+        extra.append(_swap(1, 2))
+    Rs = np.array([Vd @ D @ Q @ Vs.T for D in base for Q in extra])
+    ts = mu_d - s * Rs @ mu_s
+    return Rs, ts, s
+
+
+def _score(X, Y, res, w, Rx, Ry):
+    """Mean negative log-likelihood of the data X under the converged mixture (lower is better)."""
+    TY = res.s * Y @ res.R.T + res.t
+    d2 = ((X[None, :, :] - TY[:, None, :]) ** 2).sum(-1)
+    lo, hi = X.min(0), X.max(0)
+    volume = float(np.prod(np.maximum(hi - lo, 1e-3)))
+    sigma2 = res.sigma2
+    logg = -d2 / (2 * sigma2) - 1.5 * np.log(2 * np.pi * sigma2)
+    if Rx is not None and res.kappa > 0:
+        tr = (res.R @ Ry @ res.X_body).reshape(len(Y), 9) @ Rx.reshape(len(X), 9).T
+        logg = logg - res.kappa * (3.0 - tr) + 1.5 * np.log(res.kappa / np.pi)
+        log_out = -np.log(volume) - np.log(8 * np.pi ** 2)
+    else:
+        log_out = -np.log(volume)
+    m = logg.max(0)
+    inl = np.log(np.exp(logg - m).mean(0)) + m + np.log(1.0 - w)
+    lik = np.logaddexp(inl, log_out + np.log(w))
+    return float(-lik.mean())
+
+
+def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_src=None, R_dst=None,
+                 max_points: int = 150) -> CoarseAlignment:
+    """Coarse transform from src to dst without correspondences (det +1 by construction).
+
+    Parameters
+    ----------
+    p_src : ndarray, shape (M, 3)
+        Source positions, mm.
+    p_dst : ndarray, shape (N, 3)
+        Destination positions, mm.
+    w : float
+        Outlier weight of the CPD runs.
+    with_scale : bool
+        Similarity instead of rigid.
+    R_src : ndarray, shape (M, 3, 3), optional
+        Source orientations (with ``R_dst``: used in the refinement and the score).
+    R_dst : ndarray, shape (N, 3, 3), optional
+        Destination orientations.
+    max_points : int
+        Each set is thinned evenly (in its order) to at most this many points.
+
+    Returns
+    -------
+    CoarseAlignment
+    """
+    ks = _thin(len(p_src), max_points)
+    kd = _thin(len(p_dst), max_points)
+    Y, X = p_src[ks], p_dst[kd]
+    Ry = None if R_src is None else R_src[ks]
+    Rx = None if R_dst is None else R_dst[kd]
+    Rs, ts, s = pca_candidates(p_src, p_dst, with_scale=with_scale)
+    scores, fits = [], []
+    for R0, t0 in zip(Rs, ts):
+        res = rigid_cpd(X, Y, R0=R0, t0=t0, s0=s, w=w, with_scale=with_scale, Rx=Rx, Ry=Ry,
+                        max_iter=_CANDIDATE_ITERS, tol=1e-6)
+        fits.append(res)
+        scores.append(_score(X, Y, res, w, Rx, Ry))
+    scores = np.array(scores)
+    best = int(np.argmin(scores))
+    return CoarseAlignment(fits[best].R, fits[best].t, fits[best].s, fits[best].sigma2, scores, best)
+
+
+def _thin(n: int, k: int) -> np.ndarray:
+    """At most k evenly spaced indices of range(n)."""
+    if n <= k:
+        return np.arange(n)
+    return np.linspace(0, n - 1, k).round().astype(int)

@@ -1,0 +1,247 @@
+"""Trajectory matching: the transform that maps a camera (VO/SLAM) trajectory into the robot base.
+
+:func:`match_trajectories` aligns a source trajectory (e.g. the camera poses in the VO world frame
+W) with a destination trajectory (e.g. the TCP poses in the base frame B from the kinematic model)
+and returns ``T_dst_src`` (``T_B_W``). Two modes:
+
+* with timestamps: an unknown constant clock offset is estimated (:mod:`.association`), poses are
+  paired by nearest timestamp within ``max_dt_s``, and a robust (trimmed) Umeyama fit on the
+  paired positions rejects gross outliers;
+* without timestamps (correspondence-free): a coarse alignment that can never be mirrored
+  (:mod:`.coarse`), then rigid CPD with a uniform outlier component and a matrix-Fisher
+  orientation term (:mod:`.cpd`).
+
+The model is ``p_dst ≈ s R p_src + t`` for the positions of the two bodies. The bodies may have
+different axes (a camera and a flange): orientations are only compared up to one constant rotation.
+A lever arm between the two body origins is absorbed in ``t`` when the orientation is constant
+along the path (the paper's planar calibration path); it is not modelled otherwise.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from posekit.errors import ConfigError, TrajectoryError
+
+from .alignment import (
+    _CHI3_MEDIAN,
+    INLIER_SIGMAS,
+    MIN_POSES,
+    check_path_shape,
+    robust_umeyama,
+    umeyama,
+)
+from .association import associate, estimate_time_offset
+from .coarse import coarse_align
+from .cpd import rigid_cpd
+from .tum import Trajectory
+
+__all__ = ["Registration", "associate", "match_trajectories", "umeyama"]
+
+#: Each set is thinned evenly to at most this many points for the fine CPD.
+CPD_MAX_POINTS = 400
+#: Orientations that all stay within this angle of their mean carry no information on R
+#: (the orientation term would be the same for every pair); the CPD then runs on positions only.
+ORIENTATION_STILL_DEG = 2.0
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Result of a trajectory match: ``p_dst = scale * R @ p_src + t_mm``.
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation ``R_dst_src`` (det +1).
+    t_mm : ndarray, shape (3,)
+        Translation ``t_dst_src``, mm.
+    rmse_mm : float
+        Root-mean-square position residual over the inlier pairs, mm.
+    mean_abs_err_mm, max_abs_err_mm : ndarray, shape (3,)
+        Mean and largest absolute residual per dst axis over the inlier pairs, mm (Table 3 of
+        the paper).
+    n_pairs : int
+        Number of pairs: timestamp-associated pairs, or (without timestamps) src poses each
+        paired with its nearest dst pose after alignment.
+    inliers : ndarray, shape (n_pairs,), bool
+        Pairs kept by the outlier gate.
+    scale : float
+        Similarity scale (1.0 for a rigid match).
+    time_offset_s : float
+        Clock offset used, s (``t_dst ≈ t_src + time_offset_s``; 0 without timestamps).
+    pairs : ndarray, shape (n_pairs, 2), int
+        Indices ``(i_src, i_dst)`` of the pairs.
+    orientation_spread_deg : float
+        Median angle between each inlier pair's body-to-body rotation and their mean, deg: small
+        when the orientations agree with ``R`` (a check, not used in the fit with timestamps).
+    """
+
+    R: np.ndarray
+    t_mm: np.ndarray
+    rmse_mm: float
+    mean_abs_err_mm: np.ndarray
+    max_abs_err_mm: np.ndarray
+    n_pairs: int
+    inliers: np.ndarray
+    scale: float = 1.0
+    time_offset_s: float = 0.0
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
+    orientation_spread_deg: float = float("nan")
+    mode: str = "timestamps"
+
+    @property
+    def T(self) -> np.ndarray:
+        """``T_dst_src``, shape (4, 4), mm (the scale is folded into the rotation block)."""
+        T = np.eye(4)
+        T[:3, :3] = self.scale * self.R
+        T[:3, 3] = self.t_mm
+        return T
+
+    def to_json(self) -> dict:
+        """The DESIGN.md record: ``R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm`` first."""
+        return {
+            "R": self.R.tolist(),
+            "t_mm": self.t_mm.tolist(),
+            "rmse_mm": float(self.rmse_mm),
+            "mean_abs_err_mm": self.mean_abs_err_mm.tolist(),
+            "max_abs_err_mm": self.max_abs_err_mm.tolist(),
+            "scale": float(self.scale),
+            "time_offset_s": float(self.time_offset_s),
+            "n_pairs": int(self.n_pairs),
+            "n_inliers": int(self.inliers.sum()),
+            "orientation_spread_deg": float(self.orientation_spread_deg),
+            "mode": self.mode,
+        }
+
+
+def _errors(p_src, p_dst, R, t, s, inl):
+    e = p_dst - (s * p_src @ R.T + t)
+    ei = e[inl]
+    rmse = float(np.sqrt((ei ** 2).sum(1).mean()))
+    return rmse, np.abs(ei).mean(0), np.abs(ei).max(0)
+
+
+def _orientation_spread(R_src, R_dst, R) -> float:
+    """Median angle (deg) of the pair-wise body-to-body rotations X_i = R_src_i^T R^T R_dst_i from their mean."""
+    Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst
+    U, _, Vt = np.linalg.svd(Xs.sum(0))
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
+    Xm = (U * d) @ Vt
+    c = (np.einsum("nij,ij->n", Xs, Xm) - 1.0) / 2.0
+    return float(np.rad2deg(np.median(np.arccos(np.clip(c, -1.0, 1.0)))))
+
+
+def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool = True,
+                       max_dt_s: float = 0.02, time_offset_s: float | None = None,
+                       max_offset_s: float = 1.0, with_scale: bool = False,
+                       outlier_fraction: float = 0.05, use_orientations: bool = True,
+                       names: tuple[str, str] = ("src", "dst")) -> Registration:
+    """Transform that maps the src trajectory's world frame into dst's (``T_dst_src``).
+
+    Parameters
+    ----------
+    src : Trajectory
+        Source poses ``T_Wsrc_body`` (e.g. VO/SLAM camera poses in W), mm.
+    dst : Trajectory
+        Destination poses ``T_Wdst_body`` (e.g. encoder-based TCP poses in the base B), mm.
+    use_timestamps : bool
+        Pair poses by time (default) or match the point sets without correspondences.
+    max_dt_s : float
+        Largest time difference of an associated pair, s.
+    time_offset_s : float or None
+        Known clock offset (``t_dst ≈ t_src + offset``), s; None estimates it within
+        ``±max_offset_s``.
+    max_offset_s : float
+        Half-width of the offset search, s.
+    with_scale : bool
+        Estimate a similarity (Sim(3)): for a monocular VO trajectory of unknown scale.
+    outlier_fraction : float
+        Expected fraction of gross outliers (trimmed start; CPD's uniform weight).
+    use_orientations : bool
+        Without timestamps: use the orientation term in the CPD and the candidate score.
+    names : (str, str)
+        Names of src and dst for messages (e.g. file names).
+
+    Returns
+    -------
+    Registration
+
+    Raises
+    ------
+    TrajectoryError
+        Too few poses, a path that does not move or is a straight line, or no overlapping
+        timestamps.
+    ConfigError
+        An option out of range.
+    """
+    if not (np.isfinite(max_dt_s) and max_dt_s > 0):
+        raise ConfigError(f"max_dt_s must be a number > 0, got {max_dt_s:g}")
+    if not (np.isfinite(max_offset_s) and max_offset_s >= 0):
+        raise ConfigError(f"max_offset_s must be a number >= 0, got {max_offset_s:g}")
+    if not 0.0 <= outlier_fraction < 0.5:
+        raise ConfigError(f"outlier_fraction must be in [0, 0.5), got {outlier_fraction:g}")
+    check_path_shape(src.positions, names[0])
+    check_path_shape(dst.positions, names[1])
+    if use_timestamps:
+        return _match_timed(src, dst, max_dt_s, time_offset_s, max_offset_s, with_scale,
+                            outlier_fraction, names)
+    return _match_free(src, dst, with_scale, outlier_fraction, use_orientations)
+
+
+def _match_timed(src, dst, max_dt_s, offset, max_offset_s, with_scale, outlier_fraction, names):
+    if offset is None:
+        offset = estimate_time_offset(src.t_s, src.positions, dst.t_s, dst.positions,
+                                      max_offset_s=max_offset_s, with_scale=with_scale, names=names)
+    i_s, i_d = associate(src.t_s, dst.t_s, max_dt_s=max_dt_s, offset_s=offset)
+    if i_s.size < MIN_POSES:
+        raise TrajectoryError(
+            f"no overlapping timestamps: only {i_s.size} pose pairs of {names[0]} "
+            f"({src.t_s[0]:.3f}-{src.t_s[-1]:.3f} s) and {names[1]} ({dst.t_s[0]:.3f}-{dst.t_s[-1]:.3f} s) "
+            f"lie within {max_dt_s:g} s of each other at a clock offset of {offset:+.3f} s, "
+            f"at least {MIN_POSES} are needed")
+    ps, pd = src.positions[i_s], dst.positions[i_d]
+    check_path_shape(ps, f"{names[0]} (poses paired with {names[1]})")
+    R, t, s, inl, _ = robust_umeyama(ps, pd, with_scale=with_scale, outlier_fraction=outlier_fraction)
+    rmse, mean_e, max_e = _errors(ps, pd, R, t, s, inl)
+    spread = _orientation_spread(src.rotations[i_s][inl], dst.rotations[i_d][inl], R)
+    return Registration(R, t, rmse, mean_e, max_e, int(i_s.size), inl, s, float(offset),
+                        np.column_stack([i_s, i_d]), spread, "timestamps")
+
+
+def _thin(n: int, k: int) -> np.ndarray:
+    if n <= k:
+        return np.arange(n)
+    return np.linspace(0, n - 1, k).round().astype(int)
+
+
+def _turns(R) -> bool:
+    """True if the orientations along a path vary by more than ORIENTATION_STILL_DEG."""
+    U, _, Vt = np.linalg.svd(R.sum(0))
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
+    c = (np.einsum("nij,ij->n", R, (U * d) @ Vt) - 1.0) / 2.0
+    return bool(np.rad2deg(np.arccos(np.clip(c.min(), -1.0, 1.0))) > ORIENTATION_STILL_DEG)
+
+
+def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
+    ps, pd = src.positions, dst.positions
+    turns = use_orientations and (_turns(src.rotations) or _turns(dst.rotations))
+    Rsrc = src.rotations if turns else None
+    Rdst = dst.rotations if turns else None
+    w = max(outlier_fraction, 1e-3)
+    coarse = coarse_align(ps, pd, w=w, with_scale=with_scale, R_src=Rsrc, R_dst=Rdst)
+    ks, kd = _thin(len(ps), CPD_MAX_POINTS), _thin(len(pd), CPD_MAX_POINTS)
+    fine = rigid_cpd(pd[kd], ps[ks], R0=coarse.R, t0=coarse.t, s0=coarse.s, w=w, with_scale=with_scale,
+                     sigma2=coarse.sigma2,
+                     Rx=None if Rdst is None else Rdst[kd], Ry=None if Rsrc is None else Rsrc[ks])
+    R, t, s = fine.R, fine.t, fine.s
+    moved = s * ps @ R.T + t
+    dist, j = cKDTree(pd).query(moved)
+    sigma = max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+    inl = dist <= INLIER_SIGMAS * sigma
+    rmse, mean_e, max_e = _errors(ps, pd[j], R, t, s, inl)
+    spread = _orientation_spread(src.rotations[inl], dst.rotations[j][inl], R)
+    return Registration(R, t, rmse, mean_e, max_e, len(ps), inl, s, 0.0,
+                        np.column_stack([np.arange(len(ps)), j]), spread, "no-timestamps")

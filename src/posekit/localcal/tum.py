@@ -1,0 +1,159 @@
+"""Pose trajectories and the TUM RGB-D trajectory file format.
+
+A TUM file holds one pose per line, ``timestamp tx ty tz qx qy qz qw``: seconds, metres, and a
+unit quaternion scalar last; blank lines and lines starting with ``#`` are ignored. Inside posekit
+a trajectory is a :class:`Trajectory` in millimetres with 4x4 poses (the quaternion converted).
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from posekit.errors import InputFileError, TrajectoryError
+from posekit.geometry import matrix_from_quaternion, quaternion_from_matrix
+
+__all__ = ["Trajectory", "read_tum", "write_tum"]
+
+#: Largest accepted deviation of a file quaternion's norm from 1 (files keep 4-9 decimals).
+QUATERNION_NORM_TOL = 1e-2
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A timed sequence of rigid poses of one body.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (N,)
+        Timestamps, s, non-decreasing.
+    T : ndarray, shape (N, 4, 4)
+        Poses ``T_world_body``: the body frame expressed in the trajectory's world frame, mm.
+    """
+
+    t_s: np.ndarray
+    T: np.ndarray
+
+    def __post_init__(self):
+        t = np.asarray(self.t_s, dtype=np.float64)
+        T = np.asarray(self.T, dtype=np.float64)
+        if t.ndim != 1 or T.shape != (t.size, 4, 4):
+            raise TrajectoryError(f"a trajectory needs t_s of shape (N,) and T of shape (N, 4, 4), "
+                                  f"got {t.shape} and {T.shape}")
+        if not (np.isfinite(t).all() and np.isfinite(T).all()):
+            raise TrajectoryError("a trajectory must be finite: found NaN or infinite timestamps or poses")
+        if t.size > 1 and np.any(np.diff(t) < 0):
+            k = int(np.flatnonzero(np.diff(t) < 0)[0]) + 1
+            raise TrajectoryError(f"trajectory timestamps must not decrease: pose {k} has "
+                                  f"t={t[k]:.6f} s after t={t[k - 1]:.6f} s")
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "T", T)
+
+    def __len__(self) -> int:
+        return self.t_s.size
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Body origins in the world frame, shape (N, 3), mm."""
+        return self.T[:, :3, 3]
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """Body orientations ``R_world_body``, shape (N, 3, 3)."""
+        return self.T[:, :3, :3]
+
+
+def _fail(path, line: int, what: str) -> InputFileError:
+    return InputFileError(f"{path}:{line}: {what}")
+
+
+def read_tum(path) -> Trajectory:
+    """Read a TUM trajectory file (``timestamp tx ty tz qx qy qz qw``, s, m).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file. ``#`` comment lines and blank lines are skipped.
+
+    Returns
+    -------
+    Trajectory
+        Timestamps in s, poses ``T_world_body`` in mm (metres x 1000).
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing or unreadable, has no pose, or a row is malformed: not 8 numbers,
+        a NaN or infinite value, a quaternion whose norm is not 1, or a timestamp earlier than the
+        previous one. The message names ``file:line``.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else type(exc).__name__
+        raise InputFileError(f"{path}: cannot read the trajectory file ({reason})") from None
+    rows, lines = [], []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = s.replace(",", " ").split()
+        if len(fields) != 8:
+            raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
+                                      f"found {len(fields)} fields")
+        try:
+            rows.append([float(f) for f in fields])
+        except ValueError:
+            bad = next(f for f in fields if not _is_float(f))
+            raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
+                                      f"found '{bad}'") from None
+        lines.append(number)
+    if not rows:
+        raise InputFileError(f"{path}: no poses found (expected lines 'timestamp tx ty tz qx qy qz qw')")
+    a = np.asarray(rows)
+    lines = np.asarray(lines)
+    bad = ~np.isfinite(a).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise _fail(path, lines[k], "expected finite numbers, found NaN or infinity")
+    norm = np.linalg.norm(a[:, 4:8], axis=1)
+    bad = np.abs(norm - 1.0) > QUATERNION_NORM_TOL
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise _fail(path, lines[k], f"expected a unit quaternion qx qy qz qw, found norm {norm[k]:.4g}")
+    back = np.diff(a[:, 0]) < 0
+    if back.any():
+        k = int(np.flatnonzero(back)[0]) + 1
+        raise _fail(path, lines[k], f"timestamps must not decrease: {a[k, 0]:.6f} s after "
+                                    f"{a[k - 1, 0]:.6f} s (line {lines[k - 1]})")
+    T = np.zeros((a.shape[0], 4, 4))
+    T[:, :3, :3] = matrix_from_quaternion(a[:, [7, 4, 5, 6]])
+    T[:, :3, 3] = a[:, 1:4] * 1000.0
+    T[:, 3, 3] = 1.0
+    return Trajectory(a[:, 0], T)
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def write_tum(path, traj: Trajectory) -> None:
+    """Write ``traj`` as a TUM file (s, m, ``qx qy qz qw``) with a header comment.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file (overwritten).
+    traj : Trajectory
+        Timestamps in s and poses ``T_world_body`` in mm.
+    """
+    q = quaternion_from_matrix(traj.rotations)
+    data = np.column_stack([traj.t_s, traj.positions / 1000.0, q[:, 1:4], q[:, :1]])
+    with open(path, "w") as fh:
+        fh.write("# timestamp tx ty tz qx qy qz qw (s, m)\n")
+        np.savetxt(fh, data, fmt=["%.6f"] + ["%.9f"] * 7)
