@@ -44,14 +44,13 @@ class Scenario:
         from posekit.seam.filter import StepInputs
         from posekit.seam.seamline import SeamLine
         from posekit.seam.trajectories import nominal_trajectory
-        from posekit.seam.trend import trend_filter
+        from posekit.seam.simulate import seam_knots
 
         rng = np.random.default_rng(seed)
         nom = nominal_trajectory(cfg.trajectory, cfg.robot)
         self.cfg = cfg
         self.nominal = nom
-        self.polyline = trend_filter(nom.seam, lam=cfg.filter.trend_lambda,
-                                     eps_mm=cfg.filter.trend_eps_mm).polyline
+        self.polyline = seam_knots(cfg).polyline          # what run_episode gives the filter
         dense = SeamLine(nom.seam)
         dist = np.array(cfg.sensors.resolved_distances_mm())
         T = nom.T_nominal

@@ -95,3 +95,111 @@ def test_study_bad_flags(capsys, tmp_path):
         "posekit: error: study factor 'filter.particles': range [0, 10] leaves the valid configurations")
     rc, _, err = _run(capsys, "seam", "study", "--scheduler", "nowhere", "--runs", "3", "--out", str(tmp_path))
     assert rc == 1 and "scheduler: expected 'serial' or a Dask address like tcp://HOST:PORT, got 'nowhere'" in err
+
+
+# --------------------------------------------------------------------------- end to end (tiny episodes)
+
+TINY_YAML = """\
+seed: 5
+trajectory: {kind: xy, length_mm: 30, steps: 30}
+filter: {particles: 80}
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cfg") / "tiny.yaml"
+    path.write_text(TINY_YAML)
+    return path
+
+
+@pytest.fixture(scope="module")
+def simulated(tiny_config, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sim")
+    rc = main(["seam", "simulate", "--config", str(tiny_config), "--particles", "60", "--runs", "2",
+               "--record-particles", "20", "--out", str(out)])
+    assert rc == 0
+    return out
+
+
+def _rotvec_deg(R):
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(R).as_rotvec(degrees=True)
+
+
+def _quat_matrix(c, prefix):
+    from posekit.geometry import matrix_from_quaternion
+    q = np.c_[c[f"{prefix}_qw"], c[f"{prefix}_qx"], c[f"{prefix}_qy"], c[f"{prefix}_qz"]]
+    return matrix_from_quaternion(q)
+
+
+def test_simulate_metrics_match_estimates_csv(simulated):
+    m = json.loads((simulated / "metrics.json").read_text())
+    assert set(m["rmse_mm"]) == {"x", "y", "z"} and set(m["rmse_deg"]) == {"rx", "ry", "rz"}
+    assert m["step_ms_median"] > 0
+    assert (m["runs"], m["steps"], m["particles"], m["sensors"], m["trajectory"]) == (2, 30, 60, 2, "xy")
+    c = read_estimates_csv(simulated / "estimates.csv")
+    assert len(c["run"]) == 60
+    np.testing.assert_array_equal(np.unique(c["run"]), [0, 1])
+    for i, a in enumerate(ERROR_AXES):
+        key, unit = ("rmse_mm", "mm") if i < 3 else ("rmse_deg", "deg")
+        rmse = np.sqrt(np.mean(c[f"err_{a}_{unit}"] ** 2))
+        assert m[key][a] == pytest.approx(rmse, abs=2e-6, rel=1e-6)
+        kin = np.sqrt(np.mean(c[f"kin_err_{a}_{unit}"] ** 2))
+        assert m[f"kinematic_{key}"][a] == pytest.approx(kin, abs=2e-6, rel=1e-6)
+    # the error columns are the tool-pose error in the nominal seam frame (DESIGN/SEAM contract)
+    p = {k: np.c_[c[f"{k}_x_mm"], c[f"{k}_y_mm"], c[f"{k}_z_mm"]] for k in ("truth", "estimate", "nominal")}
+    R = {k: _quat_matrix(c, k) for k in ("truth", "estimate", "nominal")}
+    dp = np.einsum("nji,nj->ni", R["nominal"], p["estimate"] - p["truth"])
+    np.testing.assert_allclose(np.c_[c["err_x_mm"], c["err_y_mm"], c["err_z_mm"]], dp, atol=1e-6)
+    dr = _rotvec_deg(np.einsum("nji,njk->nik", R["truth"], R["estimate"]))
+    np.testing.assert_allclose(np.c_[c["err_rx_deg"], c["err_ry_deg"], c["err_rz_deg"]], dr, atol=1e-6)
+    assert np.median(c["step_ms"]) == pytest.approx(m["step_ms_median"], rel=1e-4)
+
+
+def test_simulate_writes_figures_and_report(simulated, capsys):
+    from tests.seam.test_seam_plots import png_size
+    names = {"fig5_density.png": (1100, 800), "fig8_errors.png": (1000, 700), "fig9_trajectories.png": (800, 700),
+             "errors_time.png": (1100, 800)}
+    for name, size in names.items():
+        assert png_size(simulated / name) == size
+        assert (simulated / name).stat().st_size > 20_000
+    text = (simulated / "report.html").read_text()
+    assert text.count('src="data:image/png;base64,') == 4
+    for name in names:
+        assert f'href="{name}"' in text
+    m = json.loads((simulated / "metrics.json").read_text())
+    assert f"<td>{m['rmse_mm']['x']:.4g}</td>" in text
+    cfg = yaml.safe_load((simulated / "config.yaml").read_text())
+    assert cfg["seed"] == 5 and cfg["filter"]["particles"] == 60 and cfg["trajectory"]["length_mm"] == 30
+
+
+def test_simulate_same_seed_same_numbers(simulated, tiny_config, capsys):
+    """The CSV holds the episodes of seeds task_seed(5, r): rerunning them gives the same numbers."""
+    from posekit.seam.compare import run_episodes
+    from posekit.seam.config import apply_overrides, load_config
+    cfg = apply_overrides(load_config(tiny_config), {"filter.particles": 60})
+    again = run_episodes(cfg, 2)
+    c = read_estimates_csv(simulated / "estimates.csv")
+    for r, res in enumerate(again):
+        rows = c["run"] == r
+        for i, col in enumerate(("err_x_mm", "err_y_mm", "err_z_mm", "err_rx_deg", "err_ry_deg", "err_rz_deg")):
+            np.testing.assert_allclose(c[col][rows], res.error[:, i], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(c["estimate_y_mm"][rows], res.estimate[:, 1, 3], rtol=1e-9)
+
+
+def test_demo_prints_rmse_per_axis(capsys, tmp_path):
+    rc = main(["seam", "demo", "--particles", "30", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    rows = {l[:24].strip(): [float(v) for v in l[24:].split()] for l in out.splitlines()
+            if l.startswith(("xy,", "yz,"))}
+    assert list(rows) == ["xy, 0 sensors", "xy, 1 sensor", "xy, 2 sensors", "yz, 0 sensors", "yz, 1 sensor",
+                          "yz, 2 sensors", "xy, FK only"]
+    assert all(len(v) == 6 and all(x >= 0 for x in v) for v in rows.values())
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert (m["trajectory"], m["sensors"], m["particles"]) == ("xy", 2, 30)
+    assert set(m["comparison"]) == set(list(rows)[:6])
+    assert m["comparison"]["yz, 1 sensor"]["rmse_mm"]["x"] == pytest.approx(rows["yz, 1 sensor"][0], rel=1e-3)
+    text = (tmp_path / "report.html").read_text()
+    assert text.count('src="data:image/png;base64,') == 4 and "yz, 2 sensors" in text

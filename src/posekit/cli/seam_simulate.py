@@ -4,6 +4,7 @@ Precedence of settings: defaults < ``--config`` file < flags.
 """
 
 import sys
+import time
 
 from ..errors import ConfigError
 from ._common import progress
@@ -12,7 +13,7 @@ __all__ = ["add_simulate_parser", "add_demo_parser", "build_config", "DEMO_STEPS
 
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
-DEMO_STEPS = 200
+DEMO_STEPS = 300
 DEMO_PARTICLES = 300
 
 
@@ -49,6 +50,9 @@ def add_demo_parser(verbs):
                                       f"({DEMO_STEPS} steps, {DEMO_PARTICLES} particles), RMSE per axis")
     p.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     p.add_argument("--runs", type=int, default=1, help="episodes per configuration (default 1)")
+    p.add_argument("--steps", type=int, default=DEMO_STEPS, help=f"time steps per episode (default {DEMO_STEPS})")
+    p.add_argument("--particles", type=int, default=DEMO_PARTICLES,
+                   help=f"particle count (default {DEMO_PARTICLES})")
     p.add_argument("--out", default=None, help="also write figures, metrics.json and report.html here")
     p.set_defaults(func=run_demo)
     return p
@@ -114,12 +118,16 @@ def run_demo(args) -> int:
     from ..seam.report import rmse_table_text, write_simulation
 
     _check_runs(args.runs)
-    if args.seed < 0:
-        raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
+    for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
+                             ("--seed", args.seed, 0)):
+        if value < low:
+            raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
     cfg = apply_overrides(config_from_dict({}, "defaults"),
-                          {"trajectory.steps": DEMO_STEPS, "filter.particles": DEMO_PARTICLES, "seed": args.seed})
+                          {"trajectory.steps": args.steps, "filter.particles": args.particles, "seed": args.seed})
+    t0 = time.perf_counter()
     sets = compare_configurations(cfg, args.runs, record_particles=200 if args.out else 0, progress=progress)
-    print(f"seam demo: {args.runs} run(s) × {DEMO_STEPS} steps, {DEMO_PARTICLES} particles, sensors 20/40 mm ahead")
+    print(f"seam demo: {args.runs} run(s) × {args.steps} steps, {args.particles} particles, sensors 20/40 mm ahead "
+          f"({time.perf_counter() - t0:.1f} s)")
     print("RMSE per axis in the seam frame (mm, deg):")
     print(rmse_table_text([(s.label, s.metrics) for s in sets], kinematics=False))
     fk = sets[0].metrics

@@ -91,7 +91,7 @@ def particle_histogram(values: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s: np.ndarray | None = None,
                           bins: int = 60, title: str = "") -> Path:
-    """Fig. 5: particle density over time per state dimension, the truth as a black line.
+    """Fig. 5: particle density over time per state dimension, the truth as a cyan line.
 
     Parameters
     ----------
@@ -123,20 +123,25 @@ def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s
     plt = _plt()
     fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
     for d, ax in enumerate(axes.T.ravel()):
-        vals = np.concatenate([particles[:, :, d].ravel(), truth[:, d]])
-        vals = vals[np.isfinite(vals)]
-        lo, hi = (np.percentile(vals, [0.5, 99.5]) if len(vals) else (-1.0, 1.0))
+        # range: the bulk of the particles (0.5-99.5 %) and all of the truth
+        vals = particles[:, :, d][np.isfinite(particles[:, :, d])]
+        tr = truth[np.isfinite(truth[:, d]), d]
+        lo_hi = [*np.percentile(vals, [0.5, 99.5])] if len(vals) else []
+        lo_hi += [tr.min(), tr.max()] if len(tr) else []
+        lo, hi = (min(lo_hi), max(lo_hi)) if lo_hi else (-1.0, 1.0)
         pad = 0.05 * (hi - lo) if hi > lo else 1.0
         edges = np.linspace(lo - pad, hi + pad, bins + 1)
         density = particle_histogram(particles[:, :, d], edges)
-        ax.imshow(density.T, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest",
-                  extent=(x[0], x[-1] if n_steps > 1 else x[0] + 1, edges[0], edges[-1]))
-        ax.plot(x, truth[:, d], color="k", lw=1.2, label="truth")
+        # each step scaled to its own peak: the shape of the density at that step is what matters
+        shade = density / np.maximum(density.max(axis=1, keepdims=True), 1e-12)
+        ax.imshow(shade.T, origin="lower", aspect="auto", cmap="magma", interpolation="nearest", vmin=0.0,
+                  vmax=1.0, extent=(x[0], x[-1] if n_steps > 1 else x[0] + 1, edges[0], edges[-1]))
+        ax.plot(x, truth[:, d], color="c", lw=1.2, label="truth")
         ax.set_ylabel(AXIS_LABELS[d])
     for ax in axes[-1]:
         ax.set_xlabel("time [s]" if t_s is not None else "time step")
     axes[0, 0].legend(loc="upper right", fontsize=8)
-    fig.suptitle(title or "Particle density per state dimension (heatmap) and the truth (black)")
+    fig.suptitle(title or "Particle density per state dimension (heatmap, each step scaled to its peak) and the truth (cyan)")
     return _save(fig, path)
 
 

@@ -240,7 +240,7 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
     if getattr(r0, "particles", None) is not None:
         paths["fig5"] = plots.plot_particle_density(
             r0.particles, r0.truth_coords, out / "fig5_density.png",
-            title="Run 0: particle density per state dimension (heatmap), truth (black)")
+            title="Run 0: particle density per state dimension (heatmap, each step scaled to its peak), truth (cyan)")
         sections.append(("Fig. 5 — particle density over time", html_figure(
             paths["fig5"], "Recorded particles of run 0 per state dimension, in the seam frame")))
     if comparison:

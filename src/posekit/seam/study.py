@@ -237,7 +237,7 @@ def rank_parameters(effects: ParameterEffects, factors: Sequence[Factor]) -> lis
     return rows
 
 
-RUN_COLUMNS = ("run", "status", *ERROR_NAMES, "seconds", "error")
+RUN_COLUMNS = ("run", "status", *ERROR_NAMES, "error")
 
 
 @dataclass
@@ -278,7 +278,7 @@ class SeamStudy:
     scheduler: str = field(default="local")
 
     def run_rows(self) -> list[dict]:
-        """One dict per run with the :data:`RUN_COLUMNS` and each factor's value."""
+        """One dict per run with the :data:`RUN_COLUMNS`, each factor's value and ``seconds`` (CPU)."""
         rows = []
         for i in range(len(self.X)):
             row = {"run": i, "status": self.status[i], "seconds": float(self.seconds[i]), "error": self.messages[i]}
