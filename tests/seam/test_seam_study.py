@@ -100,3 +100,54 @@ def test_factors_and_dotted_keys():
     set_dotted(d, "a.b", 5)
     assert get_dotted(d, "a.b") == 5
     assert ERROR_NAMES == ("rmse_x_mm", "rmse_y_mm", "rmse_z_mm", "rmse_rx_deg", "rmse_ry_deg", "rmse_rz_deg")
+
+
+# --------------------------------------------------------------------------- end to end (tiny episodes)
+
+TINY = {"seed": 2, "trajectory": {"kind": "xy", "length_mm": 30, "steps": 30}, "filter": {"particles": 40}}
+
+
+def _read(path):
+    with open(path, newline="") as f:
+        return list(csv.reader(f))
+
+
+def test_study_same_table_serial_and_cluster(tmp_path, capsys):
+    """A tiny study: from the CLI in one process, and through a 2-worker Dask cluster (in-process
+    workers, so the test does not pay for spawning interpreters), gives identical CSVs."""
+    import yaml
+    from distributed import Client, LocalCluster
+
+    from posekit.cli.main import main
+    from posekit.seam.config import config_from_dict
+    from posekit.seam.study import seam_study, write_study
+    from tests.seam.test_seam_plots import png_size
+
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    serial = tmp_path / "serial"
+    assert main(["seam", "study", "--config", str(cfg), "--runs", "6", "--seed", "11", "--scheduler", "serial",
+                 "--parameters", "filter.sigma_t_mm,filter.laser_sigma_mm=0.05:0.5", "--out", str(serial)]) == 0
+    out = capsys.readouterr().out
+    factors = make_factors(config_from_dict(TINY).model_dump(mode="json"), ["filter.sigma_t_mm"],
+                           ranges={"filter.laser_sigma_mm": (0.05, 0.5)})
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        study = seam_study(config_from_dict(TINY), runs=6, factors=factors, seed=11, scheduler=client)
+    dask = tmp_path / "dask"
+    write_study(study, dask)
+    for f in ("runs.csv", "parameters_ranked.csv"):
+        assert _read(serial / f) == _read(dask / f), f
+    runs = _read(serial / "runs.csv")
+    assert runs[0] == ["run", "status", *ERROR_NAMES, "error", "filter.sigma_t_mm", "filter.laser_sigma_mm"]
+    assert len(runs) == 7 and all(r[1] == "ok" for r in runs[1:])
+    values = np.array([[float(v) for v in r[-2:]] for r in runs[1:]])
+    assert np.all((values[:, 0] >= 0.01) & (values[:, 0] <= 0.03))       # default sigma_t_mm 0.02 ± 50 %
+    assert np.all((values[:, 1] >= 0.05) & (values[:, 1] <= 0.5))
+    assert len(np.unique(values[:, 0])) == 6
+    ranked = _read(serial / "parameters_ranked.csv")
+    assert ranked[0] == list(RANKED_COLUMNS)
+    assert sorted(r[1] for r in ranked[1:]) == ["filter.laser_sigma_mm", "filter.sigma_t_mm"]
+    assert png_size(serial / "fig6_pvalues.png") == (600, 580)
+    assert (serial / "report.html").read_text().count("data:image/png;base64,") == 1
+    assert "seam study: 6 runs × 1 episode(s), 2 parameters, 0 failed" in out
