@@ -1,12 +1,65 @@
-"""Placeholder: filled in by the localcal_match work (issue 5/6)."""
+"""``posekit localcal match``: the transform that maps a camera trajectory into the robot base."""
 
-from ..errors import ConfigError
+import json
+import sys
+from pathlib import Path
+
+__all__ = ["add_match_parser", "run_match"]
 
 
 def add_match_parser(verbs):
-    p = verbs.add_parser("match", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add the ``match`` verb to the ``localcal`` sub-parsers ``verbs``."""
+    p = verbs.add_parser(
+        "match", help="transform from a camera (VO/SLAM) trajectory to the kinematic (base) frame",
+        description="Match a camera trajectory (VO/SLAM world frame) with the kinematic TCP trajectory "
+                    "(robot base frame), both TUM files (timestamp tx ty tz qx qy qz qw, s, m). Writes "
+                    "{R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm, ...}: p_base = R p_camera + t.")
+    p.add_argument("camera", metavar="CAMERA.tum", help="camera poses in the VO/SLAM world frame")
+    p.add_argument("kinematic", metavar="KINEMATIC.tum", help="TCP poses in the robot base frame")
+    p.add_argument("--out", required=True, metavar="RESULT.json", help="result file to write")
+    p.add_argument("--no-timestamps", dest="timestamps", action="store_false",
+                   help="ignore the timestamps: correspondence-free point-set registration")
+    p.add_argument("--max-dt", type=float, default=0.02, metavar="S",
+                   help="largest time difference of an associated pose pair, s (default 0.02)")
+    p.add_argument("--time-offset", type=float, default=None, metavar="S",
+                   help="known clock offset t_kinematic - t_camera, s (default: estimated)")
+    p.add_argument("--max-offset", type=float, default=1.0, metavar="S",
+                   help="search the clock offset within +-S seconds (default 1)")
+    p.add_argument("--with-scale", action="store_true",
+                   help="also estimate a scale (Sim(3)), for a monocular VO trajectory")
+    p.add_argument("--outlier-fraction", type=float, default=0.05, metavar="F",
+                   help="expected fraction of gross outliers (default 0.05)")
+    p.set_defaults(func=run_match)
+    return p
 
 
-def _missing(args):
-    raise ConfigError("this command is not implemented yet")
+def run_match(args) -> int:
+    """Run ``posekit localcal match``; returns the exit code (0)."""
+    import numpy as np
+
+    from ..errors import ConfigError
+    from ..localcal.registration import match_trajectories
+    from ..localcal.tum import read_tum
+
+    src = read_tum(args.camera)
+    dst = read_tum(args.kinematic)
+    reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
+                             time_offset_s=args.time_offset, max_offset_s=args.max_offset,
+                             with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
+                             names=(str(args.camera), str(args.kinematic)))
+    out = Path(args.out)
+    try:
+        out.write_text(json.dumps(reg.to_json(), indent=2) + "\n")
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot write the result ({exc.strerror or exc})") from None
+    angle = np.rad2deg(np.arccos(np.clip((np.trace(reg.R) - 1.0) / 2.0, -1.0, 1.0)))
+    how = (f"{reg.n_pairs} pose pairs within {args.max_dt:g} s at a clock offset of "
+           f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps
+           else f"{len(src)} camera poses against {len(dst)} kinematic poses without timestamps")
+    print(f"matched {how}; {int(reg.inliers.sum())} inliers")
+    print(f"R: {angle:.3f} deg rotation, t_mm: [{reg.t_mm[0]:.2f}, {reg.t_mm[1]:.2f}, {reg.t_mm[2]:.2f}]"
+          + (f", scale {reg.scale:.5f}" if args.with_scale else ""))
+    print(f"rmse {reg.rmse_mm:.2f} mm; mean |e| x,y,z " + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
+          + " mm; max |e| " + ", ".join(f"{v:.2f}" for v in reg.max_abs_err_mm) + " mm")
+    print(f"wrote {out}", file=sys.stdout)
+    return 0

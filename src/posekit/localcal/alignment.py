@@ -183,6 +183,6 @@ def check_path_shape(p, name: str) -> None:
                               f"trajectory matching needs a planar or 3D path")
     if std[1] < LINE_RATIO * std[0]:
         raise TrajectoryError(
-            f"{name}: the path is a straight line (spread {std[1]:.3g} mm across vs {std[0]:.3g} mm "
+            f"{name}: the path is a straight line (spread {std[1]:.1f} mm across vs {std[0]:.1f} mm "
             f"along it), so the rotation about it is undetermined; trajectory matching needs a planar "
             f"or 3D path")

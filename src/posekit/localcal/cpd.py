@@ -97,8 +97,8 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
     tol : float
         Stop when the relative change of ``sigma2`` and the change of R and t (rad, mm) fall below it.
     uniform_density : float, optional
-        Density of the outlier component, 1/mm^3. Default: uniform over the bounding box of X
-        (a proper density). The original CPD uses ``1/N`` (pass ``1/len(X)`` to reproduce it,
+        Density of the outlier component, 1/mm^3. Default: uniform over the bounding box of X,
+        each side at least a tenth of the longest (a planar path's outliers also leave its plane). The original CPD uses ``1/N`` (pass ``1/len(X)`` to reproduce it,
         e.g. to compare with pycpd); with mm coordinates that makes the outlier term dominate
         while ``sigma2`` is large.
 
@@ -124,7 +124,8 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
         Rx = Rx_flat.reshape(N, 3, 3)
         Ry = np.asarray(Ry, dtype=np.float64)
     if uniform_density is None:
-        uniform_density = 1.0 / float(np.prod(np.maximum(np.ptp(X, axis=0), 1.0)))
+        side = np.ptp(X, axis=0)
+        uniform_density = 1.0 / float(np.prod(np.maximum(side, max(1.0, 0.1 * side.max()))))
     xx = (X ** 2).sum(1)
     P = np.zeros((M, N))
     it = 0

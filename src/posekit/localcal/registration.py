@@ -180,6 +180,8 @@ def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool
         raise ConfigError(f"max_dt_s must be a number > 0, got {max_dt_s:g}")
     if not (np.isfinite(max_offset_s) and max_offset_s >= 0):
         raise ConfigError(f"max_offset_s must be a number >= 0, got {max_offset_s:g}")
+    if time_offset_s is not None and not np.isfinite(time_offset_s):
+        raise ConfigError(f"time_offset_s must be a finite number of seconds, got {time_offset_s:g}")
     if not 0.0 <= outlier_fraction < 0.5:
         raise ConfigError(f"outlier_fraction must be in [0, 0.5), got {outlier_fraction:g}")
     check_path_shape(src.positions, names[0])

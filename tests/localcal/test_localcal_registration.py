@@ -1,0 +1,265 @@
+"""Trajectory matching: Umeyama, association, clock offset, CPD vs pycpd, real TUM pairs, acceptance."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pycpd import RigidRegistration
+from scipy.spatial.transform import Rotation
+
+from posekit.errors import TrajectoryError
+from posekit.localcal.alignment import check_path_shape, robust_umeyama, umeyama
+from posekit.localcal.association import associate, estimate_time_offset
+from posekit.localcal.coarse import coarse_align, pca_candidates
+from posekit.localcal.cpd import rigid_cpd
+from posekit.localcal.registration import Registration, match_trajectories
+from posekit.localcal.tum import Trajectory, read_tum
+from tests.localcal.synth_trajectories import (
+    asymmetric_planar_path,
+    make_pair,
+    random_transform,
+    rotation_error_deg,
+    smooth_path,
+)
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
+
+
+def horn(src, dst):
+    """Horn's (1987) closed-form absolute orientation by unit quaternion: an independent check of
+    Umeyama. Returns R, t with dst ≈ R src + t."""
+    ms, md = src.mean(0), dst.mean(0)
+    S = (src - ms).T @ (dst - md)
+    (Sxx, Sxy, Sxz), (Syx, Syy, Syz), (Szx, Szy, Szz) = S
+    N = np.array([
+        [Sxx + Syy + Szz, Syz - Szy, Szx - Sxz, Sxy - Syx],
+        [Syz - Szy, Sxx - Syy - Szz, Sxy + Syx, Szx + Sxz],
+        [Szx - Sxz, Sxy + Syx, -Sxx + Syy - Szz, Syz + Szy],
+        [Sxy - Syx, Szx + Sxz, Syz + Szy, -Sxx - Syy + Szz]])
+    _, V = np.linalg.eigh(N)
+    q = V[:, -1]
+    R = Rotation.from_quat(q, scalar_first=True).as_matrix()
+    return R, md - R @ ms
+
+
+def test_umeyama_recovers_rigid_and_similarity_transforms_exactly():
+    rng = np.random.default_rng(0)
+    p = rng.normal(0, 300, (50, 3))
+    R = Rotation.random(random_state=1).as_matrix()
+    t = np.array([100.0, -2000.0, 35.0])
+    Re, te, se = umeyama(p, p @ R.T + t)
+    np.testing.assert_allclose(Re, R, atol=1e-12)
+    np.testing.assert_allclose(te, t, atol=1e-9)
+    assert se == 1.0
+    Re, te, se = umeyama(p, 0.8 * p @ R.T + t, with_scale=True)
+    assert se == pytest.approx(0.8, abs=1e-12)
+    np.testing.assert_allclose(Re, R, atol=1e-12)
+
+
+def test_umeyama_never_returns_a_reflection():
+    rng = np.random.default_rng(1)
+    p = rng.normal(0, 300, (40, 3))
+    mirrored = p * [1.0, 1.0, -1.0]
+    R, _, _ = umeyama(p, mirrored)
+    assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
+    R2, _ = horn(p, mirrored)
+    np.testing.assert_allclose(R, R2, atol=1e-9)
+
+
+def test_robust_umeyama_rejects_gross_outliers():
+    rng = np.random.default_rng(2)
+    p = rng.normal(0, 300, (200, 3))
+    R = Rotation.random(random_state=3).as_matrix()
+    q = p @ R.T + [10.0, 20.0, 30.0] + rng.normal(0, 1.0, p.shape)
+    bad = rng.choice(200, 10, replace=False)
+    q[bad] += rng.normal(0, 300, (10, 3))
+    Re, te, _, inl, _ = robust_umeyama(p, q)
+    assert not inl[bad].any() and inl.sum() == 190
+    assert rotation_error_deg(Re, R) < 0.05
+    np.testing.assert_allclose(te, [10, 20, 30], atol=1.0)
+
+
+def test_associate_nearest_one_to_one_within_tolerance():
+    t_src = np.array([0.0, 0.1, 0.2, 0.205, 0.3, 0.5])
+    t_dst = np.array([0.004, 0.099, 0.201, 0.31, 0.6])
+    i, j = associate(t_src, t_dst, max_dt_s=0.02)
+    # 0.2 and 0.205 both want 0.201: the closer (0.2) keeps it; 0.3 -> 0.31 (10 ms); 0.5 has none
+    np.testing.assert_array_equal(i, [0, 1, 2, 4])
+    np.testing.assert_array_equal(j, [0, 1, 2, 3])
+    i, j = associate(t_src, t_dst, max_dt_s=0.02, offset_s=0.1)   # 0.5 + 0.1 -> 0.6
+    assert (5, 4) in set(zip(i.tolist(), j.tolist()))
+
+
+def test_time_offset_is_estimated_across_rates():
+    rng = np.random.default_rng(4)
+    pose = smooth_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, 20.0, T_B_W=T, offset_s=-0.3141, outlier_fraction=0.05)
+    off = estimate_time_offset(src.t_s, src.positions, dst.t_s, dst.positions, max_offset_s=1.0)
+    assert off == pytest.approx(-0.3141, abs=2e-3)
+
+
+# ------------------------------------------------------------------ real TUM RGB-D pairs
+@pytest.fixture(scope="module")
+def fr1():
+    return read_tum(DATA / "freiburg1_xyz-rgbdslam.txt"), read_tum(DATA / "freiburg1_xyz-groundtruth.txt")
+
+
+def test_real_tum_pair_agrees_with_plain_umeyama_and_horn(fr1):
+    src, dst = fr1
+    i, j = associate(src.t_s, dst.t_s, max_dt_s=0.01)
+    assert i.size == 785
+    R0, t0, _ = umeyama(src.positions[i], dst.positions[j])
+    Rh, th = horn(src.positions[i], dst.positions[j])
+    np.testing.assert_allclose(R0, Rh, atol=1e-9)
+    np.testing.assert_allclose(t0, th, atol=1e-6)
+    reg = match_trajectories(src, dst, max_dt_s=0.01, time_offset_s=0.0)
+    assert reg.n_pairs == 785 and reg.inliers.all()        # no gross outlier in real SLAM data
+    np.testing.assert_allclose(reg.R, R0, atol=1e-9)
+    np.testing.assert_allclose(reg.t_mm, t0, atol=1e-6)
+    assert reg.rmse_mm == pytest.approx(13.47, abs=0.01)
+    # with the clock offset estimated (a few ms) the result stays within 0.1 deg and 3 mm
+    est = match_trajectories(src, dst, max_dt_s=0.01)
+    assert abs(est.time_offset_s) < 0.01
+    assert rotation_error_deg(est.R, R0) < 0.1
+    assert np.linalg.norm(est.t_mm - t0) < 3.0
+
+
+def test_real_tum_estimates_are_metric(fr1):
+    src, dst = fr1
+    i, j = associate(src.t_s, dst.t_s, max_dt_s=0.01)
+    _, _, s = umeyama(src.positions[i], dst.positions[j], with_scale=True)
+    assert s == pytest.approx(1.008, abs=0.001)
+    orb, gt = read_tum(DATA / "fr2_desk_ORB.txt"), read_tum(DATA / "fr2_desk_groundtruth.txt")
+    reg = match_trajectories(orb, gt, max_dt_s=0.01, time_offset_s=0.0, with_scale=True)
+    assert reg.scale == pytest.approx(0.997, abs=0.001)          # ORB-SLAM2 here is metric
+    i, j = associate(orb.t_s, gt.t_s, max_dt_s=0.01)
+    R0, t0, s0 = umeyama(orb.positions[i], gt.positions[j], with_scale=True)
+    assert rotation_error_deg(reg.R, R0) < 0.01 and np.linalg.norm(reg.t_mm - t0) < 1.0
+    assert reg.scale == pytest.approx(s0, abs=1e-4)
+
+
+# ------------------------------------------------------------------ correspondence-free parts
+def test_pca_candidates_are_proper_rotations_even_for_mirrored_sets():
+    rng = np.random.default_rng(5)
+    p = rng.normal(0, [400, 200, 50], (300, 3))
+    Rs, _, _ = pca_candidates(p, p * [-1.0, 1.0, 1.0])
+    np.testing.assert_allclose(np.linalg.det(Rs), 1.0, atol=1e-9)
+    np.testing.assert_allclose(Rs @ np.swapaxes(Rs, 1, 2), np.broadcast_to(np.eye(3), Rs.shape), atol=1e-9)
+
+
+def test_mirrored_looking_input_gives_a_proper_rotation():
+    rng = np.random.default_rng(6)
+    pose = smooth_path(rng, rotate=False)
+    t = np.arange(0, 20, 0.05)
+    p, R = pose(t)
+    T = np.zeros((len(t), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1
+    Tm = T.copy()
+    Tm[:, 2, 3] *= -1.0                              # a mirror image: no rotation maps one onto the other
+    reg = match_trajectories(Trajectory(t, Tm), Trajectory(t, T), use_timestamps=False)
+    assert np.linalg.det(reg.R) == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(reg.R @ reg.R.T, np.eye(3), atol=1e-9)
+    reg = match_trajectories(Trajectory(t, Tm), Trajectory(t, T))
+    assert np.linalg.det(reg.R) == pytest.approx(1.0, abs=1e-9)
+
+
+def _clean_planar_pair(seed):
+    rng = np.random.default_rng(seed)
+    pose, dur = asymmetric_planar_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, dur, T_B_W=T, offset_s=0.0, noise_mm=0.2, noise_rad=0.0,
+                         outlier_fraction=0.0)
+    return src, dst, T
+
+
+def test_rigid_cpd_matches_pycpd_after_coarse_alignment():
+    src, dst, T = _clean_planar_pair(7)
+    X, Y = dst.positions[::6], src.positions[::2]
+    coarse = coarse_align(Y, X)
+    assert np.linalg.det(coarse.R) == pytest.approx(1.0)
+    Y0 = Y @ coarse.R.T + coarse.t                 # the coarse alignment initialises both
+    # the same EM, step for step (from sigma2 = 100 mm^2): 60 iterations without and with pycpd's uniform term (density 1/N);
+    # pycpd maps rows y -> s y R + t, so our R is its R transposed
+    for w in (0.0, 0.05):
+        ref = RigidRegistration(X=X, Y=Y0, w=w, sigma2=100.0, max_iterations=60, tolerance=0.0)
+        _, (s_ref, R_ref, t_ref) = ref.register()
+        ours = rigid_cpd(X, Y0, w=w, sigma2=100.0, with_scale=True, max_iter=60, tol=0.0,
+                         uniform_density=1 / len(X))
+        assert ours.iterations == ref.iteration == 60
+        np.testing.assert_allclose(ours.R, R_ref.T, atol=1e-9)
+        np.testing.assert_allclose(ours.t, t_ref.ravel(), atol=1e-6)
+        assert ours.s == pytest.approx(s_ref, abs=1e-9)
+        assert ours.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
+    # converged: ours against pycpd (whose 60 iterations above have converged to 1e-6 deg)
+    conv = rigid_cpd(X, Y0, w=0.05, sigma2=100.0, with_scale=True, tol=1e-9, uniform_density=1 / len(X))
+    np.testing.assert_allclose(conv.R, R_ref.T, atol=1e-6)
+    np.testing.assert_allclose(conv.t, t_ref.ravel(), atol=1e-3)
+    assert conv.s == pytest.approx(s_ref, abs=1e-6)
+    # our default: rigid, outlier density uniform over the data's bounding box (a slightly different
+    # mixture, so a slightly different optimum)
+    rigid = rigid_cpd(X, Y0, w=0.05, sigma2=100.0)
+    assert s_ref == pytest.approx(1.0, abs=1e-4)
+    assert rotation_error_deg(rigid.R, R_ref.T) < 0.05
+    moved_ours = Y0 @ rigid.R.T + rigid.t
+    moved_ref = s_ref * Y0 @ R_ref + t_ref
+    assert np.abs(moved_ours - moved_ref).max() < 0.5          # mm, over the whole path
+    # and coarse + fine is the truth
+    assert rotation_error_deg(rigid.R @ coarse.R, T[:3, :3]) < 0.05
+
+
+# ------------------------------------------------------------------ acceptance on unseen trajectories
+@pytest.mark.parametrize("seed", [11, 12, 13])
+@pytest.mark.parametrize("kind", ["smooth", "planar"])
+@pytest.mark.parametrize("use_timestamps", [True, False])
+def test_recovers_camera_to_base_transform(seed, kind, use_timestamps):
+    rng = np.random.default_rng(seed)
+    if kind == "smooth":
+        pose, dur = smooth_path(rng), 20.0
+    else:
+        pose, dur = asymmetric_planar_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    offset = rng.uniform(-0.4, 0.4)
+    src, dst = make_pair(rng, pose, dur, T_B_W=T, rate_src_hz=30.0, rate_dst_hz=100.0, offset_s=offset,
+                         noise_mm=1.0, noise_rad=0.002, outlier_fraction=0.05)
+    reg = match_trajectories(src, dst, use_timestamps=use_timestamps)
+    assert np.linalg.det(reg.R) == pytest.approx(1.0, abs=1e-9)
+    assert rotation_error_deg(reg.R, T[:3, :3]) < 0.5
+    assert np.linalg.norm(reg.t_mm - T[:3, 3]) < 5.0
+    assert reg.inliers.sum() >= 0.94 * reg.n_pairs
+    if use_timestamps:
+        assert reg.time_offset_s == pytest.approx(offset, abs=3e-3)
+        assert reg.rmse_mm < 4.0           # 1 mm noise per axis on both sides: sqrt(6) = 2.45 mm
+
+
+# ------------------------------------------------------------------ degenerate input
+def _traj(p, t=None):
+    n = len(p)
+    T = np.zeros((n, 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = np.eye(3), p, 1
+    return Trajectory(np.arange(n) * 0.1 if t is None else t, T)
+
+
+def test_degenerate_paths_are_rejected_with_the_cause():
+    rng = np.random.default_rng(0)
+    line = np.outer(np.linspace(0, 1000, 50), [1.0, 2.0, 2.0]) / 3.0 + rng.normal(0, 0.5, (50, 3))
+    good = _traj(rng.normal(0, 100, (50, 3)))
+    with pytest.raises(TrajectoryError, match=r"^cam: the path is a straight line \(spread 0.\d mm across vs "
+                                              r"294.\d mm along it\), so the rotation about it is undetermined; "
+                                              r"trajectory matching needs a planar or 3D path$"):
+        match_trajectories(_traj(line), good, names=("cam", "kin"))
+    with pytest.raises(TrajectoryError, match=r"^kin: 4 poses, at least 6 are needed for trajectory matching$"):
+        match_trajectories(good, _traj(good.positions[:4]), names=("cam", "kin"))
+    with pytest.raises(TrajectoryError, match=r"^cam: all positions are equal \(the body does not move\)"):
+        match_trajectories(_traj(np.ones((20, 3))), good, names=("cam", "kin"))
+    with pytest.raises(TrajectoryError, match=r"^no overlapping timestamps: cam spans 100.000-104.900 s and "
+                                              r"kin spans 0.000-4.900 s"):
+        match_trajectories(_traj(good.positions, 100 + np.arange(50) * 0.1), good, names=("cam", "kin"))
+    check_path_shape(good.positions, "ok")       # a 3D cloud passes
+
+
+def test_registration_json_keys_in_contract_order():
+    reg = Registration(np.eye(3), np.zeros(3), 1.0, np.ones(3), np.ones(3), 10, np.ones(10, bool))
+    keys = list(reg.to_json())
+    assert keys[:5] == ["R", "t_mm", "rmse_mm", "mean_abs_err_mm", "max_abs_err_mm"]
+    np.testing.assert_allclose(reg.T, np.eye(4))
