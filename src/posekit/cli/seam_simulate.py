@@ -99,11 +99,13 @@ def run_simulate(args) -> int:
     results = run_episodes(cfg, args.runs, record_particles=args.record_particles, progress=progress,
                            desc="episodes")
     m = metrics(results)
-    comparison = compare_configurations(cfg, args.runs, progress=progress) if args.compare else None
+    comparison = (compare_configurations(cfg, args.runs, progress=progress, reuse=(cfg, results))
+                  if args.compare else None)
     paths = write_simulation(args.out, results, m, dump_config(cfg), comparison=comparison)
-    sets = [(f"{cfg.trajectory.kind}, {cfg.sensors.count} sensors", m)]
+    count = cfg.sensors.count
+    sets = [(f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}", m)]
     if comparison:
-        sets += [(s.label, s.metrics) for s in comparison]
+        sets += [(s.label, s.metrics) for s in comparison if s.label != sets[0][0]]
     print(f"seam simulate: {args.runs} run(s) × {cfg.trajectory.steps} steps, {cfg.filter.particles} particles, "
           f"filter step median {m['step_ms_median']:.3f} ms")
     print("RMSE per axis in the seam frame (mm, deg):")

@@ -92,10 +92,13 @@ class ConfigurationSet:
 
 def compare_configurations(cfg, runs: int, *, trajectories: Sequence[str] = FIG8_TRAJECTORIES,
                            sensors: Sequence[int] = FIG8_SENSORS, seed: int | None = None,
-                           record_particles: int = 0, progress=None) -> list[ConfigurationSet]:
+                           record_particles: int = 0, progress=None,
+                           reuse: tuple | None = None) -> list[ConfigurationSet]:
     """Fig. 8: the same filter on every trajectory × sensor count, ``runs`` episodes each.
 
     Every other parameter comes from ``cfg`` (the paper tunes the filter for xy and keeps it).
+    ``reuse = (config, results)``: episodes already simulated for one configuration with the
+    same runs and seed, taken as they are when a combination equals that configuration.
     Returns one :class:`ConfigurationSet` per combination, trajectories outermost.
     """
     from .config import apply_overrides
@@ -107,7 +110,10 @@ def compare_configurations(cfg, runs: int, *, trajectories: Sequence[str] = FIG8
         for count in sensors:
             c = with_sensors(base, int(count))
             label = f"{kind}, {count} sensor{'s' if count != 1 else ''}"
-            res = run_episodes(c, runs, seed=seed, record_particles=record_particles, progress=progress,
-                               desc=label)
+            if reuse is not None and reuse[0] == c and len(reuse[1]) == runs:
+                res = list(reuse[1])
+            else:
+                res = run_episodes(c, runs, seed=seed, record_particles=record_particles, progress=progress,
+                                   desc=label)
             out.append(ConfigurationSet(label, kind, int(count), c, res, metrics(res)))
     return out
