@@ -1,16 +1,136 @@
-"""Placeholder: filled in by the localcal_simulate work (issue 5/6)."""
+"""``posekit localcal simulate`` and ``posekit localcal demo``: look-then-move episodes on the
+simulated long-reach arm, with the paper's tables (2, 3, 4) and figures (6, 7, 8, 9)."""
+
+import shlex
+import sys
 
 from ..errors import ConfigError
 
+__all__ = ["add_simulate_parser", "add_demo_parser", "run_simulate", "run_demo"]
+
 
 def add_simulate_parser(verbs):
-    p = verbs.add_parser("simulate", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add ``simulate`` to the ``posekit localcal`` verbs (an argparse sub-parsers object)."""
+    s = verbs.add_parser(
+        "simulate", help="repeated look-then-move episodes of one method (Tables 2-4, Figs. 6-9)",
+        description="Run RUNS simulated look-then-move episodes of the line-equation or the trajectory-"
+                    "matching method on the simulated HIAB033-like long-reach arm; print the paper's "
+                    "tables and write them (CSV), results.json, the figures (PNG) and report.html to OUT.")
+    s.add_argument("--method", required=True, help="range adjustment method: line | trajectory")
+    s.add_argument("--runs", type=int, default=10, help="number of episodes (default 10)")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0; same seed, same numbers)")
+    s.add_argument("--updates", type=int, default=2, help="look-then-move updates per episode (default 2)")
+    s.add_argument("--scheduler", default="serial",
+                   help="serial (default, in this process), local (a Dask cluster on this machine) "
+                        "or a Dask scheduler address tcp://HOST:PORT")
+    s.add_argument("--no-timestamps", action="store_true",
+                   help="trajectory method: match VO and encoder trajectories without timestamps")
+    s.add_argument("--occlude-ooi", default="never",
+                   help="hide the OOI from the camera: never (default), calibration (during the circle or "
+                        "the calibration path) or always")
+    _camera_options(s)
+    s.add_argument("--truth", action="store_true", help="also print the simulator's true errors")
+    s.add_argument("--out", required=True, help="output folder")
+    s.set_defaults(func=run_simulate)
+    return s
+
 
 def add_demo_parser(verbs):
-    p = verbs.add_parser("demo", help="(not implemented yet)")
-    p.set_defaults(func=_missing)
+    """Add ``demo`` to the ``posekit localcal`` verbs."""
+    s = verbs.add_parser(
+        "demo", help="one look-then-move episode of each method, with the tables",
+        description="Run one simulated look-then-move episode of the line-equation method and one of the "
+                    "trajectory-matching method (two updates each) and print the paper's tables. "
+                    "Writes nothing unless --out is given.")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    _camera_options(s)
+    s.add_argument("--out", default=None, help="write tables, figures and report.html to OUT/line and OUT/trajectory")
+    s.set_defaults(func=run_demo)
+    return s
 
 
-def _missing(args):
-    raise ConfigError("this command is not implemented yet")
+def _camera_options(s):
+    s.add_argument("--camera-hz", type=float, default=10.0,
+                   help="camera images per second along the circular path (line method; default 10)")
+    s.add_argument("--plot-hz", type=float, default=2.0,
+                   help="camera images per second along the other motions, for the error plots (default 2; 0 = none)")
+
+
+def _config(args, **extra):
+    from ..localcal.episode import EpisodeConfig
+    if not args.camera_hz > 0:
+        raise ConfigError(f"--camera-hz: expected a rate > 0, got {args.camera_hz:g}")
+    if not args.plot_hz >= 0:
+        raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
+    return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
+
+
+def _all_failed(result):
+    """Every run failed: one line naming the first reason (the CLI prints it and exits 1)."""
+    from ..errors import EstimationError
+    if all(ep is None for ep in result.episodes):
+        n = len(result.episodes)
+        raise EstimationError(f"{result.method} method: all {n} run(s) failed; run 1: {result.failures[0]}")
+
+
+def _scheduler(text: str):
+    if text == "local":
+        return None
+    if text == "serial" or "://" in text:
+        return text
+    raise ConfigError(f"--scheduler: expected serial, local or a Dask address like tcp://HOST:PORT, got '{text}'")
+
+
+def run_simulate(args) -> int:
+    from ..localcal.episode import METHODS, OCCLUSIONS
+    from ..localcal.experiments import run_experiment
+    from ..localcal.plots import tables_text, write_experiment
+
+    if args.method not in METHODS:
+        raise ConfigError(f"--method: expected one of {' | '.join(METHODS)}, got '{args.method}'")
+    if args.runs < 1:
+        raise ConfigError(f"--runs: expected an integer >= 1, got {args.runs}")
+    if args.updates < 1:
+        raise ConfigError(f"--updates: expected an integer >= 1, got {args.updates}")
+    if args.seed < 0:
+        raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
+    if args.occlude_ooi not in OCCLUSIONS:
+        raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
+    config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi)
+    result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
+                            scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())
+    _all_failed(result)
+    print(tables_text(result, truth=args.truth))
+    command = "posekit localcal simulate " + " ".join(
+        shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
+    files = write_experiment(result, args.out, command=command)
+    failed = sum(ep is None for ep in result.episodes)
+    print(f"\n{len(result.episodes) - failed}/{len(result.episodes)} runs ok in {result.wall_s:.1f} s; "
+          f"wrote {len(files)} files to {args.out} (report.html)")
+    return 0 if failed == 0 else 1
+
+
+def run_demo(args) -> int:
+    from pathlib import Path
+
+    from ..localcal.experiments import run_experiment
+    from ..localcal.plots import tables_text, write_experiment
+
+    if args.seed < 0:
+        raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
+    config = _config(args)
+    failed = 0
+    for method in ("line", "trajectory"):
+        result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
+                                progress=sys.stderr.isatty())
+        _all_failed(result)
+        print(f"== {method} method: one look-then-move episode, seed {args.seed} ==")
+        print(tables_text(result))
+        print()
+        failed += sum(ep is None for ep in result.episodes)
+        if args.out:
+            write_experiment(result, Path(args.out) / method, command=f"posekit localcal demo --seed {args.seed}")
+    if args.out:
+        print(f"wrote the tables, figures and report.html to {Path(args.out) / 'line'} and "
+              f"{Path(args.out) / 'trajectory'}")
+    return 0 if failed == 0 else 1

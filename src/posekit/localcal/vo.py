@@ -12,9 +12,10 @@ the W axes; ``D[0] = I``) and ``N[k]`` white noise (``noise_mm`` per axis on the
 ``noise_rad`` per axis on the rotation vector; none at the first pose, which defines W). VO
 runs at a lower rate than the robot (every ``stride``-th robot sample), on its own clock
 (``time_offset_s`` added to the timestamps); a fraction of the frames can be gross outliers
-(tracking glitches, ``outlier_mm`` per axis). The default magnitudes are assumptions for a
-stereo VO at about one metre from a textured wall: millimetre noise and drift of a few
-millimetres per metre travelled.
+(tracking glitches, ``outlier_mm`` per axis). The same seed with a longer history gives the
+same estimates for the common prefix (without outliers), so VO can 'keep running'. The
+default magnitudes are assumptions for a stereo VO at about one metre from a textured wall:
+millimetre noise and drift of a few millimetres per metre travelled.
 """
 
 import numpy as np
@@ -111,10 +112,12 @@ def simulate_vo(T_B_C_true, t_s, rng, *, noise_mm: float = VONoise.noise_mm,
     T_W_C = invert_transform(T[0], check=False) @ T
     travel_m = np.r_[0.0, np.linalg.norm(np.diff(T_W_C[:, :3, 3], axis=0), axis=1)] / 1000.0
     scale = np.sqrt(travel_m)[:, None]
-    drift_p = np.cumsum(drift_t * scale * rng.standard_normal((n, 3)), axis=0)
-    drift_w = np.cumsum(drift_r * scale * rng.standard_normal((n, 3)), axis=0)
-    noise_p = noise_mm * rng.standard_normal((n, 3))
-    noise_w = noise_rad * rng.standard_normal((n, 3))
+    # one draw per frame, so that a longer history with the same seed extends a shorter one
+    z = rng.standard_normal((n, 12))
+    drift_p = np.cumsum(drift_t * scale * z[:, 0:3], axis=0)
+    drift_w = np.cumsum(drift_r * scale * z[:, 3:6], axis=0)
+    noise_p = noise_mm * z[:, 6:9]
+    noise_w = noise_rad * z[:, 9:12]
     noise_p[0] = 0.0
     noise_w[0] = 0.0
 

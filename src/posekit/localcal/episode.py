@@ -1,0 +1,415 @@
+"""One look-then-move episode on the simulated long-reach arm (Sec. 3 and 5 of the paper).
+
+An episode:
+
+1. **look** at the tool marker and the OOI (camera image → ``T_C_M``, ``T_C_O``);
+2. **orientation adjustment** (eq. 7–8) and a move;
+3. **range adjustment**, either
+
+   * ``'line'``: the circular path (eq. 10–12) observed by the camera, the line equation
+     (eq. 13–16) and a move; every further update is the paper's servo variant: the
+     currently measured planar distance along the same direction,
+     ``p_ref = p_now + p_u d_ε,now``;
+   * ``'trajectory'``: the asymmetric planar path (eq. 17–19) tracked by a simulated VO
+     (W = the first camera frame), matched to the encoder TCP trajectory
+     (:func:`~posekit.localcal.registration.match_trajectories`), then ``updates`` times:
+     look, eq. (20)–(22), move (VO keeps running for ``R_W_C``);
+
+4. after each update a final look gives the image-based errors (the paper's tables) and the
+   simulator gives the true ones.
+
+The camera is sampled along every motion at ``camera_hz`` for the line method's distance
+errors and for the error-over-time plots (Fig. 7/9).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from posekit.errors import ConfigError, EstimationError
+
+from .line_method import CIRCLE_POINTS, CIRCLE_RADIUS_MM, circle_path, line_range_adjustment
+from .orientation import orientation_reference, rotation_errors_deg
+from .trajectory_method import (
+    PATH_LENGTHS_MM,
+    STANDOFF_MM,
+    asymmetric_path,
+    calibrate_trajectories,
+    trajectory_reference,
+)
+from .vo import VONoise, simulate_vo
+
+__all__ = ["METHODS", "OCCLUSIONS", "START_Q", "EpisodeConfig", "EpisodeResult", "run_episode"]
+
+#: Range adjustment methods.
+METHODS = ("line", "trajectory")
+#: Start configuration of the crane (rad): the arm's default pose pulled back 0.5 m along the
+#: camera's viewing axis (same orientation), so that driving the tool marker to an OOI about
+#: 1 m in front of the camera stays inside the ~5.25 m reach (an assumption of this simulation).
+START_Q = (0.0, 0.6316, -1.1399, 0.0, 0.0417, 0.0)
+#: When the OOI can be hidden from the camera (:attr:`EpisodeConfig.occlude_ooi`).
+OCCLUSIONS = ("never", "calibration", "always")
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """Settings of an episode (defaults: the paper's values where it gives them).
+
+    Parameters
+    ----------
+    radius_mm, circle_points : float, int
+        Circular path of the line method (Sec. 5.2.1: 20 cm, 18 points).
+    path_lengths_mm : tuple of float
+        Segment lengths of the trajectory method's calibration path (eq. 17–19), mm.
+    b_mm : float
+        Depth offset b of eq. (21) (Sec. 5.2.2: 10 cm), mm.
+    camera_hz : float
+        Camera samples per second along the circular path (the line method's distance errors).
+    plot_hz : float
+        Camera samples per second along the other motions (only for the error plots; 0 = none).
+    vo_noise_mm, vo_noise_rad, vo_drift_mm_per_sqrt_m, vo_drift_rad_per_sqrt_m, vo_stride,
+    vo_time_offset_s, vo_outlier_fraction :
+        Simulated VO errors (see :func:`posekit.localcal.vo.simulate_vo`).
+    use_timestamps : bool
+        Match the trajectories with timestamps (default) or correspondence-free.
+    error_scale : float
+        Scales the arm's sampled non-kinematic errors (1 = ~2–6 cm at the tip).
+    ooi_distance_mm : float
+        Distance of the OOI in front of the camera at the start pose, mm (the scene puts it
+        ~0.36 m off the tool marker laterally, outside the circle, as the line method needs).
+    occlude_ooi : {'never', 'calibration', 'always'}
+        Hide the OOI from the camera never, during the calibration path (circle or planar
+        path), or always (to exercise the errors of a marker that is never seen).
+    keep_images : bool
+        Keep the camera image of every 'look' (for inspection; large).
+    """
+
+    radius_mm: float = CIRCLE_RADIUS_MM
+    circle_points: int = CIRCLE_POINTS
+    path_lengths_mm: tuple = PATH_LENGTHS_MM
+    b_mm: float = STANDOFF_MM
+    camera_hz: float = 10.0
+    plot_hz: float = 2.0
+    vo_noise_mm: float = VONoise.noise_mm
+    vo_noise_rad: float = VONoise.noise_rad
+    vo_drift_mm_per_sqrt_m: float = VONoise.drift_mm_per_sqrt_m
+    vo_drift_rad_per_sqrt_m: float = VONoise.drift_rad_per_sqrt_m
+    vo_stride: int = VONoise.stride
+    vo_time_offset_s: float = 0.0
+    vo_outlier_fraction: float = VONoise.outlier_fraction
+    use_timestamps: bool = True
+    error_scale: float = 1.0
+    ooi_distance_mm: float = 1000.0
+    occlude_ooi: str = "never"
+    keep_images: bool = False
+
+    def __post_init__(self):
+        if not self.camera_hz > 0:
+            raise ConfigError(f"camera_hz must be > 0, got {self.camera_hz!r}")
+        if not self.plot_hz >= 0:
+            raise ConfigError(f"plot_hz must be >= 0, got {self.plot_hz!r}")
+        if self.occlude_ooi not in OCCLUSIONS:
+            raise ConfigError(f"occlude_ooi: expected one of {' | '.join(OCCLUSIONS)}, got {self.occlude_ooi!r}")
+
+
+@dataclass
+class EpisodeResult:
+    """Outcome of one episode.
+
+    Attributes
+    ----------
+    method : str
+        ``'line'`` or ``'trajectory'``.
+    config : EpisodeConfig
+    rotation_before_deg, rotation_after_deg : ndarray, shape (3,)
+        Image-based absolute rotation errors (XYZ Euler, deg) between the tool marker and the
+        OOI before and after the orientation adjustment.
+    true_rotation_after_deg : ndarray, shape (3,)
+        The same from the simulator's truth.
+    errors_mm : ndarray, shape (updates, 3)
+        Image-based position error ``^O p - ^T p`` in the camera frame after each update, mm
+        (signed; the tables show absolute values; z includes the offset b).
+    true_errors_mm : ndarray, shape (updates, 3)
+        The true error of the tool marker vs the OOI in the camera frame, mm.
+    matching : dict or None
+        Trajectory method: ``Registration.to_json()`` (Table 3's errors).
+    timeline : dict
+        ``t_s`` (K,), ``e_C_mm`` (K, 3) image-based errors along the episode (NaN unseen),
+        ``events``: list of (t_s, label).
+    logs : dict
+        Paths for the figures (base-frame positions, mm; see :mod:`posekit.localcal.plots`).
+    """
+
+    method: str
+    config: EpisodeConfig
+    rotation_before_deg: np.ndarray
+    rotation_after_deg: np.ndarray
+    true_rotation_after_deg: np.ndarray
+    errors_mm: np.ndarray
+    true_errors_mm: np.ndarray
+    matching: dict | None
+    timeline: dict
+    logs: dict = field(default_factory=dict)
+    images: list = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- simulator glue
+
+class _Camera:
+    """The eye-in-hand camera of an episode: looks, and samples along motions."""
+
+    def __init__(self, cell, detector, rng, config):
+        self.cell, self.detector, self.rng = cell, detector, rng
+        self.keep_images = config.keep_images
+        self.hide_ooi = config.occlude_ooi == "always"
+        self.t, self.e = [], []
+        self.events = []
+        self.images = []
+
+    def _observe(self, T_B_F_true):
+        from .scene import observe
+        obs = observe(self.cell, T_B_F_true, self.detector, self.rng, keep_image=self.keep_images)
+        if self.hide_ooi:
+            seen = tuple(i for i in obs.seen if i not in self.cell.ooi_marker_ids)
+            obs = obs._replace(T_C_O=None, seen=seen)
+        return obs
+
+    def _record(self, t, obs):
+        if obs.T_C_O is not None and obs.T_C_M is not None:
+            self.e.append(obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3])
+        else:
+            self.e.append(np.full(3, np.nan))
+        self.t.append(float(t))
+
+    def look(self, arm, label=None):
+        """One image at the arm's current (settled) pose."""
+        obs = self._observe(arm.true_pose())
+        self._record(arm.t_s, obs)
+        if label:
+            self.events.append((float(arm.t_s), label))
+        if self.keep_images and obs.image is not None:
+            self.images.append((label or "", obs.image))
+        return obs
+
+    def along(self, log, hz):
+        """Images along a motion log at ``hz`` (none for 0); returns (indices, observations)."""
+        if hz <= 0 or len(log.t_s) == 0:
+            return np.zeros(0, int), []
+        dt = float(np.median(np.diff(log.t_s))) if len(log.t_s) > 1 else 1.0
+        step = max(1, int(round(1.0 / (hz * dt))))
+        idx = np.arange(0, len(log.t_s), step)
+        obs = []
+        for i in idx:
+            o = self._observe(log.T_B_F_true[i])
+            self._record(log.t_s[i], o)
+            obs.append(o)
+        return idx, obs
+
+    def hidden(self, flag: bool):
+        """Hide the OOI (occlusion) from now on, or show it again."""
+        self.hide_ooi = flag
+
+    def timeline(self):
+        return {"t_s": np.asarray(self.t), "e_C_mm": np.asarray(self.e).reshape(-1, 3),
+                "events": list(self.events)}
+
+
+def _require(obs, what: str):
+    """The OOI and the tool marker must both be seen; a one-line EstimationError otherwise."""
+    missing = []
+    if obs.T_C_M is None:
+        missing.append("the tool marker (id 0)")
+    if obs.T_C_O is None:
+        missing.append("the OOI (markers 1, 2, 3)")
+    if missing:
+        raise EstimationError(f"{' and '.join(missing)} not seen by the camera {what}")
+
+
+def _positions(obs_list, attr):
+    return np.array([getattr(o, attr)[:3, 3] if getattr(o, attr) is not None else np.full(3, np.nan)
+                     for o in obs_list]).reshape(-1, 3)
+
+
+def _setup(seed, config):
+    from .arm import LongReachArm, sample_nonkinematic_errors
+    from .camera import MarkerDetector, zed2_720p
+    from .scene import default_workcell
+
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    s_err, s_arm, s_cell, s_cam, s_vo = ss.spawn(5)
+    errors = sample_nonkinematic_errors(np.random.default_rng(s_err), scale=config.error_scale)
+    arm = LongReachArm(errors=errors, q0=np.array(START_Q), seed=np.random.default_rng(s_arm))
+    cell = default_workcell(arm, np.random.default_rng(s_cell), distance_mm=config.ooi_distance_mm)
+    detector = MarkerDetector(zed2_720p(), cell.sizes_mm)
+    camera = _Camera(cell, detector, np.random.default_rng(s_cam), config)
+    vo_seed = int(np.random.default_rng(s_vo).integers(2**63 - 1))
+    return arm, cell, camera, vo_seed
+
+
+def _truth(cell, arm):
+    """True position error (3,) mm and absolute XYZ rotation errors (3,) deg of the tool marker vs the OOI."""
+    from .scene import ground_truth_errors
+    gt = ground_truth_errors(cell, arm.true_pose())
+    return np.asarray(gt.e_C_mm, float), rotation_errors_deg(gt.T_C_O, gt.T_C_M)
+
+
+# --------------------------------------------------------------------------- the episode
+
+def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig | None = None) -> EpisodeResult:
+    """Run one look-then-move episode of a range adjustment method on the simulator.
+
+    Parameters
+    ----------
+    method : {'line', 'trajectory'}
+        Range adjustment method.
+    seed : int or numpy.random.SeedSequence
+        Seeds the arm's errors, the scene, the camera noise and the VO; same seed, same numbers.
+    updates : int
+        Look-then-move updates of the range adjustment (>= 1).
+    config : EpisodeConfig, optional
+
+    Returns
+    -------
+    EpisodeResult
+
+    Raises
+    ------
+    ConfigError
+        Unknown method or ``updates < 1``.
+    EstimationError
+        The OOI or the tool marker is not seen when it must be (at a look, or never along
+        the circular path).
+    TrajectoryError
+        The calibration path or the trajectories are degenerate.
+    """
+    from .scene import R_F_C_NOMINAL
+
+    if method not in METHODS:
+        raise ConfigError(f"method: expected one of {' | '.join(METHODS)}, got {method!r}")
+    if int(updates) != updates or updates < 1:
+        raise ConfigError(f"updates must be an integer >= 1, got {updates!r}")
+    config = config or EpisodeConfig()
+    arm, cell, camera, vo_seed = _setup(seed, config)
+
+    obs = camera.look(arm, "start")
+    _require(obs, "at the start pose")
+    rot_before = rotation_errors_deg(obs.T_C_O, obs.T_C_M)
+    # eq. (8) with the designed camera mount as the 'uniformity' of the camera and TCP frames
+    T_ref = orientation_reference(arm.nominal_pose(), obs.T_C_O, obs.T_C_M, R_F_C=R_F_C_NOMINAL)
+    camera.along(arm.move_to(T_ref), config.plot_hz)
+    obs = camera.look(arm, "orientation adjusted")
+    _require(obs, "after the orientation adjustment")
+    rot_after = rotation_errors_deg(obs.T_C_O, obs.T_C_M)
+    true_rot_after = _truth(cell, arm)[1]
+
+    if method == "line":
+        errors, true_errors, matching, logs = _line(arm, cell, camera, config, updates)
+    else:
+        errors, true_errors, matching, logs = _trajectory(arm, cell, camera, config, updates, vo_seed)
+    return EpisodeResult(method, config, rot_before, rot_after, true_rot_after, np.asarray(errors),
+                         np.asarray(true_errors), matching, camera.timeline(), logs, camera.images)
+
+
+def _goal_B(cell, arm):
+    """Base-frame TCP position (nominal model) that would put the tool marker on the OOI's axis
+    b in front of it — for the plots only (truth, mapped through the current model error), mm."""
+    T_true, T_nom = arm.true_pose(), arm.nominal_pose()
+    T_B_C = T_true @ cell.T_F_C
+    T_C_O = np.linalg.inv(T_B_C) @ cell.T_B_O
+    delta_C = T_C_O[:3, 3] - cell.T_C_M[:3, 3]
+    return T_nom[:3, 3] + T_B_C[:3, :3] @ delta_C
+
+
+def _line(arm, cell, camera, config, updates):
+    T_centre = arm.nominal_pose()
+    path = circle_path(T_centre, radius_mm=config.radius_mm, n_points=config.circle_points)
+    camera.events.append((float(arm.t_s), "circle"))
+    camera.hidden(config.occlude_ooi in ("calibration", "always"))
+    log = arm.follow(path)
+    idx, obs_path = camera.along(log, config.camera_hz)
+    camera.hidden(config.occlude_ooi == "always")
+    adj = line_range_adjustment(T_centre, log.T_B_F_nominal[idx, :3, 3], _positions(obs_path, "T_C_O"),
+                                _positions(obs_path, "T_C_M"), radius_mm=config.radius_mm)
+    goal = _goal_B(cell, arm)
+    references, approach, errors, true_errors = [adj.T_B_ref[:3, 3]], [], [], []
+    T_ref = adj.T_B_ref
+    for k in range(updates):
+        move = arm.move_to(T_ref)
+        approach.append(move.T_B_F_true[:, :3, 3])
+        camera.along(move, config.plot_hz)
+        obs = camera.look(arm, f"update {k + 1}")
+        _require(obs, f"after update {k + 1}")
+        delta = obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3]
+        errors.append(delta)
+        true_errors.append(_truth(cell, arm)[0])
+        if k + 1 < updates:     # the paper's servo variant: same direction, the distance measured now
+            T_ref = arm.nominal_pose()
+            T_ref[:3, 3] = T_ref[:3, 3] + adj.p_u * float(np.hypot(delta[0], delta[1]))
+            references.append(T_ref[:3, 3])
+    logs = {
+        "T_B_F_centre": T_centre,
+        "reference_path_B": path[:, :3, 3],
+        "path_nominal_B": log.T_B_F_nominal[:, :3, 3],
+        "path_true_B": log.T_B_F_true[:, :3, 3],
+        "approach_true_B": np.concatenate(approach),
+        "references_B": np.asarray(references),
+        "ooi_target_B": goal,
+        "d_eps_mm": adj.d_eps_mm,
+        "d_eps_min_mm": adj.d_eps_min_mm,
+    }
+    return errors, true_errors, None, logs
+
+
+def _trajectory(arm, cell, camera, config, updates, vo_seed):
+    from .tum import Trajectory
+
+    T_start = arm.nominal_pose()
+    path = asymmetric_path(T_start, config.path_lengths_mm)
+    camera.events.append((float(arm.t_s), "calibration path"))
+    camera.hidden(config.occlude_ooi in ("calibration", "always"))
+    log = arm.follow(path)
+    camera.along(log, config.plot_hz)
+    camera.hidden(config.occlude_ooi == "always")
+    T_F_C = cell.T_F_C
+    history = [(log.t_s, log.T_B_F_true @ T_F_C)]
+
+    def vo():
+        """The VO estimate of every camera pose since the calibration path began."""
+        t = np.concatenate([h[0] for h in history])
+        T = np.concatenate([h[1] for h in history])
+        keep = np.r_[True, np.diff(t) > 0]                 # consecutive logs share a sample
+        return simulate_vo(T[keep], t[keep], vo_seed, noise_mm=config.vo_noise_mm, noise_rad=config.vo_noise_rad,
+                           drift_mm_per_sqrt_m=config.vo_drift_mm_per_sqrt_m,
+                           drift_rad_per_sqrt_m=config.vo_drift_rad_per_sqrt_m, stride=config.vo_stride,
+                           time_offset_s=config.vo_time_offset_s, outlier_fraction=config.vo_outlier_fraction)
+
+    vo_calib = vo()
+    kinematic = Trajectory(t_s=log.t_s, T=log.T_B_F_nominal)
+    reg = calibrate_trajectories(vo_calib, kinematic, use_timestamps=config.use_timestamps,
+                                 names=("VO camera", "encoder TCP"))
+    camera.events.append((float(arm.t_s), "matched"))
+    errors, true_errors, references = [], [], []
+    obs = camera.look(arm, None)
+    for k in range(updates):
+        _require(obs, f"before update {k + 1}")
+        delta = obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3]
+        R_W_C = vo().T[-1, :3, :3]                          # VO keeps tracking the camera
+        T_ref = trajectory_reference(arm.nominal_pose(), reg.R, R_W_C, delta, b_mm=config.b_mm)
+        references.append(T_ref[:3, 3])
+        move = arm.move_to(T_ref)
+        history.append((move.t_s, move.T_B_F_true @ T_F_C))
+        camera.along(move, config.plot_hz)
+        obs = camera.look(arm, f"update {k + 1}")
+        _require(obs, f"after update {k + 1}")
+        errors.append(obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3])
+        true_errors.append(_truth(cell, arm)[0])
+    p_vo = vo_calib.T[:, :3, 3]
+    logs = {
+        "T_B_F_start": T_start,
+        "reference_path_B": path[:, :3, 3],
+        "path_nominal_B": log.T_B_F_nominal[:, :3, 3],
+        "path_true_B": log.T_B_F_true[:, :3, 3],
+        "vo_calibrated_B": reg.scale * p_vo @ reg.R.T + reg.t_mm,
+        "references_B": np.asarray(references),
+    }
+    return errors, true_errors, reg.to_json(), logs

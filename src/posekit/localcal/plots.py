@@ -1,0 +1,293 @@
+"""Figures (PNG, matplotlib Agg), CSV/JSON tables and ``report.html`` of localcal experiments.
+
+Figures after the paper:
+
+* Fig. 6-like (line method): the circular reference path vs the completed path (true and
+  encoder TCP) and the move to the computed reference;
+* Fig. 8-like (trajectory method): the reference path, the encoder-based TCP positions and
+  the VO camera positions after the local calibration;
+* Fig. 7/9-like: the image-based position errors between the tool marker and the OOI over
+  time, with the look-then-move updates marked.
+"""
+
+import base64
+import csv
+import html
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .experiments import (
+    PAPER_TABLE2_MEAN,
+    PAPER_TABLE3,
+    PAPER_TABLE4_MEAN,
+    ExperimentResult,
+    format_table,
+    table_columns,
+)
+
+__all__ = [
+    "plot_circle_path",
+    "plot_trajectory_matching",
+    "plot_errors_over_time",
+    "write_experiment",
+    "tables_text",
+    "TABLE_TITLES",
+]
+
+TABLE_TITLES = {
+    "table2": "Table 2: line-equation method, image-based absolute rotation errors after the orientation "
+              "adjustment and position errors after each update (#1 = eq. 16, #2.. = servo variant)",
+    "table2_truth": "Table 2 (simulation truth): true rotation and position errors of the tool marker vs the OOI",
+    "table3": "Table 3: mean and maximum absolute errors after point-set matching (calibrated VO vs encoder TCP), mm",
+    "table4": "Table 4: image-based absolute position errors after each update (trajectory matching)",
+    "table4_truth": "Table 4 (simulation truth): true position errors of the tool marker vs the OOI",
+}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _save(fig, path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
+    return Path(path)
+
+
+def _plane_coords(points, T_B_F):
+    """Coordinates of base-frame points in the (n, s) plane of a TCP pose, mm."""
+    d = np.asarray(points, float) - T_B_F[:3, 3]
+    return d @ T_B_F[:3, 0], d @ T_B_F[:3, 1]
+
+
+def plot_circle_path(episode, path):
+    """Fig. 6-like figure of a line-method episode: reference circle vs completed path."""
+    plt = _plt()
+    lg = episode.logs
+    T0 = lg["T_B_F_centre"]
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.8))
+    ref = lg["reference_path_B"]
+    for a, proj in zip(ax, ("plane", "3d-side")):
+        if proj == "plane":
+            x, y = _plane_coords(ref, T0)
+            a.plot(x, y, "k.-", label="reference path (waypoints)")
+            x, y = _plane_coords(lg["path_true_B"], T0)
+            a.plot(x, y, "r-", lw=1.2, label="completed path (true TCP)")
+            x, y = _plane_coords(lg["path_nominal_B"], T0)
+            a.plot(x, y, "b:", lw=1, label="completed path (encoders)")
+            x, y = _plane_coords(lg["approach_true_B"], T0)
+            a.plot(x, y, "m-", lw=1.2, label="move to the reference (true TCP)")
+            x, y = _plane_coords(np.asarray(lg["references_B"]), T0)
+            a.plot(x, y, "g*", ms=12, label="reference positions (eq. 16)")
+            x, y = _plane_coords(lg["ooi_target_B"][None], T0)
+            a.plot(x, y, "kx", ms=10, mew=2, label="goal (tool marker on the OOI axis)")
+            a.set(xlabel="n (mm)", ylabel="s (mm)", title="in the plane of the circle", aspect="equal")
+        else:
+            d_true = (lg["path_true_B"] - T0[:3, 3]) @ T0[:3, 2]
+            d_nom = (lg["path_nominal_B"] - T0[:3, 3]) @ T0[:3, 2]
+            a.plot(d_true, "r-", label="true TCP, out of plane")
+            a.plot(d_nom, "b:", label="encoder TCP, out of plane")
+            a.set(xlabel="sample", ylabel="distance from the plane of the circle (mm)",
+                  title="planarity of the completed path")
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7)
+    fig.suptitle("Line-equation range adjustment: circular path (r = %.0f mm)" % episode.config.radius_mm)
+    return _save(fig, path)
+
+
+def plot_trajectory_matching(episode, path):
+    """Fig. 8-like figure: reference path, encoder-based TCP and calibrated VO positions."""
+    plt = _plt()
+    lg = episode.logs
+    T0 = lg["T_B_F_start"]
+    fig = plt.figure(figsize=(11, 4.8))
+    a3 = fig.add_subplot(1, 2, 1, projection="3d")
+    for pts, style, label in ((lg["reference_path_B"], "g.-", "reference path"),
+                              (lg["path_nominal_B"], "k-", "encoder-based TCP"),
+                              (lg["vo_calibrated_B"], "r-", "VO camera after local calibration")):
+        p = np.asarray(pts)
+        a3.plot(p[:, 0], p[:, 1], p[:, 2], style, lw=1, label=label)
+    a3.set(xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)", title="base frame")
+    a3.legend(fontsize=7)
+    a2 = fig.add_subplot(1, 2, 2)
+    for pts, style, label in ((lg["reference_path_B"], "g.-", "reference path"),
+                              (lg["path_nominal_B"], "k-", "encoder-based TCP"),
+                              (lg["vo_calibrated_B"], "r-", "calibrated VO")):
+        x, y = _plane_coords(pts, T0)
+        a2.plot(x, y, style, lw=1, label=label)
+    a2.set(xlabel="n (mm)", ylabel="s (mm)", title="in the plane of the path", aspect="equal")
+    a2.grid(True, alpha=0.3)
+    a2.legend(fontsize=7)
+    fig.suptitle("Trajectory matching (VO vs kinematic model)")
+    return _save(fig, path)
+
+
+def plot_errors_over_time(episode, path):
+    """Fig. 7/9-like figure: image-based errors e_x, e_y, e_z over time with the updates."""
+    plt = _plt()
+    tl = episode.timeline
+    t, e = np.asarray(tl["t_s"]), np.asarray(tl["e_C_mm"])
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for i, axis in enumerate("xyz"):
+        ax[0].plot(t, e[:, i], ".-", ms=2, lw=0.8, label=f"e_{axis}")
+    for i, axis in enumerate("xy"):
+        ax[1].plot(t, e[:, i], ".-", ms=2, lw=0.8, label=f"e_{axis}")
+    for a in ax:
+        for j, (t_ev, label) in enumerate(tl["events"]):
+            a.axvline(t_ev, color="0.5", ls="--", lw=0.8)
+            a.text(t_ev, 0.98 - 0.12 * (j % 2), " " + label, transform=a.get_xaxis_transform(), fontsize=7,
+                   va="top", color="0.3")
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=8, loc="lower right")
+    ax[1].axhspan(-5, 5, color="g", alpha=0.1)
+    ax[1].set_ylim(-60, 60)
+    ax[0].set(ylabel="image-based error (mm)",
+              title=f"{episode.method} method: tool marker vs OOI in the camera frame (gaps: not seen)")
+    ax[1].set(xlabel="time (s)", ylabel="XY error (mm), ±5 mm band")
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- files
+
+def _write_csv(path, rows, columns):
+    with Path(path).open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([f"{r[c]:.6g}" if isinstance(r[c], float) else r[c] for c in columns])
+    return Path(path)
+
+
+def _json_safe(v):
+    if isinstance(v, float) and math.isnan(v):
+        return None
+    return v
+
+
+def _num(v, col):
+    if isinstance(v, str):
+        return html.escape(v)
+    if math.isnan(v):
+        return "–"
+    return f"{v:.2f}" if col.endswith("_deg") else f"{v:.1f}"
+
+
+def _html_table(rows, columns):
+    cols = [c for c in columns if c != "error"]
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    body = "".join("<tr>" + "".join(f"<td>{_num(r[c], c)}</td>" for c in cols) + "</tr>" for r in rows)
+    fails = "".join(f"<li>{html.escape(r['run'])}: {html.escape(r['error'])}</li>"
+                    for r in rows if r["status"] == "error" and r["run"] != "mean")
+    return (f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+            + (f"<ul>{fails}</ul>" if fails else ""))
+
+
+def _figure(path: Path, caption: str) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    name = html.escape(path.name)
+    return (f'<figure><img src="data:image/png;base64,{data}" alt="{name}">'
+            f'<figcaption>{html.escape(caption)} (<a href="{name}">{name}</a>)</figcaption></figure>')
+
+
+def _paper_rows(method: str, updates: int) -> str:
+    if method == "line":
+        cols = ["e_θx [deg]", "e_θy [deg]", "e_θz [deg]", "e_x [mm]", "e_y [mm]", "e_z [mm]"]
+        rows = [("paper mean (Table 2)", PAPER_TABLE2_MEAN)]
+    else:
+        cols = ["1st e_x", "1st e_y", "1st e_z", "2nd e_x", "2nd e_y", "2nd e_z"]
+        rows = [("paper mean (Table 4)", PAPER_TABLE4_MEAN),
+                ("paper Table 3 mean", PAPER_TABLE3["mean"] + (math.nan,) * 3),
+                ("paper Table 3 max", PAPER_TABLE3["max"] + (math.nan,) * 3)]
+    head = "<th></th>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    body = "".join("<tr><td>" + html.escape(name) + "</td>"
+                   + "".join(f"<td>{'–' if math.isnan(v) else f'{v:g}'}</td>" for v in vals) + "</tr>"
+                   for name, vals in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dict:
+    """Write the tables (CSV), ``results.json``, the figures (PNG) and ``report.html``.
+
+    Parameters
+    ----------
+    result : ExperimentResult
+        From :func:`posekit.localcal.experiments.run_experiment`.
+    out : path
+        Output folder (created).
+    command : str
+        The command line, quoted in the report.
+
+    Returns
+    -------
+    dict
+        Name -> path of every file written.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {}
+    for name, rows in result.tables.items():
+        files[name] = _write_csv(out / f"{name}.csv", rows, table_columns(name, result.updates))
+    record = {
+        "method": result.method, "seed": result.seed, "runs": len(result.episodes), "updates": result.updates,
+        "wall_s": result.wall_s,
+        "tables": {name: [{k: _json_safe(v) for k, v in r.items()} for r in rows]
+                   for name, rows in result.tables.items()},
+        "matching": [ep.matching if ep is not None else None for ep in result.episodes]
+        if result.method == "trajectory" else None,
+    }
+    files["results"] = out / "results.json"
+    files["results"].write_text(json.dumps(record, indent=1), encoding="utf-8")
+
+    figures = []
+    first = next((ep for ep in result.episodes if ep is not None), None)
+    if first is not None:
+        if result.method == "line":
+            files["fig6"] = plot_circle_path(first, out / "fig6_circle_path.png")
+            figures.append((files["fig6"], "Fig. 6-like: circular path, reference vs completed, run 1"))
+            files["fig7"] = plot_errors_over_time(first, out / "fig7_errors.png")
+            figures.append((files["fig7"], "Fig. 7-like: image-based position errors over time, run 1"))
+        else:
+            files["fig8"] = plot_trajectory_matching(first, out / "fig8_matching.png")
+            figures.append((files["fig8"], "Fig. 8-like: reference path, encoder TCP and calibrated VO, run 1"))
+            files["fig9"] = plot_errors_over_time(first, out / "fig9_errors.png")
+            figures.append((files["fig9"], "Fig. 9-like: image-based position errors over time, run 1"))
+
+    sections = []
+    for name, rows in result.tables.items():
+        sections.append((TABLE_TITLES.get(name, name),
+                         _html_table(rows, table_columns(name, result.updates))))
+    sections.append(("The paper's numbers (real HIAB033 crane)", _paper_rows(result.method, result.updates)))
+    sections.append(("Figures", "".join(_figure(p, c) for p, c in figures) or "<p>Every run failed.</p>"))
+    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;"
+             "text-align:right}th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}")
+    title = f"posekit localcal simulate: {result.method} method"
+    intro = (f"<p>{len(result.episodes)} simulated look-then-move episodes, seed {result.seed}, "
+             f"{result.updates} update(s) each; wall time {result.wall_s:.1f} s."
+             + (f" Command: <code>{html.escape(command)}</code>" if command else "") + "</p>"
+             "<p>Errors are those the camera measures between the tool marker and the OOI (absolute, in "
+             "the camera frame); the <em>truth</em> tables give the simulator's true errors.</p>")
+    body = "".join(f"<h2>{html.escape(h)}</h2>{c}" for h, c in sections)
+    text = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>{intro}{body}</body></html>")
+    files["report"] = out / "report.html"
+    files["report"].write_text(text, encoding="utf-8")
+    return files
+
+
+def tables_text(result: ExperimentResult, *, truth: bool = False) -> str:
+    """The experiment's tables as text (the CLI prints this)."""
+    parts = []
+    for name, rows in result.tables.items():
+        if name.endswith("_truth") and not truth:
+            continue
+        parts.append(format_table(rows, table_columns(name, result.updates), TABLE_TITLES.get(name, name)))
+    return "\n\n".join(parts)
+
