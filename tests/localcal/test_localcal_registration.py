@@ -208,6 +208,63 @@ def test_rigid_cpd_matches_pycpd_after_coarse_alignment():
     assert rotation_error_deg(rigid.R @ coarse.R, T[:3, :3]) < 0.05
 
 
+def _ellipse_path(rng):
+    """A planar ellipse (400 x 200 mm): its shape maps onto itself under three proper rotations,
+    so only the (varying) orientations tell the right transform."""
+    R0 = Rotation.random(random_state=rng)
+    c = rng.uniform(-500, 500, 3)
+
+    def pose(t):
+        a = 2 * np.pi * t / 20.0
+        p = np.c_[400 * np.cos(a), 200 * np.sin(a), np.zeros_like(a)] @ R0.as_matrix().T + c
+        R = (R0 * Rotation.from_rotvec(np.c_[0.5 * np.sin(a / 2), 0.3 * t / 20, 0 * a])).as_matrix()
+        return p, R
+    return pose
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_orientations_resolve_a_symmetric_path(seed):
+    rng = np.random.default_rng(seed)
+    pose = _ellipse_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, 20.0, T_B_W=T, offset_s=0.0, outlier_fraction=0.0)
+    coarse = coarse_align(src.positions, dst.positions)
+    assert np.ptp(coarse.scores) < 0.25                  # positions alone: all candidates tie
+    reg = match_trajectories(src, dst, use_timestamps=False)
+    assert rotation_error_deg(reg.R, T[:3, :3]) < 0.5
+    blind = match_trajectories(src, dst, use_timestamps=False, use_orientations=False)
+    assert rotation_error_deg(blind.R, T[:3, :3]) > 90  # the symmetric twin: a proper rotation too
+    assert np.linalg.det(blind.R) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_cpd_orientation_term_recovers_the_transform():
+    rng = np.random.default_rng(8)
+    pose = smooth_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, 20.0, T_B_W=T, offset_s=0.0, outlier_fraction=0.05)
+    X, Y = dst.positions[::8], src.positions[::3]
+    Rx, Ry = dst.rotations[::8], src.rotations[::3]
+    coarse = coarse_align(Y, X, R_src=Ry, R_dst=Rx)
+    res = rigid_cpd(X, Y, R0=coarse.R, t0=coarse.t, sigma2=coarse.sigma2, Rx=Rx, Ry=Ry)
+    assert rotation_error_deg(res.R, T[:3, :3]) < 0.3
+    assert rotation_error_deg(res.X_body, np.eye(3)) < 0.5        # same body on both sides
+    assert res.kappa > 1000.0                                      # orientations agree to ~1 deg
+
+
+@pytest.mark.parametrize("use_timestamps", [True, False])
+def test_similarity_for_a_scaled_trajectory(use_timestamps):
+    rng = np.random.default_rng(9)
+    pose, dur = asymmetric_planar_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, dur, T_B_W=T, offset_s=0.05, noise_mm=0.5)
+    W = src.T.copy()
+    W[:, :3, 3] *= 0.4                                   # monocular VO: the map is 0.4 x the truth
+    reg = match_trajectories(Trajectory(src.t_s, W), dst, use_timestamps=use_timestamps, with_scale=True)
+    assert reg.scale == pytest.approx(2.5, rel=5e-3)
+    assert rotation_error_deg(reg.R, T[:3, :3]) < 0.5
+    assert np.linalg.norm(reg.t_mm - T[:3, 3]) < 5.0
+
+
 # ------------------------------------------------------------------ acceptance on unseen trajectories
 @pytest.mark.parametrize("seed", [11, 12, 13])
 @pytest.mark.parametrize("kind", ["smooth", "planar"])

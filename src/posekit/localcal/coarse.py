@@ -4,21 +4,25 @@ The principal axes of each (outlier-trimmed) set give ``R = V_dst D V_src^T``. T
 is chosen among the sign patterns with ``det R = +1`` only, so a reflection is never even a
 candidate; axes whose spreads are nearly equal (a round path) are also tried rotated by 90 degrees
 about the remaining axis. Each candidate is refined by a short CPD run and scored by the
-negative log-likelihood of the hybrid mixture (positions, and orientations when they vary), and
-the best one is kept.
+negative log-likelihood of the mixture; orientations break ties between candidates that fit the
+positions equally well (a symmetric path), and the best one is kept.
 """
 
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .alignment import robust_principal_axes
 from .cpd import rigid_cpd
 
-__all__ = ["CoarseAlignment", "coarse_align", "pca_candidates"]
+__all__ = ["TIE_NATS", "CoarseAlignment", "coarse_align", "orientation_spread", "pca_candidates"]
 
 #: Two principal spreads closer than this ratio are treated as ambiguous (axes may swap).
 _NEAR_EQUAL = 0.8
+#: Candidates whose scores (mean negative log-likelihood per point) are within this of the best
+#: are tied: the positions cannot tell them apart.
+TIE_NATS = 0.25
 #: Short CPD run per candidate.
 _CANDIDATE_ITERS = 30
 
@@ -83,29 +87,49 @@ def pca_candidates(p_src, p_dst, *, with_scale: bool = False):
     return Rs, ts, s
 
 
-def _score(X, Y, res, w, Rx, Ry):
-    """Mean negative log-likelihood of the data X under the converged mixture (lower is better)."""
+def _score(X, Y, res, w):
+    """Mean negative log-likelihood of the data X under the converged mixture (lower is better).
+
+    The outlier component is uniform over the bounding box of X (a proper density), so scores of
+    different candidates compare even though their variances differ.
+    """
     TY = res.s * Y @ res.R.T + res.t
     d2 = ((X[None, :, :] - TY[:, None, :]) ** 2).sum(-1)
-    lo, hi = X.min(0), X.max(0)
-    volume = float(np.prod(np.maximum(hi - lo, 1e-3)))
-    sigma2 = res.sigma2
-    logg = -d2 / (2 * sigma2) - 1.5 * np.log(2 * np.pi * sigma2)
-    if Rx is not None and res.kappa > 0:
-        tr = (res.R @ Ry @ res.X_body).reshape(len(Y), 9) @ Rx.reshape(len(X), 9).T
-        logg = logg - res.kappa * (3.0 - tr) + 1.5 * np.log(res.kappa / np.pi)
-        log_out = -np.log(volume) - np.log(8 * np.pi ** 2)
-    else:
-        log_out = -np.log(volume)
+    side = np.ptp(X, axis=0)
+    volume = float(np.prod(np.maximum(side, max(1.0, 0.1 * side.max()))))
+    logg = -d2 / (2 * res.sigma2) - 1.5 * np.log(2 * np.pi * res.sigma2)
     m = logg.max(0)
     inl = np.log(np.exp(logg - m).mean(0)) + m + np.log(1.0 - w)
-    lik = np.logaddexp(inl, log_out + np.log(w))
+    lik = np.logaddexp(inl, -np.log(volume) + np.log(w))
     return float(-lik.mean())
+
+
+def orientation_spread(R, t, s, p_src, R_src, p_dst, R_dst) -> float:
+    """How far the orientations disagree with a transform, rad (median).
+
+    Each src pose is paired with its nearest dst pose after ``s R p + t``; if ``R`` is right, the
+    body-to-body rotations ``X_i = R_src_i^T R^T R_dst_j(i)`` are one constant rotation (the two
+    bodies are rigidly attached), whatever it is. Returns the median angle of the ``X_i`` from their
+    chordal mean.
+    """
+    _, j = cKDTree(p_dst).query(s * p_src @ R.T + t)
+    Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst[j]
+    U, _, Vt = np.linalg.svd(Xs.sum(0))
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
+    c = (np.einsum("nij,ij->n", Xs, (U * d) @ Vt) - 1.0) / 2.0
+    return float(np.median(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
 def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_src=None, R_dst=None,
                  max_points: int = 150) -> CoarseAlignment:
     """Coarse transform from src to dst without correspondences (det +1 by construction).
+
+    Every proper-rotation candidate of :func:`pca_candidates` is refined by a short positional CPD
+    run and scored by the mixture's negative log-likelihood. When the best scores tie within
+    ``TIE_NATS`` (a path whose shape is symmetric, so positions cannot tell the candidates apart)
+    and orientations are given, the tied candidate whose orientations agree best
+    (:func:`orientation_spread`) wins.
 
     Parameters
     ----------
@@ -118,7 +142,7 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
     with_scale : bool
         Similarity instead of rigid.
     R_src : ndarray, shape (M, 3, 3), optional
-        Source orientations (with ``R_dst``: used in the refinement and the score).
+        Source orientations, for breaking ties.
     R_dst : ndarray, shape (N, 3, 3), optional
         Destination orientations.
     max_points : int
@@ -131,17 +155,20 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
     ks = _thin(len(p_src), max_points)
     kd = _thin(len(p_dst), max_points)
     Y, X = p_src[ks], p_dst[kd]
-    Ry = None if R_src is None else R_src[ks]
-    Rx = None if R_dst is None else R_dst[kd]
     Rs, ts, s = pca_candidates(p_src, p_dst, with_scale=with_scale)
     scores, fits = [], []
     for R0, t0 in zip(Rs, ts):
-        res = rigid_cpd(X, Y, R0=R0, t0=t0, s0=s, w=w, with_scale=with_scale, Rx=Rx, Ry=Ry,
+        res = rigid_cpd(X, Y, R0=R0, t0=t0, s0=s, w=w, with_scale=with_scale,
                         max_iter=_CANDIDATE_ITERS, tol=1e-6)
         fits.append(res)
-        scores.append(_score(X, Y, res, w, Rx, Ry))
+        scores.append(_score(X, Y, res, w))
     scores = np.array(scores)
     best = int(np.argmin(scores))
+    tied = np.flatnonzero(scores <= scores[best] + TIE_NATS)
+    if R_src is not None and R_dst is not None and tied.size > 1:
+        spread = [orientation_spread(fits[k].R, fits[k].t, fits[k].s, Y, R_src[ks], X, R_dst[kd])
+                  for k in tied]
+        best = int(tied[int(np.argmin(spread))])
     return CoarseAlignment(fits[best].R, fits[best].t, fits[best].s, fits[best].sigma2, scores, best)
 
 
