@@ -100,7 +100,7 @@ class RobotConfig(_Section):
     tool_length_mm: float = Field(150.0, gt=0.0)  # flange to TCP along the flange z axis
     joint_noise_deg: float = Field(0.005, ge=0.0)
     kinematic_error_mm: float = Field(0.3, ge=0.0)
-    kinematic_error_deg: float = Field(0.02, ge=0.0)
+    kinematic_error_deg: float = Field(0.05, ge=0.0)
 
 
 class ProcessConfig(_Section):
@@ -120,7 +120,7 @@ class ProcessConfig(_Section):
     force_sensor_noise_n: float = Field(20.0, ge=0.0)
     joint_compliance_rad_per_nm: float = Field(1e-6, ge=0.0)
     cartesian_compliance_mm_per_n: float = Field(1e-4, ge=0.0)
-    cartesian_compliance_deg_per_n: float = Field(5e-5, ge=0.0)
+    cartesian_compliance_deg_per_n: float = Field(5e-4, ge=0.0)
 
 
 class SensorsConfig(_Section):
@@ -191,7 +191,7 @@ class FilterConfig(_Section):
     d0_mm: float = Field(1.0, ge=0.0)
     kd_mm_per_n: float = Field(2e-4, ge=0.0)
     d0_deg: float = Field(0.1, ge=0.0)
-    kd_deg_per_n: float = Field(2e-5, ge=0.0)
+    kd_deg_per_n: float = Field(1e-4, ge=0.0)
     joint_sigma_deg: float = Field(0.005, ge=0.0)
     robot_floor_t_mm: float = Field(0.1, gt=0.0)
     robot_floor_r_deg: float = Field(0.01, gt=0.0)
@@ -201,7 +201,7 @@ class FilterConfig(_Section):
     search_window_mm: float = Field(10.0, gt=0.0)
     init_sigma_t_mm: float = Field(1.0, ge=0.0)
     init_sigma_r_deg: float = Field(0.1, ge=0.0)
-    trend_lambda: float = Field(10.0, ge=0.0)
+    trend_lambda: float = Field(100.0, ge=0.0)
     trend_eps_mm: float = Field(0.02, gt=0.0)
 
 
@@ -314,10 +314,16 @@ def load_config(path) -> SeamConfig:
 def apply_overrides(cfg: SeamConfig, overrides: dict[str, Any], source: str = "command line") -> SeamConfig:
     """A copy of ``cfg`` with dotted keys set (``{"sensors.count": 1}``), re-validated.
 
-    ``None`` values are skipped (a flag that was not given). Raises :class:`ConfigError`
-    naming the key for an unknown key or an impossible value.
+    ``None`` values are skipped (a flag that was not given). Lowering ``sensors.count``
+    without giving ``sensors.distances_mm`` keeps the first ``count`` distances. Raises
+    :class:`ConfigError` naming the key for an unknown key or an impossible value.
     """
     data = cfg.model_dump(mode="python")
+    count = overrides.get("sensors.count")
+    dists = data["sensors"]["distances_mm"]
+    if (count is not None and overrides.get("sensors.distances_mm") is None and dists is not None
+            and 0 <= int(count) <= len(dists)):
+        data["sensors"]["distances_mm"] = tuple(dists[: int(count)])  # fewer sensors: the nearest ones
     for key, value in overrides.items():
         if value is None:
             continue

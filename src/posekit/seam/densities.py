@@ -27,7 +27,7 @@ from scipy.special import gammaln
 
 from posekit.robots import DHChain
 
-from .particles import exp_small, rotvec_from_matrix_fast
+from . import _kernels as _k
 from .seamline import SeamLine
 
 __all__ = [
@@ -72,14 +72,18 @@ def plateau_logpdf(delta: np.ndarray, d: float, Sigma: np.ndarray) -> np.ndarray
     -------
     logp : ndarray, shape (N,)
     """
-    k = delta.shape[1]
     r = np.sqrt((delta * delta).sum(axis=1))
     shrink = np.where(r > d, 1.0 - d / np.where(r > 0, r, 1.0), 0.0)
     dd = delta * shrink[:, None]
     Sinv = np.linalg.inv(Sigma)
     maha = ((dd @ Sinv) * dd).sum(axis=1)
-    logD = -np.log((2.0 * np.pi) ** (0.5 * k) * np.sqrt(np.linalg.det(Sigma)) + ball_volume(d, k))
-    return logD - 0.5 * maha
+    return _plateau_log_norm(d, Sigma) - 0.5 * maha
+
+
+def _plateau_log_norm(d: float, Sigma: np.ndarray) -> float:
+    """``log D`` of eq. (8) for a k×k covariance."""
+    k = Sigma.shape[0]
+    return -math.log((2.0 * math.pi) ** (0.5 * k) * math.sqrt(np.linalg.det(Sigma)) + ball_volume(d, k))
 
 
 def plateau_pdf_1d(x, mu: float, d: float, sigma: float) -> np.ndarray:
@@ -91,8 +95,8 @@ def plateau_pdf_1d(x, mu: float, d: float, sigma: float) -> np.ndarray:
 
 
 def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma_r_rad: float,
-               rng: np.random.Generator) -> np.ndarray:
-    """Sample the state transition of eq. (3) for all particles.
+               rng: np.random.Generator, *, noise_buffer: np.ndarray | None = None) -> np.ndarray:
+    """Sample the state transition of eq. (3) for all particles: ``x+ = T+ x exp(ξ)``.
 
     Parameters
     ----------
@@ -104,16 +108,19 @@ def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma
         Noise widths (translation mm, rotation rad) in the tool frame, already scaled with
         the force.
     rng : numpy.random.Generator
+    noise_buffer : ndarray of float32, shape (N, 6), optional
+        Reused for the standard-normal draws (float32: half the cost of float64 draws).
 
     Returns
     -------
     Ts_new : ndarray, shape (N, 4, 4)
     """
     n = Ts.shape[0]
-    xi = rng.standard_normal((n, 6))
-    xi[:, :3] *= sigma_t_mm
-    xi[:, 3:] *= sigma_r_rad
-    return np.matmul(np.matmul(T_increment, Ts), exp_small(xi))
+    z = np.empty((n, 6), np.float32) if noise_buffer is None else noise_buffer
+    rng.standard_normal(out=z, dtype=np.float32)
+    out = np.empty_like(Ts)
+    _k.propagate(Ts, np.asarray(T_increment, dtype=np.float64), z, float(sigma_t_mm), float(sigma_r_rad), out)
+    return out
 
 
 def fk_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,29 +142,10 @@ def fk_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarr
     J : ndarray, shape (6, n)
         ``[v (mm/rad); ω (rad/rad)]`` rows in the base frame.
     """
-    n = chain.n_joints
-    rev = chain._revolute
-    theta = np.where(rev, chain.theta + q, chain.theta)
-    dlen = np.where(rev, chain.d, chain.d + q)
-    ct, st = np.cos(theta), np.sin(theta)
-    ca, sa = np.cos(chain.alpha), np.sin(chain.alpha)
-    A = np.zeros((n, 4, 4))
-    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, chain.a * ct
-    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, chain.a * st
-    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, dlen
-    A[:, 3, 3] = 1.0
-    z = np.empty((n, 3))
-    o = np.empty((n, 3))
-    T = np.eye(4)
-    for i in range(n):  # over the joints (6), never over particles
-        z[i] = T[:3, 2]
-        o[i] = T[:3, 3]
-        T = T @ A[i]
-    T = T @ chain.T_flange_tool
-    p = T[:3, 3]
-    J = np.empty((6, n))
-    J[:3] = np.where(rev[:, None], np.cross(z, p - o), z).T
-    J[3:] = np.where(rev[:, None], z, 0.0).T
+    T = np.empty((4, 4))
+    J = np.empty((6, chain.n_joints))
+    _k.fk_jacobian_kernel(chain.a, chain.alpha, chain.d, chain.theta, chain._revolute,
+                          np.asarray(q, dtype=np.float64), chain.T_flange_tool, T, J)
     return T, J
 
 
@@ -253,14 +241,15 @@ def robot_loglik(Ts: np.ndarray, meas: RobotMeasurement) -> np.ndarray:
     -------
     loglik : ndarray, shape (N,)
     """
-    mu = meas.T_mean
-    dt = Ts[:, :3, 3] - mu[:3, 3]
-    dr = rotvec_from_matrix_fast(np.matmul(Ts[:, :3, :3], mu[:3, :3].T))
-    return plateau_logpdf(dt, meas.d_t_mm, meas.Sigma_t) + plateau_logpdf(dr, meas.d_r_rad, meas.Sigma_r)
+    out = np.zeros(Ts.shape[0])
+    logD = _plateau_log_norm(meas.d_t_mm, meas.Sigma_t) + _plateau_log_norm(meas.d_r_rad, meas.Sigma_r)
+    _k.robot_loglik_kernel(Ts, meas.T_mean, np.linalg.inv(meas.Sigma_t), np.linalg.inv(meas.Sigma_r),
+                           meas.d_t_mm, meas.d_r_rad, logD, out)
+    return out
 
 
 def laser_loglik(Ts: np.ndarray, m_mm: np.ndarray, distance_mm: float, seam: SeamLine,
-                 segments: np.ndarray, sigma_mm: float, miss_mm: float) -> np.ndarray:
+                 knot_range: tuple[int, int], sigma_mm: float, miss_mm: float) -> np.ndarray:
     """Log-likelihood ``log p(m | x)`` of one laser measurement for each particle (eq. 9).
 
     Parameters
@@ -274,8 +263,9 @@ def laser_loglik(Ts: np.ndarray, m_mm: np.ndarray, distance_mm: float, seam: Sea
         shifted by ``[0, distance, 0]``; the laser plane is its x–z plane).
     seam : SeamLine
         Seam polyline in the base frame (the trend-filter knots).
-    segments : ndarray of int, shape (M,)
-        Candidate segments (:meth:`SeamLine.candidates`).
+    knot_range : (int, int)
+        First and last knot of the searched stretch (:meth:`SeamLine.window`); ``(-1, -1)``
+        for none.
     sigma_mm : float
         Laser measurement standard deviation, mm.
     miss_mm : float
@@ -284,17 +274,20 @@ def laser_loglik(Ts: np.ndarray, m_mm: np.ndarray, distance_mm: float, seam: Sea
     Returns
     -------
     loglik : ndarray, shape (N,)
+
+    Notes
+    -----
+    Of several crossings within the knot range the one nearest ``m̂`` counts (compiled
+    kernel; :meth:`SeamLine.intersect` is the NumPy equivalent).
     """
-    R = Ts[:, :3, :3]
-    local = np.array([m_mm[0], distance_mm, m_mm[1]])
-    m_hat = Ts[:, :3, 3] + R @ local
-    normals = R[:, :, 1]
-    hit = seam.intersect(m_hat, normals, segments)
-    e = m_hat - hit.point
-    ex = (e * R[:, :, 0]).sum(axis=1)
-    ez = (e * R[:, :, 2]).sum(axis=1)
-    e2 = np.where(hit.found, ex * ex + ez * ez, miss_mm * miss_mm)
-    return -0.5 * e2 / (sigma_mm * sigma_mm) - math.log(2.0 * math.pi * sigma_mm * sigma_mm)
+    out = np.zeros(Ts.shape[0])
+    lo, hi = knot_range
+    if lo < 0:
+        out -= 0.5 * (miss_mm / sigma_mm) ** 2 + math.log(2.0 * math.pi * sigma_mm * sigma_mm)
+        return out
+    _k.laser_loglik_kernel(Ts, float(m_mm[0]), float(m_mm[1]), float(distance_mm), seam.points, lo, hi,
+                           float(sigma_mm), float(miss_mm), out)
+    return out
 
 
 def angle_loglik(Ts: np.ndarray, angle_rad: float, surface_normal: np.ndarray, sigma_rad: float) -> np.ndarray:

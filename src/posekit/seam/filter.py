@@ -151,6 +151,7 @@ class SeamParticleFilter:
         self.recoveries = 0
         self.resamplings = 0
         self.T = np.repeat(np.eye(4)[None], self.n, axis=0)
+        self._noise = np.empty((self.n, 6), np.float32)
         self.logw = np.full(self.n, -math.log(self.n))
         if T_init is not None:
             self.reset(T_init)
@@ -171,7 +172,7 @@ class SeamParticleFilter:
         fn = math.sqrt(float(force @ force))
         # 1. state transition (eq. 3)
         self.T = transition(self.T, inputs.T_increment, f.sigma_t_mm + f.k_force_t * fn,
-                            self._sigma_r + self._k_force_r * fn, self.rng)
+                            self._sigma_r + self._k_force_r * fn, self.rng, noise_buffer=self._noise)
         # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
         meas = robot_measurement(self.chain, np.asarray(inputs.q_meas, dtype=np.float64), force,
                                  compliance=self.compliance, **self._robot_kw)
@@ -184,8 +185,8 @@ class SeamParticleFilter:
                 if not (np.isfinite(m[0]) and np.isfinite(m[1])):
                     continue
                 centre = Tn[:3, 3] + Tn[:3, :3] @ np.array([m[0], dist, m[1]])
-                segs = self.seam.candidates(centre, Tn[:3, 1], f.search_window_mm)
-                logw = logw + laser_loglik(self.T, m, dist, self.seam, segs, f.laser_sigma_mm,
+                knots = self.seam.window(centre, Tn[:3, 1], f.search_window_mm)
+                logw = logw + laser_loglik(self.T, m, dist, self.seam, knots, f.laser_sigma_mm,
                                            f.search_window_mm)
                 used += 1
         if self._angle_sigma and inputs.angle_rad is not None:

@@ -13,6 +13,8 @@ import numpy as np
 
 from posekit.errors import ConfigError
 
+from ._kernels import offsets_kernel
+
 __all__ = [
     "RESAMPLERS",
     "NormalizedWeights",
@@ -47,8 +49,9 @@ class NormalizedWeights(NamedTuple):
 def normalize_log_weights(logw) -> NormalizedWeights:
     """Normalise log-weights; recover from vanishing weights instead of failing.
 
-    NaN entries count as ``-inf`` (weight 0). When every weight is 0 (all ``-inf``/NaN, or
-    ``+inf`` overflow), the weights are reset to uniform and ``recovered`` is True.
+    NaN and ``+inf`` entries (an overflowed likelihood is not trusted) count as ``-inf``
+    (weight 0). When every weight is 0, the weights are reset to uniform and ``recovered``
+    is True.
 
     Parameters
     ----------
@@ -61,6 +64,12 @@ def normalize_log_weights(logw) -> NormalizedWeights:
     """
     logw = np.asarray(logw, dtype=np.float64)
     n = logw.shape[0]
+    top = logw.max() if n else np.nan
+    if np.isfinite(top):  # fast path: no NaN (max would be NaN), no +inf, some weight > 0
+        w = np.exp(logw - top)
+        total = w.sum()
+        w /= total
+        return NormalizedWeights(logw - (top + np.log(total)), w, False)
     logw = np.where(np.isnan(logw) | (logw == np.inf), -np.inf, logw)
     top = logw.max() if n else -np.inf
     if not np.isfinite(top):
@@ -246,17 +255,15 @@ def weighted_mean_se3(Ts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.nda
     spread : ndarray, shape (6,)
         ``[sx, sy, sz (mm), srx, sry, srz (rad)]`` in the mean's frame.
     """
-    p = Ts[:, :3, 3]
-    p_mean = w @ p
-    M = np.tensordot(w, Ts[:, :3, :3], axes=1)
-    U, _, Vt = np.linalg.svd(M)
+    S = (w @ Ts.reshape(-1, 16)).reshape(4, 4)  # weighted sums of all entries (one GEMV)
+    p_mean = S[:3, 3]
+    U, _, Vt = np.linalg.svd(S[:3, :3])
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
     R_mean = U @ D @ Vt
     T_mean = np.eye(4)
     T_mean[:3, :3] = R_mean
     T_mean[:3, 3] = p_mean
-    dp = (p - p_mean) @ R_mean
-    dr = rotvec_from_matrix_fast(np.matmul(R_mean.T, Ts[:, :3, :3]))
-    d = np.concatenate([dp, dr], axis=1)
+    d = np.empty((Ts.shape[0], 6))
+    offsets_kernel(Ts, T_mean, d)
     spread = np.sqrt(np.maximum(w @ (d * d) - (w @ d) ** 2, 0.0))
     return T_mean, spread

@@ -13,6 +13,8 @@ import numpy as np
 
 from posekit.errors import GeometryError
 
+from ._kernels import window_kernel as _window_kernel
+
 __all__ = ["SeamLine", "Intersection"]
 
 from typing import NamedTuple
@@ -91,9 +93,18 @@ class SeamLine:
         reach = 10.0 * window_mm + 50.0 if reach_mm is None else reach_mm
         d1 = np.linalg.norm(self.starts - point, axis=1)
         d2 = np.linalg.norm(self.points[1:] - point, axis=1)
-        seg_len = np.linalg.norm(self.vectors, axis=1)
-        near &= np.minimum(d1, d2) <= reach + seg_len
+        near &= np.minimum(d1, d2) <= reach
         return np.flatnonzero(near)
+
+    def window(self, point, normal, window_mm: float, reach_mm: float | None = None) -> tuple[int, int]:
+        """Knot range ``(lo, hi)`` spanning :meth:`candidates` (compiled; hot path).
+
+        Returns ``(-1, -1)`` when no segment is near the plane.
+        """
+        reach = 10.0 * window_mm + 50.0 if reach_mm is None else reach_mm
+        return _window_kernel(self.points, float(point[0]), float(point[1]), float(point[2]),
+                              float(normal[0]), float(normal[1]), float(normal[2]), float(window_mm),
+                              float(reach))
 
     def intersect(self, origins, normals, segments=None) -> Intersection:
         """Intersections of N planes with the polyline (no validation; hot path).

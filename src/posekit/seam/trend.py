@@ -49,7 +49,7 @@ class TrendResult:
     status: str
 
 
-def trend_filter(y, *, lam: float = 1.0, eps_mm: float = 0.02) -> TrendResult:
+def trend_filter(y, *, lam: float = 100.0, eps_mm: float = 0.02) -> TrendResult:
     """Piecewise-affine approximation of a path by l1 trend filtering (eq. 10).
 
     Parameters
@@ -73,7 +73,7 @@ def trend_filter(y, *, lam: float = 1.0, eps_mm: float = 0.02) -> TrendResult:
     Examples
     --------
     >>> y = np.c_[np.r_[0:10.0], np.abs(np.r_[0:10.0] - 4.0), np.zeros(10)]
-    >>> trend_filter(y, lam=1.0, eps_mm=0.01).knots.tolist()
+    >>> trend_filter(y, lam=100.0, eps_mm=0.01).knots.tolist()
     [0, 4, 9]
     """
     import cvxpy as cp

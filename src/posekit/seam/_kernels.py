@@ -1,0 +1,275 @@
+"""Compiled per-particle kernels of the seam particle filter (numba, cached on disk).
+
+NumPy needs ~7 ms per filter step at N = 1,000 on a loaded 2-core machine: the per-particle
+4×4 products, Rodrigues' formula, rotation logarithms and the laser-plane search are dozens of
+small array operations each. One compiled pass per density brings the step under 1 ms. Each
+kernel is cross-checked in the tests against an independent NumPy/geometry computation.
+
+Particles are ``T (N, 4, 4)`` rigid transforms (mm, rad); every kernel writes into ``out``.
+"""
+
+import math
+
+import numba as nb
+import numpy as np
+
+__all__ = ["propagate", "robot_loglik_kernel", "laser_loglik_kernel", "offsets_kernel"]
+
+
+@nb.njit(cache=True, boundscheck=False)
+def propagate(T, A, z_, sigma_t, sigma_r, out):
+    """``out_i = A @ T_i @ exp(xi_i)``, ``xi_i = [σt z_i,0:3, σr z_i,3:6]`` (standard normal
+    ``z_``); exp by Rodrigues, translation part ``rho`` (small noise).
+
+    T (N, 4, 4), A (4, 4), z_ (N, 6) (float32 or float64), out (N, 4, 4).
+    """
+    n = T.shape[0]
+    M = np.empty((3, 3))
+    E = np.empty((3, 3))
+    for i in range(n):
+        # M = A @ T_i (rotation and translation)
+        for r in range(3):
+            for c in range(3):
+                M[r, c] = A[r, 0] * T[i, 0, c] + A[r, 1] * T[i, 1, c] + A[r, 2] * T[i, 2, c]
+        t0 = A[0, 0] * T[i, 0, 3] + A[0, 1] * T[i, 1, 3] + A[0, 2] * T[i, 2, 3] + A[0, 3]
+        t1 = A[1, 0] * T[i, 0, 3] + A[1, 1] * T[i, 1, 3] + A[1, 2] * T[i, 2, 3] + A[1, 3]
+        t2 = A[2, 0] * T[i, 0, 3] + A[2, 1] * T[i, 1, 3] + A[2, 2] * T[i, 2, 3] + A[2, 3]
+        # E = exp(hat(phi))
+        x, y, z = sigma_r * z_[i, 3], sigma_r * z_[i, 4], sigma_r * z_[i, 5]
+        th2 = x * x + y * y + z * z
+        if th2 < 1e-4:  # series to theta^4: truncation < 1e-16 below 0.01 rad
+            a = 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0)
+            b = 0.5 - th2 / 24.0 * (1.0 - th2 / 30.0)
+        else:
+            th = math.sqrt(th2)
+            a = math.sin(th) / th
+            b = (1.0 - math.cos(th)) / th2
+        E[0, 0] = 1.0 - b * (y * y + z * z)
+        E[1, 1] = 1.0 - b * (x * x + z * z)
+        E[2, 2] = 1.0 - b * (x * x + y * y)
+        E[0, 1] = b * x * y - a * z
+        E[1, 0] = b * x * y + a * z
+        E[0, 2] = b * x * z + a * y
+        E[2, 0] = b * x * z - a * y
+        E[1, 2] = b * y * z - a * x
+        E[2, 1] = b * y * z + a * x
+        rx, ry, rz = sigma_t * z_[i, 0], sigma_t * z_[i, 1], sigma_t * z_[i, 2]
+        for r in range(3):
+            for c in range(3):
+                out[i, r, c] = M[r, 0] * E[0, c] + M[r, 1] * E[1, c] + M[r, 2] * E[2, c]
+        out[i, 0, 3] = t0 + M[0, 0] * rx + M[0, 1] * ry + M[0, 2] * rz
+        out[i, 1, 3] = t1 + M[1, 0] * rx + M[1, 1] * ry + M[1, 2] * rz
+        out[i, 2, 3] = t2 + M[2, 0] * rx + M[2, 1] * ry + M[2, 2] * rz
+        out[i, 3, 0] = 0.0
+        out[i, 3, 1] = 0.0
+        out[i, 3, 2] = 0.0
+        out[i, 3, 3] = 1.0
+
+
+@nb.njit(cache=True, inline="always")
+def _rotvec(r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """Rotation vector (rad) of a rotation matrix given by its entries (angle < ~179°)."""
+    vx, vy, vz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)  # sin(theta) * axis
+    s2 = vx * vx + vy * vy + vz * vz
+    if s2 < 1e-6 and r00 + r11 + r22 > 0.0:  # theta/sin(theta) by series in sin^2: error < 1e-16
+        k = 1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0 + s2 * (5.0 / 112.0)))
+        return vx * k, vy * k, vz * k
+    c = 0.5 * (r00 + r11 + r22 - 1.0)
+    if c > 1.0:
+        c = 1.0
+    elif c < -1.0:
+        c = -1.0
+    th = math.acos(c)
+    if th < 1e-6:
+        s = 0.5 + th * th / 12.0
+    else:
+        s = 0.5 * th / math.sqrt(max(1.0 - c * c, 1e-300))
+    return (r21 - r12) * s, (r02 - r20) * s, (r10 - r01) * s
+
+
+@nb.njit(cache=True, boundscheck=False)
+def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, d_t, d_r, logD, out):
+    """Eq. (8) in two 3-D blocks: ``Δt = p_i - p_μ``, ``Δr = log(R_i R_μᵀ)`` (base frame).
+
+    ``out_i += logD - ½ (δtᵀ Sinv_t δt + δrᵀ Sinv_r δr)`` with ``δ = (1 - d/‖Δ‖)₊ Δ``.
+    """
+    n = T.shape[0]
+    q = np.empty(9)
+    for i in range(n):
+        dx = T[i, 0, 3] - mu[0, 3]
+        dy = T[i, 1, 3] - mu[1, 3]
+        dz = T[i, 2, 3] - mu[2, 3]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        mt = 0.0
+        if r > d_t:
+            k = 1.0 - d_t / r
+            dx *= k
+            dy *= k
+            dz *= k
+            mt = (dx * (Sinv_t[0, 0] * dx + Sinv_t[0, 1] * dy + Sinv_t[0, 2] * dz)
+                  + dy * (Sinv_t[1, 0] * dx + Sinv_t[1, 1] * dy + Sinv_t[1, 2] * dz)
+                  + dz * (Sinv_t[2, 0] * dx + Sinv_t[2, 1] * dy + Sinv_t[2, 2] * dz))
+        # R_i R_mu^T
+        for a in range(3):
+            for b in range(3):
+                q[3 * a + b] = T[i, a, 0] * mu[b, 0] + T[i, a, 1] * mu[b, 1] + T[i, a, 2] * mu[b, 2]
+        ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        r = math.sqrt(ex * ex + ey * ey + ez * ez)
+        mr = 0.0
+        if r > d_r:
+            k = 1.0 - d_r / r
+            ex *= k
+            ey *= k
+            ez *= k
+            mr = (ex * (Sinv_r[0, 0] * ex + Sinv_r[0, 1] * ey + Sinv_r[0, 2] * ez)
+                  + ey * (Sinv_r[1, 0] * ex + Sinv_r[1, 1] * ey + Sinv_r[1, 2] * ez)
+                  + ez * (Sinv_r[2, 0] * ex + Sinv_r[2, 1] * ey + Sinv_r[2, 2] * ez))
+        out[i] += logD - 0.5 * (mt + mr)
+
+
+@nb.njit(cache=True, boundscheck=False)
+def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
+    """Eq. (9) for one sensor: ``out_i += log N(e; 0, σ² I₂)``, ``e = m̂ - pi`` in the laser plane.
+
+    ``m̂ = p_i + R_i [mx, dist, mz]``; the plane has normal ``R_i[:, 1]``; ``pi`` is its
+    crossing with the polyline ``P[lo..hi]`` (knots, mm): found by bisection when the ends of
+    the range lie on opposite sides of the plane, else the crossing nearest ``m̂`` by a scan.
+    No crossing: error ``miss`` (mm).
+    """
+    n = T.shape[0]
+    inv = 0.5 / (sigma * sigma)
+    const = -math.log(2.0 * math.pi * sigma * sigma)
+    for i in range(n):
+        ox = T[i, 0, 3] + T[i, 0, 0] * mx + T[i, 0, 1] * dist + T[i, 0, 2] * mz
+        oy = T[i, 1, 3] + T[i, 1, 0] * mx + T[i, 1, 1] * dist + T[i, 1, 2] * mz
+        oz = T[i, 2, 3] + T[i, 2, 0] * mx + T[i, 2, 1] * dist + T[i, 2, 2] * mz
+        nx, ny, nz = T[i, 0, 1], T[i, 1, 1], T[i, 2, 1]
+        best = math.inf
+        bx = 0.0
+        bz = 0.0
+        s_lo = nx * (P[lo, 0] - ox) + ny * (P[lo, 1] - oy) + nz * (P[lo, 2] - oz)
+        s_hi = nx * (P[hi, 0] - ox) + ny * (P[hi, 1] - oy) + nz * (P[hi, 2] - oz)
+        if s_lo < 0.0 < s_hi or s_hi < 0.0 < s_lo:
+            # one sign change between the ends: bisect to a crossing segment (the seam
+            # advances through the plane; a fold-back within the window is not searched)
+            a, b, sa = lo, hi, s_lo
+            while b - a > 1:
+                m = (a + b) // 2
+                sm = nx * (P[m, 0] - ox) + ny * (P[m, 1] - oy) + nz * (P[m, 2] - oz)
+                if (sm < 0.0) == (sa < 0.0):
+                    a, sa = m, sm
+                else:
+                    b = m
+            k0, k1 = a, b
+            sb = nx * (P[k1, 0] - ox) + ny * (P[k1, 1] - oy) + nz * (P[k1, 2] - oz)
+            g = sa / (sa - sb)
+            ex = ox - (P[k0, 0] + g * (P[k1, 0] - P[k0, 0]))
+            ey = oy - (P[k0, 1] + g * (P[k1, 1] - P[k0, 1]))
+            ez = oz - (P[k0, 2] + g * (P[k1, 2] - P[k0, 2]))
+            best = 0.0
+            bx = ex * T[i, 0, 0] + ey * T[i, 1, 0] + ez * T[i, 2, 0]
+            bz = ex * T[i, 0, 2] + ey * T[i, 1, 2] + ez * T[i, 2, 2]
+        else:
+            # no or several crossings: scan every segment, keep the crossing nearest m-hat
+            s_prev = s_lo
+            for k in range(lo + 1, hi + 1):
+                s = nx * (P[k, 0] - ox) + ny * (P[k, 1] - oy) + nz * (P[k, 2] - oz)
+                if s_prev * s <= 0.0 and s != s_prev:
+                    g = s_prev / (s_prev - s)
+                    ex = ox - (P[k - 1, 0] + g * (P[k, 0] - P[k - 1, 0]))
+                    ey = oy - (P[k - 1, 1] + g * (P[k, 1] - P[k - 1, 1]))
+                    ez = oz - (P[k - 1, 2] + g * (P[k, 2] - P[k - 1, 2]))
+                    d2 = ex * ex + ey * ey + ez * ez
+                    if d2 < best:
+                        best = d2
+                        bx = ex * T[i, 0, 0] + ey * T[i, 1, 0] + ez * T[i, 2, 0]
+                        bz = ex * T[i, 0, 2] + ey * T[i, 1, 2] + ez * T[i, 2, 2]
+                s_prev = s
+        if best < math.inf:
+            out[i] += const - inv * (bx * bx + bz * bz)
+        else:
+            out[i] += const - inv * miss * miss
+
+
+@nb.njit(cache=True, boundscheck=False)
+def offsets_kernel(T, T_ref, out):
+    """``out_i = [R_refᵀ (p_i - p_ref), log(R_refᵀ R_i)]`` (mm, rad), shape (N, 6)."""
+    n = T.shape[0]
+    q = np.empty(9)
+    for i in range(n):
+        dx = T[i, 0, 3] - T_ref[0, 3]
+        dy = T[i, 1, 3] - T_ref[1, 3]
+        dz = T[i, 2, 3] - T_ref[2, 3]
+        for a in range(3):
+            out[i, a] = T_ref[0, a] * dx + T_ref[1, a] * dy + T_ref[2, a] * dz
+            for b in range(3):
+                q[3 * a + b] = T_ref[0, a] * T[i, 0, b] + T_ref[1, a] * T[i, 1, b] + T_ref[2, a] * T[i, 2, b]
+        ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        out[i, 3] = ex
+        out[i, 4] = ey
+        out[i, 5] = ez
+
+
+@nb.njit(cache=True, boundscheck=False)
+def fk_jacobian_kernel(a, alpha, d, theta, revolute, q, T_tool, T_out, J_out):
+    """Standard-DH forward kinematics ``T_base_tool`` and geometric Jacobian at one ``q``.
+
+    a, alpha, d, theta, q (n,); revolute (n,) bool; T_tool, T_out (4, 4); J_out (6, n):
+    rows ``[v (mm/rad); ω]`` in the base frame (as :meth:`DHChain.geometric_jacobian`).
+    """
+    n = q.shape[0]
+    T = np.eye(4)
+    A = np.zeros((4, 4))
+    Z = np.empty((n, 3))
+    O = np.empty((n, 3))
+    for i in range(n):
+        for r in range(3):
+            Z[i, r] = T[r, 2]
+            O[i, r] = T[r, 3]
+        th = theta[i] + (q[i] if revolute[i] else 0.0)
+        dd = d[i] + (0.0 if revolute[i] else q[i])
+        ct, st = math.cos(th), math.sin(th)
+        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
+        A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st * ca, st * sa, a[i] * ct
+        A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st, ct * ca, -ct * sa, a[i] * st
+        A[2, 0], A[2, 1], A[2, 2], A[2, 3] = 0.0, sa, ca, dd
+        A[3, 3] = 1.0
+        T = T @ A
+    T = T @ T_tool
+    for r in range(4):
+        for c in range(4):
+            T_out[r, c] = T[r, c]
+    px, py, pz = T[0, 3], T[1, 3], T[2, 3]
+    for i in range(n):
+        zx, zy, zz = Z[i, 0], Z[i, 1], Z[i, 2]
+        if revolute[i]:
+            ux, uy, uz = px - O[i, 0], py - O[i, 1], pz - O[i, 2]
+            J_out[0, i] = zy * uz - zz * uy
+            J_out[1, i] = zz * ux - zx * uz
+            J_out[2, i] = zx * uy - zy * ux
+            J_out[3, i], J_out[4, i], J_out[5, i] = zx, zy, zz
+        else:
+            J_out[0, i], J_out[1, i], J_out[2, i] = zx, zy, zz
+            J_out[3, i], J_out[4, i], J_out[5, i] = 0.0, 0.0, 0.0
+
+
+@nb.njit(cache=True, boundscheck=False)
+def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
+    """Knot range ``(lo, hi)`` of the polyline ``P (K, 3)`` around a plane through ``p`` with
+    normal ``n``: the first and last segment reaching within ``window`` of the plane and
+    within ``reach`` of ``p``; ``(-1, -1)`` when none does."""
+    lo = -1
+    hi = -1
+    k_n = P.shape[0]
+    s_prev = nx * (P[0, 0] - px) + ny * (P[0, 1] - py) + nz * (P[0, 2] - pz)
+    r_prev = math.sqrt((P[0, 0] - px) ** 2 + (P[0, 1] - py) ** 2 + (P[0, 2] - pz) ** 2)
+    for k in range(1, k_n):
+        s = nx * (P[k, 0] - px) + ny * (P[k, 1] - py) + nz * (P[k, 2] - pz)
+        r = math.sqrt((P[k, 0] - px) ** 2 + (P[k, 1] - py) ** 2 + (P[k, 2] - pz) ** 2)
+        if min(s, s_prev) <= window and max(s, s_prev) >= -window and min(r, r_prev) <= reach:
+            if lo < 0:
+                lo = k - 1
+            hi = k
+        s_prev = s
+        r_prev = r
+    return lo, hi
