@@ -125,18 +125,36 @@ def test_real_tum_pair_agrees_with_plain_umeyama_and_horn(fr1):
     assert np.linalg.norm(est.t_mm - t0) < 3.0
 
 
-def test_real_tum_estimates_are_metric(fr1):
+@pytest.fixture(scope="module")
+def fr2():
+    return read_tum(DATA / "fr2_desk_ORB.txt"), read_tum(DATA / "fr2_desk_groundtruth.txt")
+
+
+def test_real_tum_estimates_are_metric(fr1, fr2):
     src, dst = fr1
     i, j = associate(src.t_s, dst.t_s, max_dt_s=0.01)
     _, _, s = umeyama(src.positions[i], dst.positions[j], with_scale=True)
     assert s == pytest.approx(1.008, abs=0.001)
-    orb, gt = read_tum(DATA / "fr2_desk_ORB.txt"), read_tum(DATA / "fr2_desk_groundtruth.txt")
+    orb, gt = fr2
     reg = match_trajectories(orb, gt, max_dt_s=0.01, time_offset_s=0.0, with_scale=True)
     assert reg.scale == pytest.approx(0.997, abs=0.001)          # ORB-SLAM2 here is metric
     i, j = associate(orb.t_s, gt.t_s, max_dt_s=0.01)
     R0, t0, s0 = umeyama(orb.positions[i], gt.positions[j], with_scale=True)
     assert rotation_error_deg(reg.R, R0) < 0.01 and np.linalg.norm(reg.t_mm - t0) < 1.0
     assert reg.scale == pytest.approx(s0, abs=1e-4)
+
+
+def test_real_tum_pair_without_timestamps_agrees_with_timestamped(fr2):
+    orb, gt = fr2                    # 2893 ORB-SLAM2 poses at 30 Hz, 20957 motion-capture poses at 100 Hz
+    i, j = associate(orb.t_s, gt.t_s, max_dt_s=0.01)
+    R0, t0, _ = umeyama(orb.positions[i], gt.positions[j])
+    reg = match_trajectories(orb, gt, use_timestamps=False)
+    assert rotation_error_deg(reg.R, R0) < 0.1
+    assert np.linalg.norm(reg.t_mm - t0) < 5.0
+    # the ground truth has a 12 s gap: the ORB poses in it have no partner and are flagged
+    gap = (orb.t_s > 1311868196.0) & (orb.t_s < 1311868207.2)
+    assert gap.sum() > 300 and reg.inliers[gap].mean() < 0.2
+    assert reg.inliers[~gap].mean() > 0.9
 
 
 # ------------------------------------------------------------------ correspondence-free parts
