@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError, GeometryError
-from posekit.localcal._arm_kernel import _rate_step
+from posekit.localcal._arm_kernel import simulate_moves
 from posekit.localcal.arm import (
     DEFAULT_Q0,
     LongReachArm,
@@ -28,12 +28,15 @@ def test_compiled_rate_step_equals_robots_resolved_rate_step():
     T_target = m.forward_kinematics(DEFAULT_Q0)
     twist = np.array([10.0, -20.0, 5.0, 0.01, -0.02, 0.03])
     ref = resolved_rate_step(m, q, T_target, (7.0, 3.0), 0.01, 1e-3, twist_target=twist)
-    ours = _rate_step(
+    ones = np.ones(6)
+    _, _, q_cmd = simulate_moves(
         m.a, m.alpha, m.d, m.theta, m.is_revolute, m.q_min, m.q_max, m.T_flange_tool,
-        q, T_target[:3, 3].copy(), T_target[:3, :3].copy(), twist,
+        T_target[None, :3, 3].copy(), T_target[None, :3, :3].copy(), twist[None],
         np.array([7.0, 7.0, 7.0, 3.0, 3.0, 3.0]), 1e-3, 0.01,
+        ones, 0.5 * ones, ones, 0.0 * ones, np.zeros((1, 6)),
+        q.copy(), q.copy(), np.zeros(6), q.copy(), q.copy(),
     )
-    np.testing.assert_allclose(ours, ref.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(q_cmd[0], ref.q, rtol=0, atol=1e-12)
 
 
 def test_nominal_model_mispredicts_true_tool_by_centimetres():
@@ -52,7 +55,10 @@ def test_nominal_model_mispredicts_true_tool_by_centimetres():
 
 def test_move_to_reaches_reference_nominally_but_not_truly():
     arm = LongReachArm(seed=4)
-    T_ref = _shifted(arm.nominal_pose(), [150.0, -250.0, 120.0])
+    T0 = arm.nominal_pose()
+    # 0.55 m forward along the camera's viewing axis (-z_F) and 0.15 m sideways, as when the
+    # tool is driven to an OOI ~1 m in front of the camera
+    T_ref = _shifted(T0, -550.0 * T0[:3, 2] + 150.0 * T0[:3, 1])
     log = arm.move_to(T_ref, duration_s=4.0, settle_s=1.5)
     n = len(log.t_s)
     assert n == 1 + 400 + 150

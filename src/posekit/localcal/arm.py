@@ -51,10 +51,12 @@ __all__ = [
     "sample_nonkinematic_errors",
 ]
 
-#: Default start configuration of the HIAB033-like crane (rad): lift boom up 20°, tilt boom
-#: down, wrist pitched so that the last joint's torsion axis points forward and slightly
-#: down, ~4.9 m from the slewing axis.
-DEFAULT_Q0 = np.array([0.0, 0.35, -0.7, 0.0, 0.2, 0.0])
+#: Default start configuration of the HIAB033-like crane (rad): lift boom up 46°, tilt boom
+#: folded down, wrist 2 at 0.2 rad (clear of the wrist singularity at 0); the TCP is 4.42 m
+#: from the slewing axis and 2.52 m high, the last joint's torsion axis (and the camera)
+#: points forward and 31.6° down. From here the tool can move ~0.65 m forward along that
+#: axis (an OOI ~1 m in front of the camera) and ±0.25 m sideways within reach.
+DEFAULT_Q0 = np.array([0.0, 0.8, -1.15, 0.0, 0.2, 0.0])
 
 _UP = np.array([0.0, 0.0, 1.0])
 
