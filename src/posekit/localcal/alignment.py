@@ -12,9 +12,11 @@ from posekit.errors import TrajectoryError
 __all__ = [
     "INLIER_SIGMAS",
     "MIN_POSES",
+    "body_rotation_spread",
     "check_path_shape",
     "robust_principal_axes",
     "robust_umeyama",
+    "thin_indices",
     "umeyama",
 ]
 
@@ -162,6 +164,42 @@ def robust_principal_axes(p, n_iter: int = 3):
     lam, V = np.linalg.eigh(np.cov(p[keep].T, bias=True))
     order = np.argsort(lam)[::-1]
     return mean, V[:, order], np.sqrt(np.clip(lam[order], 0.0, None)), keep
+
+
+def body_rotation_spread(R_src, R_dst, R) -> float:
+    """Median angle between paired body-to-body rotations and their mean, rad.
+
+    For pairs of orientations ``R_src_i`` (src world) and ``R_dst_i`` (dst world) of two rigidly
+    attached bodies, ``X_i = R_src_i^T R^T R_dst_i`` is one constant rotation when ``R`` is the
+    right ``R_dst_src``, whatever the mount between the bodies is.
+
+    Parameters
+    ----------
+    R_src, R_dst : ndarray, shape (K, 3, 3)
+        Paired orientations.
+    R : ndarray, shape (3, 3)
+        Candidate ``R_dst_src``.
+
+    Returns
+    -------
+    float
+        Median angle of the ``X_i`` from their chordal mean, rad (NaN for K = 0).
+    """
+    if len(R_src) == 0:
+        return float("nan")
+    Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst
+    U, _, Vt = np.linalg.svd(Xs.sum(0))
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
+    c = (np.einsum("nij,ij->n", Xs, (U * d) @ Vt) - 1.0) / 2.0
+    return float(np.median(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def thin_indices(n: int, k: int) -> np.ndarray:
+    """At most ``k`` evenly spaced indices of ``range(n)`` (all of them if ``n <= k``)."""
+    if n <= k:
+        return np.arange(n)
+    return np.linspace(0, n - 1, k).round().astype(int)
 
 
 def check_path_shape(p, name: str) -> None:

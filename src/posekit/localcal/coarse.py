@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .alignment import robust_principal_axes
+from .alignment import body_rotation_spread, robust_principal_axes, thin_indices
 from .cpd import rigid_cpd
 
 __all__ = ["TIE_NATS", "CoarseAlignment", "coarse_align", "orientation_spread", "pca_candidates"]
@@ -107,18 +107,11 @@ def _score(X, Y, res, w):
 def orientation_spread(R, t, s, p_src, R_src, p_dst, R_dst) -> float:
     """How far the orientations disagree with a transform, rad (median).
 
-    Each src pose is paired with its nearest dst pose after ``s R p + t``; if ``R`` is right, the
-    body-to-body rotations ``X_i = R_src_i^T R^T R_dst_j(i)`` are one constant rotation (the two
-    bodies are rigidly attached), whatever it is. Returns the median angle of the ``X_i`` from their
-    chordal mean.
+    Each src pose is paired with its nearest dst pose after ``s R p + t``; see
+    :func:`.alignment.body_rotation_spread`.
     """
     _, j = cKDTree(p_dst).query(s * p_src @ R.T + t)
-    Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst[j]
-    U, _, Vt = np.linalg.svd(Xs.sum(0))
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
-    c = (np.einsum("nij,ij->n", Xs, (U * d) @ Vt) - 1.0) / 2.0
-    return float(np.median(np.arccos(np.clip(c, -1.0, 1.0))))
+    return body_rotation_spread(R_src, R_dst[j], R)
 
 
 def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_src=None, R_dst=None,
@@ -152,8 +145,8 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
     -------
     CoarseAlignment
     """
-    ks = _thin(len(p_src), max_points)
-    kd = _thin(len(p_dst), max_points)
+    ks = thin_indices(len(p_src), max_points)
+    kd = thin_indices(len(p_dst), max_points)
     Y, X = p_src[ks], p_dst[kd]
     Rs, ts, s = pca_candidates(p_src, p_dst, with_scale=with_scale)
     scores, fits = [], []
@@ -170,10 +163,3 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
                   for k in tied]
         best = int(tied[int(np.argmin(spread))])
     return CoarseAlignment(fits[best].R, fits[best].t, fits[best].s, fits[best].sigma2, scores, best)
-
-
-def _thin(n: int, k: int) -> np.ndarray:
-    """At most k evenly spaced indices of range(n)."""
-    if n <= k:
-        return np.arange(n)
-    return np.linspace(0, n - 1, k).round().astype(int)

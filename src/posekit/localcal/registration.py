@@ -31,8 +31,10 @@ from .alignment import (
     _CHI3_MEDIAN,
     INLIER_SIGMAS,
     MIN_POSES,
+    body_rotation_spread,
     check_path_shape,
     robust_umeyama,
+    thin_indices,
     umeyama,
 )
 from .association import associate, estimate_time_offset
@@ -113,7 +115,8 @@ class Registration:
             "time_offset_s": float(self.time_offset_s),
             "n_pairs": int(self.n_pairs),
             "n_inliers": int(self.inliers.sum()),
-            "orientation_spread_deg": float(self.orientation_spread_deg),
+            "orientation_spread_deg": (float(self.orientation_spread_deg)
+                                       if np.isfinite(self.orientation_spread_deg) else None),
             "mode": self.mode,
         }
 
@@ -123,17 +126,6 @@ def _errors(p_src, p_dst, R, t, s, inl):
     ei = e[inl]
     rmse = float(np.sqrt((ei ** 2).sum(1).mean()))
     return rmse, np.abs(ei).mean(0), np.abs(ei).max(0)
-
-
-def _orientation_spread(R_src, R_dst, R) -> float:
-    """Median angle (deg) of the pair-wise body-to-body rotations X_i = R_src_i^T R^T R_dst_i from their mean."""
-    Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst
-    U, _, Vt = np.linalg.svd(Xs.sum(0))
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
-    Xm = (U * d) @ Vt
-    c = (np.einsum("nij,ij->n", Xs, Xm) - 1.0) / 2.0
-    return float(np.rad2deg(np.median(np.arccos(np.clip(c, -1.0, 1.0)))))
 
 
 def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool = True,
@@ -212,15 +204,9 @@ def _match_timed(src, dst, max_dt_s, offset, max_offset_s, with_scale, outlier_f
     check_path_shape(ps, f"{names[0]} (poses paired with {names[1]})")
     R, t, s, inl, _ = robust_umeyama(ps, pd, with_scale=with_scale, outlier_fraction=outlier_fraction)
     rmse, mean_e, max_e = _errors(ps, pd, R, t, s, inl)
-    spread = _orientation_spread(src.rotations[i_s][inl], dst.rotations[i_d][inl], R)
+    spread = np.rad2deg(body_rotation_spread(src.rotations[i_s][inl], dst.rotations[i_d][inl], R))
     return Registration(R, t, rmse, mean_e, max_e, int(i_s.size), inl, s, float(offset),
                         np.column_stack([i_s, i_d]), spread, "timestamps")
-
-
-def _thin(n: int, k: int) -> np.ndarray:
-    if n <= k:
-        return np.arange(n)
-    return np.linspace(0, n - 1, k).round().astype(int)
 
 
 def _turns(R) -> bool:
@@ -239,7 +225,7 @@ def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
     Rdst = dst.rotations if turns else None
     w = max(outlier_fraction, 1e-3)
     coarse = coarse_align(ps, pd, w=w, with_scale=with_scale, R_src=Rsrc, R_dst=Rdst)
-    ks, kd = _thin(len(ps), CPD_MAX_POINTS), _thin(len(pd), CPD_MAX_POINTS)
+    ks, kd = thin_indices(len(ps), CPD_MAX_POINTS), thin_indices(len(pd), CPD_MAX_POINTS)
     fine = rigid_cpd(pd[kd], ps[ks], R0=coarse.R, t0=coarse.t, s0=coarse.s, w=w, with_scale=with_scale,
                      sigma2=coarse.sigma2)
     R, t, s = fine.R, fine.t, fine.s
@@ -248,6 +234,6 @@ def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
     sigma = max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
     inl = dist <= INLIER_SIGMAS * sigma
     rmse, mean_e, max_e = _errors(ps, pd[j], R, t, s, inl)
-    spread = _orientation_spread(src.rotations[inl], dst.rotations[j][inl], R)
+    spread = np.rad2deg(body_rotation_spread(src.rotations[inl], dst.rotations[j][inl], R))
     return Registration(R, t, rmse, mean_e, max_e, len(ps), inl, s, 0.0,
                         np.column_stack([np.arange(len(ps)), j]), spread, "no-timestamps")
