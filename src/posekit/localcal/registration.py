@@ -65,7 +65,10 @@ class Registration:
         Root-mean-square position residual over the inlier pairs, mm.
     mean_abs_err_mm, max_abs_err_mm : ndarray, shape (3,)
         Mean and largest absolute residual per dst axis over the inlier pairs, mm (Table 3 of
-        the paper).
+        the paper). Without timestamps the pairs are nearest neighbours, so the residuals only
+        measure the distance across the path (a slip along it is invisible) and the inlier gate
+        (``INLIER_SIGMAS`` robust sigmas of those distances) also flags src poses where dst has
+        no data (e.g. a gap in the recording).
     n_pairs : int
         Number of pairs: timestamp-associated pairs, or (without timestamps) src poses each
         paired with its nearest dst pose after alignment.
