@@ -56,6 +56,10 @@ def test_ground_truth_follows_the_tcp(setup):
     assert gt.e_C_mm.shape == (2, 3) and gt.T_C_O.shape == (2, 4, 4)
     np.testing.assert_allclose(gt.e_C_mm[1], [0.0, 0.0, 100.0], atol=1e-6)
     np.testing.assert_allclose(gt.rot_C_rad[1], gt0.rot_C_rad, atol=1e-12)
+    # there, all markers are still seen and the image-based error is close to the truth
+    obs = observe(cell, T_goal, setup[2], 5)
+    assert obs.seen == (0, 1, 2, 3)
+    np.testing.assert_allclose(obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3], [0.0, 0.0, 100.0], atol=3.0)
 
 
 def test_observe_start_pose_measures_truth(setup):

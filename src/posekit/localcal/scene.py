@@ -11,18 +11,23 @@ Default layout (:func:`default_workcell`, HIAB033-like crane at its start pose)
 -------------------------------------------------------------------------------
 * Camera: looks along the torsion axis of the last joint, i.e. along ``-z_F`` (the TCP
   frame's z axis points back toward the arm, see ``posekit.robots.hiab033``); image x is
-  ``-y_F``, image y is ``-x_F`` (upright image when the arm is stretched out).
-* Tool marker (id 0, 80 mm): the TCP ("link 7 unifies the last frame with the tool marker's
-  frame", paper Sec. 4.2), so ``T_F_M ≈ I``; it is seen at ``t_C_M = (-180, 140, 420)`` mm,
-  in the lower left of the image, facing the camera. With ``rng`` the mounting gets small
-  alignment errors (≈1° and ≈3 mm), as the paper reports.
-* OOI: ``distance_mm`` (1 m) in front of the camera at the true start pose, at
-  ``(x, y) = (-50, -20)`` mm in the camera frame, facing the camera (with ``rng``: a few
-  degrees of extra rotation and ±20 mm of extra offset). Markers 1, 2, 3 (90 mm) at
-  ``(-150, -110)``, ``(150, -110)``, ``(0, 150)`` mm in the OOI plane. The tool marker starts
-  ≈0.2 m off the OOI laterally and ≈0.58 m in front of it, and no marker hides another
-  from the start pose, during a 20 cm circle in the local plane, or with the tool marker
-  driven to the OOI (100 mm short of it).
+  ``-y_F``, image y is ``-x_F`` (:data:`R_F_C_NOMINAL`; an upright image when the arm is
+  stretched out).
+* Tool marker (id 0, 70 mm): at the TCP ("link 7 unifies the last frame with the tool
+  marker's frame", paper Sec. 4.2), so ``T_F_M ≈ I``; the camera sees it at
+  ``t_C_M = (-180, 100, 420)`` mm (lower left of the image), facing the camera, so
+  ``R_C_M = R_F_C_NOMINAL^T``. With ``rng`` the mounting gets small alignment errors
+  (≈1° per axis and ≈3 mm), as the paper reports; ``T_F_C`` follows from them.
+* OOI: ``distance_mm`` (1 m) in front of the camera at the arm's true pose when the cell is
+  made, at ``(x, y) = (170, -80)`` mm in the camera frame (upper right of the image), facing
+  the camera and parallel to the tool marker (with ``rng``: ≈3° per axis of extra rotation
+  and ±20 mm of extra offset). Markers 1, 2, 3 (80 mm) at ``(170, 0)``, ``(-100, 150)``,
+  ``(-100, -150)`` mm in the OOI plane (above, lower left and lower right of the OOI centre
+  in the image).
+* So the tool marker starts (350, -180, 580) mm from the OOI in the camera frame (nominal
+  layout). Checked by rendering (seeds 0–9, OOI at 0.8, 1.0 and 1.2 m): all four markers are
+  detected at the start pose, along a 20 cm circle in the local (n, s) plane, and with the
+  tool marker driven to 100 mm in front of the OOI.
 """
 
 from collections.abc import Mapping
