@@ -68,6 +68,7 @@ def test_move_to_reaches_reference_nominally_but_not_truly():
     err_true = np.linalg.norm(arm.true_pose()[:3, 3] - T_ref[:3, 3])
     assert err_nominal < 1.0
     assert 10.0 < err_true < 100.0
+    assert arm.command_residual_mm < 0.01
     R_err = arm.nominal_pose()[:3, :3].T @ T_ref[:3, :3]
     assert np.arccos(np.clip((np.trace(R_err) - 1) / 2, -1, 1)) < 1e-3
     np.testing.assert_array_equal(log.T_B_F_nominal[-1], arm.nominal_pose())
@@ -148,6 +149,13 @@ def test_follow_visits_waypoints_and_ends_at_the_last():
         assert closest < 10.0
         assert np.linalg.norm(log.T_B_F_nominal[k, :3, 3] - path[step, :3, 3]) < 40.0
     assert np.linalg.norm(arm.nominal_pose()[:3, 3] - path[-1, :3, 3]) < 1.0
+
+
+def test_unreachable_reference_is_reported():
+    arm = LongReachArm(seed=1)
+    T0 = arm.nominal_pose()
+    arm.move_to(_shifted(T0, -2000.0 * T0[:3, 2]), duration_s=3.0, settle_s=0.5)  # beyond reach
+    assert arm.command_residual_mm > 100.0
 
 
 def test_same_seed_same_numbers():

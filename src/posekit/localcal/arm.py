@@ -31,7 +31,7 @@ while the *true* tool is off by centimetres.
 Frames: B robot base, F the TCP frame at the end of the DH chain. mm and rad.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -222,6 +222,7 @@ class LongReachArm:
 
     model: DHChain | None = None
     errors: NonKinematicErrors | None = None
+    _: KW_ONLY
     dt_s: float = 0.01
     tau_s: float | np.ndarray = 0.1
     kv: float | np.ndarray = 4.0
@@ -290,6 +291,7 @@ class LongReachArm:
         }
         self._state = {
             "t": 0.0,
+            "residual": 0.0,
             "q_cmd": q0.copy(),
             "q_act": q0.copy(),
             "v": np.zeros(n),
@@ -308,6 +310,19 @@ class LongReachArm:
     def t_s(self) -> float:
         """Simulated time since the arm was created, s."""
         return self._state["t"]
+
+    @property
+    def command_residual_mm(self) -> float:
+        """Distance of the commanded nominal TCP from the last move's reference, mm.
+
+        ~0 when the reference was reachable; large when the resolved-rate control stopped at
+        joint limits or a singularity (the move then ends short of the reference).
+        """
+        return self._state["residual"]
+
+    def _residual(self, T_ref: np.ndarray) -> None:
+        T = self.model.forward_kinematics(self._state["q_cmd"], check=False)
+        self._state["residual"] = float(np.linalg.norm(T[:3, 3] - T_ref[:3, 3]))
 
     def q_measured(self) -> np.ndarray:
         """Encoder readings, shape (n,), rad."""
@@ -424,7 +439,9 @@ class LongReachArm:
         T1 = _rigid(T_B_ref, "T_B_ref")
         T0 = self.model.forward_kinematics(self._state["q_cmd"], check=False)
         duration_s, settle_s = self._check_times(duration_s, settle_s, T0, T1)
-        return self._run(*self._cartesian_path(T0, T1, duration_s, settle_s))
+        log = self._run(*self._cartesian_path(T0, T1, duration_s, settle_s))
+        self._residual(T1)
+        return log
 
     def _check_times(self, duration_s, settle_s, T0, T1):
         if duration_s is None:
@@ -476,5 +493,6 @@ class LongReachArm:
             last = k == path.shape[0] - 1
             dur, hold = self._check_times(segment_s, settle_s if last else 0.0, T0, path[k])
             log = self._run(*self._cartesian_path(T0, path[k], dur, hold))
+            self._residual(path[k])
             logs.append(log if k == 0 else ArmLog(*(a[1:] for a in log)))
         return _concat_logs(logs)
