@@ -12,8 +12,8 @@ backlash
     (play operator): on reversal the link stays put until the play is taken up, so the
     error depends on the direction of the last motion.
 bending
-    Link droop under gravity and payload: the lift and tilt joints (indices 1 and 2 of
-    ``bending_joints``) get an extra rotation about their own axes
+    Link droop under gravity and payload: the lift and tilt joints (``bending_joints``,
+    by default indices 1 and 2) get an extra rotation about their own axes
     ``δ_i = c_i · τ_i / 1000``, where ``τ_i = z_i · ((p_TCP - o_i) × (-e_z))`` is the lever
     arm (mm) of a unit load at the TCP about joint axis i in the base frame (``e_z`` up) and
     ``c_i = bending_rad_per_m[i]`` the compliance in rad per metre of lever arm. The droop is
@@ -218,6 +218,17 @@ class LongReachArm:
         Start configuration (actuator angles), rad; :data:`DEFAULT_Q0` for the 6-joint crane.
     seed : int or numpy.random.Generator
         Seeds the errors (when not given), the initial backlash state and the encoder noise.
+
+    Examples
+    --------
+    >>> arm = LongReachArm(seed=0)
+    >>> T = arm.nominal_pose()
+    >>> T[:3, 3] -= 300.0 * T[:3, 2]          # 0.3 m forward along the torsion axis
+    >>> log = arm.move_to(T)                   # ~3.8 s + 1.5 s settling at 100 Hz
+    >>> bool(np.linalg.norm(arm.nominal_pose()[:3, 3] - T[:3, 3]) < 1.0)  # the model: there
+    True
+    >>> bool(np.linalg.norm(arm.true_pose()[:3, 3] - T[:3, 3]) > 10.0)  # the real tool: cm off
+    True
     """
 
     model: DHChain | None = None
