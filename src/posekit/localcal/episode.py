@@ -43,10 +43,12 @@ __all__ = ["METHODS", "OCCLUSIONS", "START_Q", "EpisodeConfig", "EpisodeResult",
 
 #: Range adjustment methods.
 METHODS = ("line", "trajectory")
-#: Start configuration of the crane (rad): the arm's default pose pulled back 0.5 m along the
-#: camera's viewing axis (same orientation), so that driving the tool marker to an OOI about
-#: 1 m in front of the camera stays inside the ~5.25 m reach (an assumption of this simulation).
-START_Q = (0.0, 0.6316, -1.1399, 0.0, 0.0417, 0.0)
+#: Start configuration of the crane (rad): booms pulled in from the arm's default pose (TCP
+#: ~4.6 m from the slewing axis, camera looking ~50° below the horizon) and the wrist pitched
+#: 20° away from its singularity (wrist 2 = 0), so that driving the tool marker to an OOI about
+#: 1 m in front of the camera stays inside the ~5.25 m reach and the wrist never flips
+#: (an assumption of this simulation; the paper does not give its start pose).
+START_Q = (0.0, 0.55, -1.1, 0.0, 0.35, 0.0)
 #: When the OOI can be hidden from the camera (:attr:`EpisodeConfig.occlude_ooi`).
 OCCLUSIONS = ("never", "calibration", "always")
 

@@ -74,15 +74,19 @@ def plot_circle_path(episode, path):
     T0 = lg["T_B_F_centre"]
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.8))
     ref = lg["reference_path_B"]
-    for a, proj in zip(ax, ("plane", "3d-side")):
+    # the true TCP is off the model by centimetres: compare shapes from the same start
+    shift = lg["path_true_B"][0] - lg["path_nominal_B"][0]
+    true_path = lg["path_true_B"] - shift
+    approach = lg["approach_true_B"] - shift
+    for a, proj in zip(ax, ("plane", "side")):
         if proj == "plane":
             x, y = _plane_coords(ref, T0)
             a.plot(x, y, "k.-", label="reference path (waypoints)")
-            x, y = _plane_coords(lg["path_true_B"], T0)
-            a.plot(x, y, "r-", lw=1.2, label="completed path (true TCP)")
+            x, y = _plane_coords(true_path, T0)
+            a.plot(x, y, "r-", lw=1.2, label="completed path (true TCP, from the same start)")
             x, y = _plane_coords(lg["path_nominal_B"], T0)
             a.plot(x, y, "b:", lw=1, label="completed path (encoders)")
-            x, y = _plane_coords(lg["approach_true_B"], T0)
+            x, y = _plane_coords(approach, T0)
             a.plot(x, y, "m-", lw=1.2, label="move to the reference (true TCP)")
             x, y = _plane_coords(np.asarray(lg["references_B"]), T0)
             a.plot(x, y, "g*", ms=12, label="reference positions (eq. 16)")
@@ -90,7 +94,7 @@ def plot_circle_path(episode, path):
             a.plot(x, y, "kx", ms=10, mew=2, label="goal (tool marker on the OOI axis)")
             a.set(xlabel="n (mm)", ylabel="s (mm)", title="in the plane of the circle", aspect="equal")
         else:
-            d_true = (lg["path_true_B"] - T0[:3, 3]) @ T0[:3, 2]
+            d_true = (true_path - T0[:3, 3]) @ T0[:3, 2]
             d_nom = (lg["path_nominal_B"] - T0[:3, 3]) @ T0[:3, 2]
             a.plot(d_true, "r-", label="true TCP, out of plane")
             a.plot(d_nom, "b:", label="encoder TCP, out of plane")
@@ -107,25 +111,23 @@ def plot_trajectory_matching(episode, path):
     plt = _plt()
     lg = episode.logs
     T0 = lg["T_B_F_start"]
-    fig = plt.figure(figsize=(11, 4.8))
-    a3 = fig.add_subplot(1, 2, 1, projection="3d")
-    for pts, style, label in ((lg["reference_path_B"], "g.-", "reference path"),
-                              (lg["path_nominal_B"], "k-", "encoder-based TCP"),
-                              (lg["vo_calibrated_B"], "r-", "VO camera after local calibration")):
-        p = np.asarray(pts)
-        a3.plot(p[:, 0], p[:, 1], p[:, 2], style, lw=1, label=label)
-    a3.set(xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)", title="base frame")
-    a3.legend(fontsize=7)
-    a2 = fig.add_subplot(1, 2, 2)
-    for pts, style, label in ((lg["reference_path_B"], "g.-", "reference path"),
-                              (lg["path_nominal_B"], "k-", "encoder-based TCP"),
-                              (lg["vo_calibrated_B"], "r-", "calibrated VO")):
+    series = ((lg["reference_path_B"], "g.-", "reference path"),
+              (lg["path_nominal_B"], "k-", "encoder-based TCP"),
+              (lg["vo_calibrated_B"], "r-", "VO camera after local calibration"))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [3, 2]})
+    for pts, style, label in series:
         x, y = _plane_coords(pts, T0)
-        a2.plot(x, y, style, lw=1, label=label)
-    a2.set(xlabel="n (mm)", ylabel="s (mm)", title="in the plane of the path", aspect="equal")
-    a2.grid(True, alpha=0.3)
-    a2.legend(fontsize=7)
-    fig.suptitle("Trajectory matching (VO vs kinematic model)")
+        ax[0].plot(x, y, style, lw=1, label=label)
+        depth = (np.asarray(pts, float) - T0[:3, 3]) @ T0[:3, 2]
+        ax[1].plot(x, depth, style, lw=1, label=label)
+    ax[0].set(xlabel="n (mm)", ylabel="s (mm)", title="in the plane of the path (base frame)", aspect="equal")
+    ax[1].set(xlabel="n (mm)", ylabel="a (mm, out of the plane)", title="side view")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7)
+    m = episode.matching
+    fig.suptitle("Trajectory matching (VO vs kinematic model): mean |error| x/y/z = "
+                 + "/".join(f"{v:.1f}" for v in m["mean_abs_err_mm"]) + " mm")
     return _save(fig, path)
 
 

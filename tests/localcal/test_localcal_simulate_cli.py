@@ -1,0 +1,68 @@
+"""``posekit localcal simulate`` and ``posekit localcal demo`` end to end (in-process)."""
+
+import csv
+import json
+
+import pytest
+
+from posekit.cli.main import main
+
+
+def test_simulate_trajectory_writes_tables_figures_and_report(tmp_path, capsys):
+    out = tmp_path / "traj"
+    rc = main(["localcal", "simulate", "--method", "trajectory", "--runs", "1", "--seed", "2", "--updates", "2",
+               "--plot-hz", "0.5", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert "Table 3:" in captured.out and "Table 4:" in captured.out
+    assert "1/1 runs ok" in captured.out
+    for name in ("table3.csv", "table4.csv", "table4_truth.csv", "results.json", "fig8_matching.png",
+                 "fig9_errors.png", "report.html"):
+        assert (out / name).is_file(), name
+    rows = list(csv.DictReader((out / "table4.csv").open()))
+    assert [r["run"] for r in rows] == ["run 1", "mean"]
+    assert rows[0]["status"] == "ok"
+    assert float(rows[0]["ex_2_mm"]) < 10.0 and float(rows[0]["ey_2_mm"]) < 10.0
+    assert float(rows[1]["ey_2_mm"]) == pytest.approx(float(rows[0]["ey_2_mm"]))
+    record = json.loads((out / "results.json").read_text())
+    assert record["method"] == "trajectory" and record["runs"] == 1 and record["updates"] == 2
+    assert record["tables"]["table4"][0]["ex_2_mm"] == pytest.approx(float(rows[0]["ex_2_mm"]), rel=1e-5)
+    assert set(record["matching"][0]) >= {"R", "t_mm", "rmse_mm", "mean_abs_err_mm", "max_abs_err_mm"}
+    report = (out / "report.html").read_text()
+    assert report.count('src="data:image/png;base64,') == 2
+    assert "Table 4" in report and "paper mean (Table 4)" in report
+
+
+def test_demo_runs_one_episode_of_each_method(tmp_path, capsys):
+    rc = main(["localcal", "demo", "--seed", "1", "--camera-hz", "1", "--plot-hz", "0", "--out", str(tmp_path)])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert "== line method" in captured.out and "== trajectory method" in captured.out
+    assert "Table 2:" in captured.out and "Table 4:" in captured.out
+    assert (tmp_path / "line" / "fig6_circle_path.png").is_file()
+    assert (tmp_path / "trajectory" / "report.html").is_file()
+
+
+def test_simulate_with_the_ooi_never_seen_is_a_one_line_error(tmp_path, capsys):
+    rc = main(["localcal", "simulate", "--method", "trajectory", "--runs", "1", "--occlude-ooi", "always",
+               "--plot-hz", "0", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert err == ("posekit: error: trajectory method: all 1 run(s) failed; run 1: EstimationError: the OOI "
+                   "(markers 1, 2, 3) not seen by the camera at the start pose\n")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--method", "circle"], "--method: expected one of line | trajectory, got 'circle'"),
+    (["--method", "line", "--runs", "0"], "--runs: expected an integer >= 1, got 0"),
+    (["--method", "line", "--updates", "0"], "--updates: expected an integer >= 1, got 0"),
+    (["--method", "line", "--occlude-ooi", "maybe"],
+     "--occlude-ooi: expected one of never | calibration | always, got 'maybe'"),
+    (["--method", "line", "--camera-hz", "0"], "--camera-hz: expected a rate > 0, got 0"),
+    (["--method", "line", "--scheduler", "cluster"],
+     "--scheduler: expected serial, local or a Dask address like tcp://HOST:PORT, got 'cluster'"),
+])
+def test_simulate_bad_options(tmp_path, capsys, argv, message):
+    rc = main(["localcal", "simulate", *argv, "--out", str(tmp_path)])
+    assert rc == 1
+    assert capsys.readouterr().err == f"posekit: error: {message}\n"
