@@ -178,12 +178,17 @@ class FilterConfig(_Section):
     (``robot_floor_t_mm``, ``robot_floor_r_deg``); ``compliance_rad_per_nm`` is the filter's
     joint compliance model Cj(τ) (0: none). Laser (eq. 9): Gaussian ``laser_sigma_mm`` on the
     in-plane error, the seam searched within ``search_window_mm`` of the nominal intersection
-    on the trend-filtered knot polyline (eq. 10: ``trend_lambda``, ``trend_eps_mm``).
+    on the trend-filtered knot polyline (eq. 10: ``trend_lambda``, ``trend_eps_mm``). An update
+    leaving fewer than ``anneal_ess · N`` effective particles is tempered in up to
+    ``anneal_stages`` stages with kernel jitter ``anneal_jitter`` (see :mod:`posekit.seam.filter`).
     """
 
     particles: int = Field(500, ge=1)
     resampler: Literal["systematic", "stratified", "residual"] = "systematic"
     ess_threshold: float = Field(0.5, gt=0.0, le=1.0)  # fraction of the particle count
+    anneal_ess: float = Field(0.05, ge=0.0, le=1.0)  # temper an update leaving fewer (fraction of N)
+    anneal_stages: int = Field(4, ge=0)
+    anneal_jitter: float = Field(0.5, ge=0.0)  # kernel bandwidth, times the spread
     sigma_t_mm: float = Field(0.02, ge=0.0)
     sigma_r_deg: float = Field(0.005, ge=0.0)
     k_force_t: float = Field(4e-6, ge=0.0)  # mm/N

@@ -5,6 +5,13 @@ One step: propagate every particle with the nominal increment and force-dependen
 measurement (eq. 9); normalise the log-weights (recovering from vanishing weights); estimate
 the weighted mean on SE(3) and its spread; resample by name when the effective sample size
 falls below ``ess_threshold · N``.
+
+When one update would leave fewer than ``anneal_ess · N`` effective particles (the laser
+likelihood is far narrower than the cloud: at start-up, at a seam feature), the likelihood
+is applied in tempered stages ``ℓ^β₁ ℓ^β₂ ...`` (β chosen for an ESS of N/2), each followed by
+a kernel resampling step that jitters the copies by ``anneal_jitter`` times the spread; at
+most ``anneal_stages`` stages. Without it the cloud collapses onto the one particle nearest
+the truth and the small transition noise cannot move it for hundreds of steps.
 """
 
 import math
@@ -23,6 +30,7 @@ from .densities import (
     robot_measurement,
     transition,
 )
+from . import _kernels as _k
 from .particles import RESAMPLERS, exp_small, normalize_log_weights, weighted_mean_se3
 from .seamline import SeamLine
 from .trajectories import tool_chain
@@ -79,6 +87,8 @@ class StepEstimate:
         The robot measurement mean ``Fk(q + Cj(τ))`` (kinematics-only pose), mm.
     lasers_used : int
         Number of laser measurements used.
+    anneal_stages : int
+        Tempering stages used at this step (0 when the update was not degenerate).
     """
 
     T: np.ndarray
@@ -88,6 +98,7 @@ class StepEstimate:
     recovered: bool
     T_kinematic: np.ndarray
     lasers_used: int
+    anneal_stages: int = 0
 
 
 class SeamParticleFilter:
@@ -120,6 +131,8 @@ class SeamParticleFilter:
         How many times vanishing weights were reset to uniform.
     resamplings : int
         How many times the particles were resampled.
+    annealings : int
+        Tempering stages used so far (see :meth:`step`).
     """
 
     def __init__(self, cfg: SeamConfig, seam_polyline, rng=None, *, T_init=None, seam_normal=None,
@@ -150,6 +163,7 @@ class SeamParticleFilter:
         self.n = f.particles
         self.recoveries = 0
         self.resamplings = 0
+        self.annealings = 0
         self.T = np.repeat(np.eye(4)[None], self.n, axis=0)
         self._noise = np.empty((self.n, 6), np.float32)
         self.logw = np.full(self.n, -math.log(self.n))
@@ -165,18 +179,10 @@ class SeamParticleFilter:
         self.T = np.matmul(np.asarray(T_center, dtype=np.float64), exp_small(xi))
         self.logw = np.full(self.n, -math.log(self.n))
 
-    def step(self, inputs: StepInputs) -> StepEstimate:
-        """Propagate, weight, estimate and (if needed) resample; see the module docstring."""
+    def _loglik(self, T: np.ndarray, inputs: StepInputs, meas) -> tuple[np.ndarray, int]:
+        """Total measurement log-likelihood of particles ``T (N, 4, 4)`` and the lasers used."""
         f = self.cfg.filter
-        force = np.asarray(inputs.force_n, dtype=np.float64)
-        fn = math.sqrt(float(force @ force))
-        # 1. state transition (eq. 3)
-        self.T = transition(self.T, inputs.T_increment, f.sigma_t_mm + f.k_force_t * fn,
-                            self._sigma_r + self._k_force_r * fn, self.rng, noise_buffer=self._noise)
-        # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
-        meas = robot_measurement(self.chain, np.asarray(inputs.q_meas, dtype=np.float64), force,
-                                 compliance=self.compliance, **self._robot_kw)
-        logw = self.logw + robot_loglik(self.T, meas)
+        ll = robot_loglik(T, meas)
         used = 0
         if inputs.laser_mm is not None and self.distances_mm.size:
             Tn = inputs.T_nominal
@@ -186,19 +192,75 @@ class SeamParticleFilter:
                     continue
                 centre = Tn[:3, 3] + Tn[:3, :3] @ np.array([m[0], dist, m[1]])
                 knots = self.seam.window(centre, Tn[:3, 1], f.search_window_mm)
-                logw = logw + laser_loglik(self.T, m, dist, self.seam, knots, f.laser_sigma_mm,
-                                           f.search_window_mm)
+                ll += laser_loglik(T, m, dist, self.seam, knots, f.laser_sigma_mm, f.search_window_mm)
                 used += 1
         if self._angle_sigma and inputs.angle_rad is not None:
             for a in np.asarray(inputs.angle_rad, dtype=np.float64):
                 if np.isfinite(a):
-                    logw = logw + angle_loglik(self.T, a, self.seam_normal, self._angle_sigma)
+                    ll += angle_loglik(T, a, self.seam_normal, self._angle_sigma)
+        return ll, used
+
+    def _temper(self, ll: np.ndarray, remaining: float, target: float) -> float:
+        """Largest exponent ``β <= remaining`` with ``ESS(logw + β ll) >= target`` (bisection)."""
+        def ess(beta):
+            w = normalize_log_weights(self.logw + beta * ll).w
+            return 1.0 / float(w @ w)
+
+        if ess(remaining) >= target:
+            return remaining
+        lo, hi = 0.0, remaining
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            if ess(mid) >= target:
+                lo = mid
+            else:
+                hi = mid
+        return max(lo, 1e-6 * remaining)
+
+    def _jitter(self, T: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Resample by ``w`` and move each copy by Gaussian noise of ``anneal_jitter`` times the
+        weighted spread (tool frame): a kernel (regularised) resampling step."""
+        _, spread = weighted_mean_se3(T, w)
+        T = T[self._resample(w, self.rng)]
+        z = self._noise
+        self.rng.standard_normal(out=z, dtype=np.float32)
+        z *= (self.cfg.filter.anneal_jitter * spread).astype(np.float32)
+        out = np.empty_like(T)
+        _k.propagate(T, np.eye(4), z, 1.0, 1.0, out)
+        return out
+
+    def step(self, inputs: StepInputs) -> StepEstimate:
+        """Propagate, weight, estimate and (if needed) resample; see the module docstring."""
+        f = self.cfg.filter
+        force = np.asarray(inputs.force_n, dtype=np.float64)
+        fn = math.sqrt(float(force @ force))
+        # 1. state transition (eq. 3)
+        self.T = transition(self.T, inputs.T_increment, f.sigma_t_mm + f.k_force_t * fn,
+                            self._sigma_r + self._k_force_r * fn, self.rng, noise_buffer=self._noise)
+        # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
+        with np.errstate(invalid="ignore"):  # non-finite readings: every weight vanishes, recovered below
+            meas = robot_measurement(self.chain, np.asarray(inputs.q_meas, dtype=np.float64), force,
+                                     compliance=self.compliance, **self._robot_kw)
+            ll, used = self._loglik(self.T, inputs, meas)
+        norm = normalize_log_weights(self.logw + ll)
+        ess = 1.0 / float(norm.w @ norm.w)
+        # 2b. a likelihood far narrower than the cloud (start-up, a feature): temper it in stages
+        stages = 0
+        remaining = 1.0
+        while (not norm.recovered and ess < f.anneal_ess * self.n and stages < f.anneal_stages):
+            beta = self._temper(ll, remaining, 0.5 * self.n)
+            self.T = self._jitter(self.T, normalize_log_weights(self.logw + beta * ll).w)
+            self.logw = np.full(self.n, -math.log(self.n))
+            remaining -= beta
+            ll, used = self._loglik(self.T, inputs, meas)
+            norm = normalize_log_weights(self.logw + remaining * ll)
+            ess = 1.0 / float(norm.w @ norm.w)
+            stages += 1
+        self.annealings += stages
         # 3. normalise (recover from vanishing weights), estimate
-        norm = normalize_log_weights(logw)
         self.recoveries += norm.recovered
         w = norm.w
         T_mean, spread = weighted_mean_se3(self.T, w)
-        ess = 1.0 / float(w @ w)
         # 4. resample
         resampled = ess < f.ess_threshold * self.n
         if resampled:
@@ -208,7 +270,7 @@ class SeamParticleFilter:
             self.resamplings += 1
         else:
             self.logw = norm.logw
-        return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used)
+        return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages)
 
     @property
     def weights(self) -> np.ndarray:

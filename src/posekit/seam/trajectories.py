@@ -11,7 +11,7 @@ z along the tool axis, x across), parametrised by its length parameter ``u`` in 
 The robot program (what a robot simulator would export) is the Cartesian path of the TCP
 along the seam with the tool orientation of ``T0`` held constant; it is turned into a joint
 stream by resolved-rate inverse kinematics (:func:`posekit.robots.resolved_rate_step`, one
-damped Gauss–Newton step per sample) on the PUMA 560 with a tool of ``tool_length_mm`` along
+damped Gauss–Newton step per sample, more where that leaves > 0.1 µm) on the PUMA 560 with a tool of ``tool_length_mm`` along
 the flange z axis, and the nominal trajectory is the forward kinematics of that stream.
 The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sensors
 ahead of the tool keep seeing it.
@@ -168,11 +168,17 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
         q, _err = resolved_rate_step(chain, q, T_program[k], gains, traj.dt_s, damping=1e-3)
         qs[k] = q
     T_nominal = chain.forward_kinematics(qs)
+    # long steps (few samples) leave a second-order residual: polish those samples
+    resid = np.linalg.norm(T_nominal[:, :3, 3] - T_program[:, :3, 3], axis=1)
+    for k in np.flatnonzero(resid > 1e-4):
+        for _ in range(5):
+            qs[k], _err = resolved_rate_step(chain, qs[k], T_program[k], gains, traj.dt_s, damping=1e-3)
+    T_nominal = chain.forward_kinematics(qs)
     ik_err = float(np.linalg.norm(T_nominal[:, :3, 3] - T_program[:, :3, 3], axis=1).max())
-    if ik_err > 1e-2:
+    if ik_err > 1e-3:
         raise TrajectoryError(
             f"trajectory '{traj.kind}' from start_mm {list(traj.start_mm)}: the inverse kinematics "
-            f"misses the program by {ik_err:.3g} mm (expected < 0.01 mm); the path leaves the "
+            f"misses the program by {ik_err:.3g} mm (expected < 0.001 mm); the path leaves the "
             f"{robot.model} workspace or passes a singularity"
         )
     n_seam = int(np.ceil((traj.length_mm + extra_mm) / SEAM_SPACING_MM)) + 1
