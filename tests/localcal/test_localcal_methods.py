@@ -255,3 +255,37 @@ def test_simulated_vo_rejects_too_few_poses():
     T_B_C, t = _camera_path(5)
     with pytest.raises(TrajectoryError, match=r"^simulate_vo: too few poses: expected at least 3 VO frames, got 2$"):
         simulate_vo(T_B_C, t, 0, stride=3)
+
+
+# --------------------------------------------------------------------------- local calibration from TUM files
+
+def test_calibration_from_tum_files_recovers_the_camera_rotation(tmp_path):
+    """VO (noise, no drift) written to / read from TUM files (metres, qx qy qz qw) gives R_B_W
+    within 0.2 degrees."""
+    from posekit.localcal.trajectory_method import calibrate_trajectories
+    from posekit.localcal.tum import Trajectory, write_tum
+
+    T_B_C, t = _camera_path(600)
+    vo = simulate_vo(T_B_C, t, 3, stride=2, drift_mm_per_sqrt_m=0.0, drift_rad_per_sqrt_m=0.0)
+    kinematic = Trajectory(t_s=t, T=T_B_C @ invert_transform(T_F_C))
+    write_tum(tmp_path / "vo.tum", vo)
+    write_tum(tmp_path / "tcp.tum", kinematic)
+    reg = calibrate_trajectories(tmp_path / "vo.tum", str(tmp_path / "tcp.tum"))
+    R_B_W = T_B_C[0, :3, :3]
+    assert np.degrees(float(rotation_angle_between(reg.R, R_B_W))) < 0.2
+    np.testing.assert_allclose(reg.mean_abs_err_mm, 0.0, atol=5.0)
+    direct = calibrate_trajectories(vo, kinematic)
+    assert np.degrees(float(rotation_angle_between(reg.R, direct.R))) < 0.01
+
+
+def test_calibration_of_a_straight_line_is_an_error():
+    from posekit.localcal.trajectory_method import calibrate_trajectories
+    from posekit.localcal.tum import Trajectory
+
+    T = np.broadcast_to(T_B_F, (50, 4, 4)).copy()
+    T[:, :3, 3] += np.linspace(0.0, 400.0, 50)[:, None] * T_B_F[:3, 0]
+    line = Trajectory(t_s=np.arange(50) * 0.03, T=T)
+    with pytest.raises(TrajectoryError, match="straight line"):
+        calibrate_trajectories(line, line)
+    with pytest.raises(TrajectoryError, match=r"^camera: expected a Trajectory or a TUM file path, got int$"):
+        calibrate_trajectories(3, line)
