@@ -35,7 +35,7 @@ def _run(capsys, *argv):
 def test_simulate_bad_flags(capsys, tmp_path, argv, message):
     if argv:
         argv = [*argv, "--out", str(tmp_path)]
-    rc, out, err = _run(capsys, "seam", "simulate", *argv)
+    rc, _, err = _run(capsys, "seam", "simulate", *argv)
     assert rc == 1
     assert err.strip() == message
     assert "Traceback" not in err

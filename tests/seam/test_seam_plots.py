@@ -23,11 +23,11 @@ from posekit.seam.plots import (
 )
 from posekit.seam.report import (
     ESTIMATE_COLUMNS,
+    html_figure,
+    html_table,
     read_estimates_csv,
     write_estimates_csv,
     write_html,
-    html_figure,
-    html_table,
     write_json,
 )
 

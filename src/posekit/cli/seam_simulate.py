@@ -9,7 +9,7 @@ import time
 from ..errors import ConfigError
 from ._common import progress
 
-__all__ = ["add_simulate_parser", "add_demo_parser", "build_config", "DEMO_STEPS", "DEMO_PARTICLES"]
+__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config"]
 
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.

@@ -15,8 +15,15 @@ import numpy as np
 from ..errors import ConfigError
 from ..sweep import task_seed
 
-__all__ = ["episode_seeds", "with_sensors", "run_episodes", "ConfigurationSet", "compare_configurations",
-           "FIG8_TRAJECTORIES", "FIG8_SENSORS"]
+__all__ = [
+    "FIG8_SENSORS",
+    "FIG8_TRAJECTORIES",
+    "ConfigurationSet",
+    "compare_configurations",
+    "episode_seeds",
+    "run_episodes",
+    "with_sensors",
+]
 
 #: The trajectories and sensor counts of the paper's Fig. 8.
 FIG8_TRAJECTORIES = ("xy", "yz")

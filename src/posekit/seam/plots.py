@@ -20,8 +20,16 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["AXIS_LABELS", "positions_in_frame", "particle_histogram", "plot_particle_density", "plot_error_distributions",
-           "plot_trajectories", "plot_errors_over_time", "plot_pvalue_heatmap"]
+__all__ = [
+    "AXIS_LABELS",
+    "particle_histogram",
+    "plot_error_distributions",
+    "plot_errors_over_time",
+    "plot_particle_density",
+    "plot_pvalue_heatmap",
+    "plot_trajectories",
+    "positions_in_frame",
+]
 
 #: Label of each of the six state/error dimensions (translations in mm, rotations in deg).
 AXIS_LABELS = ("x [mm]", "y [mm]", "z [mm]", "rx [deg]", "ry [deg]", "rz [deg]")

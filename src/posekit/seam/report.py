@@ -19,9 +19,20 @@ import numpy as np
 
 from ..geometry import quaternion_from_matrix
 
-__all__ = ["ERROR_AXES", "ERROR_COLUMNS", "ESTIMATE_COLUMNS", "write_estimates_csv", "read_estimates_csv",
-           "write_csv", "write_json", "write_html", "html_table", "html_figure", "write_simulation",
-           "rmse_table_text"]
+__all__ = [
+    "ERROR_AXES",
+    "ERROR_COLUMNS",
+    "ESTIMATE_COLUMNS",
+    "html_figure",
+    "html_table",
+    "read_estimates_csv",
+    "rmse_table_text",
+    "write_csv",
+    "write_estimates_csv",
+    "write_html",
+    "write_json",
+    "write_simulation",
+]
 
 #: The six error axes of the seam frame: translations (mm) then rotations (deg).
 ERROR_AXES = ("x", "y", "z", "rx", "ry", "rz")

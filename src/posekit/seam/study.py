@@ -24,9 +24,23 @@ from ..errors import ConfigError, EstimationError, PosekitError
 from ..sweep import run_tasks, task_seed
 from .report import ERROR_AXES
 
-__all__ = ["Factor", "DEFAULT_FACTORS", "ERROR_NAMES", "ParameterEffects", "SeamStudy", "make_factors",
-           "fit_parameter_effects", "rank_parameters", "seam_study", "study_task", "set_dotted", "get_dotted",
-           "RANKED_COLUMNS", "RUN_COLUMNS", "write_study"]
+__all__ = [
+    "DEFAULT_FACTORS",
+    "ERROR_NAMES",
+    "RANKED_COLUMNS",
+    "RUN_COLUMNS",
+    "Factor",
+    "ParameterEffects",
+    "SeamStudy",
+    "fit_parameter_effects",
+    "get_dotted",
+    "make_factors",
+    "rank_parameters",
+    "seam_study",
+    "set_dotted",
+    "study_task",
+    "write_study",
+]
 
 #: The filter parameters perturbed by default (dotted keys of :class:`~posekit.seam.config.SeamConfig`).
 DEFAULT_FACTORS = ("filter.sigma_t_mm", "filter.sigma_r_deg", "filter.k_force_t", "filter.k_force_r",
