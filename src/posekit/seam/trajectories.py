@@ -84,13 +84,14 @@ class NominalTrajectory:
 
 def _smooth_triangle(u: np.ndarray, period: float, blend: float) -> np.ndarray:
     """Triangle wave of unit amplitude (peak at ``u = period / 4``), its corners rounded by a
-    moving average of width ``blend * period``: exactly linear between the corners, close to
-    parabolic at them."""
+    moving average of width ``blend * period`` and rescaled to peak 1: exactly linear between
+    the corners, parabolic at them."""
     tri = lambda v: (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))  # noqa: E731
     if blend <= 0.0:
         return tri(u)
     nodes = (np.arange(64) + 0.5) / 64 - 0.5  # midpoint rule over [-1/2, 1/2]
-    return tri(u[..., None] + blend * period * nodes).mean(axis=-1)
+    # the average lowers the peaks by `blend` (slope 4/period over a quarter of the width)
+    return tri(u[..., None] + blend * period * nodes).mean(axis=-1) / (1.0 - blend)
 
 
 def seam_points_T0(cfg: TrajectoryConfig, u) -> np.ndarray:
