@@ -71,7 +71,7 @@ def test_two_sensors_find_the_measurable_offset():
     assert np.abs(err[:, 3]).max() < 0.3 * kin[3]
     assert np.abs(err[:, 5]).max() < 0.15 * kin[5]
     # y is along the featureless seam: the spread stays wide (about the robot plateau)
-    assert np.median([e.spread[1] for e in ests[-10:]]) > 5 * np.median([e.spread[0] for e in ests[-10:]])
+    assert np.median([e.spread[1] for e in ests[-10:]]) > 3 * np.median([e.spread[0] for e in ests[-10:]])
     assert pf.recoveries == 0
     # the far sensor runs off the seam's end near the finish: missing measurements are skipped
     used = [e.lasers_used for e in ests]

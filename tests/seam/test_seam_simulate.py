@@ -133,3 +133,18 @@ def test_missing_laser_measurements_are_handled():
     # the far end: a sensor beyond the seam's end has no intersection
     short = simulate_data(_cfg(trajectory={"seam_extension_mm": 30.0}), 0)
     assert np.isnan(short.laser_mm[-1, 1]).all() and np.isfinite(short.laser_mm[-1, 0]).all()
+
+
+def test_ik_step_is_the_resolved_rate_update():
+    from posekit.geometry import se3_exp
+    from posekit.robots import RateGains, resolved_rate_step
+    from posekit.seam.trajectories import resolved_rate_ik_step
+
+    cfg = _cfg()
+    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+    q = nt.q[10]
+    target = nt.T_nominal[10] @ se3_exp([0.3, -0.2, 0.1, 1e-3, -2e-3, 5e-4])
+    ours, err = resolved_rate_ik_step(nt.chain, q, target)
+    ref = resolved_rate_step(nt.chain, q, target, RateGains(100.0, 100.0), 0.01, damping=1e-3)
+    np.testing.assert_allclose(ours, ref.q, atol=1e-8)
+    np.testing.assert_allclose(err, ref.error, atol=1e-8)

@@ -10,8 +10,9 @@ z along the tool axis, x across), parametrised by its length parameter ``u`` in 
 
 The robot program (what a robot simulator would export) is the Cartesian path of the TCP
 along the seam with the tool orientation of ``T0`` held constant; it is turned into a joint
-stream by resolved-rate inverse kinematics (:func:`posekit.robots.resolved_rate_step`, one
-damped Gauss–Newton step per sample, more where that leaves > 0.1 µm) on the PUMA 560 with a tool of ``tool_length_mm`` along
+stream by resolved-rate inverse kinematics (:func:`resolved_rate_ik_step`: the update of
+:func:`posekit.robots.resolved_rate_step` with ``k dt = 1``, i.e. a damped Gauss–Newton step,
+on the compiled FK/Jacobian; one step per sample, more after a long step) on the PUMA 560 with a tool of ``tool_length_mm`` along
 the flange z axis, and the nominal trajectory is the forward kinematics of that stream.
 The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sensors
 ahead of the tool keep seeing it.
@@ -23,12 +24,13 @@ from functools import lru_cache
 import numpy as np
 
 from posekit.errors import TrajectoryError
-from posekit.robots import DHChain, RateGains, resolved_rate_step, robot_model
+from posekit.robots import DHChain, robot_model
 
 from .config import RobotConfig, TrajectoryConfig
 
 __all__ = [
     "NominalTrajectory",
+    "resolved_rate_ik_step",
     "seam_points_T0",
     "start_pose",
     "tool_chain",
@@ -142,6 +144,24 @@ def tool_chain(robot: RobotConfig) -> DHChain:
     return robot_model(robot.model).with_tool(T_flange_tool)
 
 
+def resolved_rate_ik_step(chain: DHChain, q: np.ndarray, T_target: np.ndarray, damping: float = 1e-3):
+    """One resolved-rate step towards ``T_target`` with gains ``k dt = 1`` (no validation).
+
+    ``q+ = clamp(q + Jᵀ (J Jᵀ + λ² I)⁻¹ e)`` with ``e = [p_d - p (mm), log(R_d Rᵀ) (rad)]``
+    in the base frame: the update of :func:`posekit.robots.resolved_rate_step` for
+    ``gains = (1/dt, 1/dt)`` (whose quaternion error ``2 δr`` equals ``log(R_d Rᵀ)`` to second
+    order), on the compiled forward kinematics and Jacobian. Returns ``(q+ (n,), e (6,))``,
+    ``e`` at the input ``q``.
+    """
+    from .densities import fk_and_jacobian
+    from .particles import rotvec_from_matrix_fast
+
+    T, J = fk_and_jacobian(chain, q)
+    err = np.concatenate([T_target[:3, 3] - T[:3, 3], rotvec_from_matrix_fast(T_target[:3, :3] @ T[:3, :3].T)])
+    qdot = J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(6), err)
+    return chain.clamp(q + qdot), err
+
+
 def _readonly(*arrays):
     for a in arrays:
         a.setflags(write=False)
@@ -158,22 +178,18 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
     T_program = np.repeat(T0[None], n, axis=0)
     T_program[:, :3, 3] = p_T0 @ T0[:3, :3].T + T0[:3, 3]
 
-    gains = RateGains(1.0 / traj.dt_s, 1.0 / traj.dt_s)  # k dt = 1: a full Gauss–Newton step
     q = np.deg2rad(IK_SEED_DEG)
     for _ in range(60):  # converge on the first pose
-        q, err = resolved_rate_step(chain, q, T_program[0], gains, traj.dt_s, damping=1e-2)
+        q, err = resolved_rate_ik_step(chain, q, T_program[0], damping=1e-2)
         if np.abs(err).max() < 1e-9:
             break
     qs = np.empty((n, chain.n_joints))
     for k in range(n):
-        q, _err = resolved_rate_step(chain, q, T_program[k], gains, traj.dt_s, damping=1e-3)
+        for _ in range(6):  # one step usually; long steps leave a second-order residual
+            q, err = resolved_rate_ik_step(chain, q, T_program[k])
+            if np.abs(err).max() < 1e-3:  # the step just taken was small: residual ~1e-9 mm
+                break
         qs[k] = q
-    T_nominal = chain.forward_kinematics(qs)
-    # long steps (few samples) leave a second-order residual: polish those samples
-    resid = np.linalg.norm(T_nominal[:, :3, 3] - T_program[:, :3, 3], axis=1)
-    for k in np.flatnonzero(resid > 1e-4):
-        for _ in range(5):
-            qs[k], _err = resolved_rate_step(chain, qs[k], T_program[k], gains, traj.dt_s, damping=1e-3)
     T_nominal = chain.forward_kinematics(qs)
     ik_err = float(np.linalg.norm(T_nominal[:, :3, 3] - T_program[:, :3, 3], axis=1).max())
     if ik_err > 1e-3:
