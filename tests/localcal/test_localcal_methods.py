@@ -17,7 +17,11 @@ from posekit.localcal.line_method import (
     line_reference,
     planar_distance_error,
 )
-from posekit.localcal.orientation import orientation_reference, rotation_difference, rotation_errors_deg
+from posekit.localcal.orientation import (
+    orientation_reference,
+    rotation_difference,
+    rotation_errors_deg,
+)
 from posekit.localcal.trajectory_method import asymmetric_path, trajectory_reference
 from posekit.localcal.vo import simulate_vo
 

@@ -6,7 +6,7 @@ import sys
 
 from ..errors import ConfigError
 
-__all__ = ["add_simulate_parser", "add_demo_parser", "run_simulate", "run_demo"]
+__all__ = ["add_demo_parser", "add_simulate_parser", "run_demo", "run_simulate"]
 
 
 def add_simulate_parser(verbs):

@@ -21,7 +21,13 @@ episode, experiments, plots
     ``report.html`` (``plots`` imports matplotlib only when drawing; not re-exported here).
 """
 
-from .arm import DEFAULT_Q0, ArmLog, LongReachArm, NonKinematicErrors, sample_nonkinematic_errors
+from .arm import (
+    DEFAULT_Q0,
+    ArmLog,
+    LongReachArm,
+    NonKinematicErrors,
+    sample_nonkinematic_errors,
+)
 from .camera import (
     ARUCO_DICTIONARY,
     CameraIntrinsics,
@@ -30,7 +36,14 @@ from .camera import (
     render_markers,
     zed2_720p,
 )
-from .episode import METHODS, OCCLUSIONS, START_Q, EpisodeConfig, EpisodeResult, run_episode
+from .episode import (
+    METHODS,
+    OCCLUSIONS,
+    START_Q,
+    EpisodeConfig,
+    EpisodeResult,
+    run_episode,
+)
 from .experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,

@@ -28,7 +28,12 @@ import numpy as np
 
 from posekit.errors import ConfigError, EstimationError
 
-from .line_method import CIRCLE_POINTS, CIRCLE_RADIUS_MM, circle_path, line_range_adjustment
+from .line_method import (
+    CIRCLE_POINTS,
+    CIRCLE_RADIUS_MM,
+    circle_path,
+    line_range_adjustment,
+)
 from .orientation import orientation_reference, rotation_errors_deg
 from .trajectory_method import (
     PATH_LENGTHS_MM,
@@ -198,7 +203,7 @@ class _Camera:
         if hz <= 0 or len(log.t_s) == 0:
             return np.zeros(0, int), []
         dt = float(np.median(np.diff(log.t_s))) if len(log.t_s) > 1 else 1.0
-        step = max(1, int(round(1.0 / (hz * dt))))
+        step = max(1, round(1.0 / (hz * dt)))
         idx = np.arange(0, len(log.t_s), step)
         obs = []
         for i in idx:

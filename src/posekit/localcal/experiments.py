@@ -31,9 +31,9 @@ __all__ = [
     "PAPER_TABLE3",
     "PAPER_TABLE4_MEAN",
     "ExperimentResult",
+    "format_table",
     "run_experiment",
     "table_columns",
-    "format_table",
 ]
 
 #: Mean row of the paper's Table 2 (line method): e_θx, e_θy, e_θz [deg], e_x, e_y, e_z [mm].

@@ -19,13 +19,13 @@ from posekit.errors import ConfigError, EstimationError
 from posekit.geometry import check_transform
 
 __all__ = [
-    "CIRCLE_RADIUS_MM",
     "CIRCLE_POINTS",
-    "circle_path",
-    "planar_distance_error",
-    "line_reference",
+    "CIRCLE_RADIUS_MM",
     "LineAdjustment",
+    "circle_path",
     "line_range_adjustment",
+    "line_reference",
+    "planar_distance_error",
 ]
 
 #: Radius of the circular path of the paper's experiments (Sec. 5.2.1), mm.

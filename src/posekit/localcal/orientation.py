@@ -24,7 +24,7 @@ from posekit.geometry import (
     quaternion_from_matrix,
 )
 
-__all__ = ["rotation_difference", "orientation_reference", "rotation_errors_deg"]
+__all__ = ["orientation_reference", "rotation_difference", "rotation_errors_deg"]
 
 
 def _quaternion_product(a, b) -> np.ndarray:

@@ -29,12 +29,12 @@ from .experiments import (
 )
 
 __all__ = [
-    "plot_circle_path",
-    "plot_trajectory_matching",
-    "plot_errors_over_time",
-    "write_experiment",
-    "tables_text",
     "TABLE_TITLES",
+    "plot_circle_path",
+    "plot_errors_over_time",
+    "plot_trajectory_matching",
+    "tables_text",
+    "write_experiment",
 ]
 
 TABLE_TITLES = {
@@ -102,7 +102,7 @@ def plot_circle_path(episode, path):
                   title="planarity of the completed path")
         a.grid(True, alpha=0.3)
         a.legend(fontsize=7)
-    fig.suptitle("Line-equation range adjustment: circular path (r = %.0f mm)" % episode.config.radius_mm)
+    fig.suptitle(f"Line-equation range adjustment: circular path (r = {episode.config.radius_mm:.0f} mm)")
     return _save(fig, path)
 
 

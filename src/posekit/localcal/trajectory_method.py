@@ -21,8 +21,8 @@ __all__ = [
     "PATH_XI_RAD",
     "STANDOFF_MM",
     "asymmetric_path",
-    "trajectory_reference",
     "calibrate_trajectories",
+    "trajectory_reference",
 ]
 
 #: Segment lengths L_i of the default calibration path, mm (signed: a negative length walks

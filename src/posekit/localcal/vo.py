@@ -21,7 +21,11 @@ millimetre noise and drift of a few millimetres per metre travelled.
 import numpy as np
 
 from posekit.errors import ConfigError, TrajectoryError
-from posekit.geometry import check_transform, invert_transform, matrix_from_rotation_vector
+from posekit.geometry import (
+    check_transform,
+    invert_transform,
+    matrix_from_rotation_vector,
+)
 
 from .tum import Trajectory
 
@@ -131,7 +135,7 @@ def simulate_vo(T_B_C_true, t_s, rng, *, noise_mm: float = VONoise.noise_mm,
     N[:, 3, 3] = 1.0
     T_vo = D @ T_W_C @ N
 
-    n_out = int(round(outlier_fraction * (n - 1)))
+    n_out = round(outlier_fraction * (n - 1))
     if n_out:
         idx = 1 + rng.choice(n - 1, size=n_out, replace=False)
         T_vo[idx, :3, 3] += outlier_mm * rng.standard_normal((n_out, 3))
