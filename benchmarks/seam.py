@@ -196,12 +196,13 @@ class UserStepFilter:
         return T, spread, ess
 
 
-def bench_config(particles: int, *, anneal: bool = False):
+def bench_config(particles: int, *, anneal: bool = False, steps: int | None = None):
     """The default configuration (xy seam, two sensors at 20 and 40 mm) with N particles and
     resampling at every step; without the tempered update (``anneal_stages = 0``) unless
-    ``anneal``, so that both sides run the same algorithm."""
+    ``anneal``, so that both sides run the same algorithm. ``steps``: trajectory samples
+    (default: the configuration's 500)."""
     from posekit.seam.config import apply_overrides, config_from_dict
-    over = {"filter.particles": int(particles), "filter.ess_threshold": 1.0}
+    over = {"filter.particles": int(particles), "filter.ess_threshold": 1.0, "trajectory.steps": steps}
     if not anneal:
         over["filter.anneal_stages"] = 0
     return apply_overrides(config_from_dict({}, "defaults"), over)

@@ -189,7 +189,8 @@ def test_simulate_same_seed_same_numbers(simulated, tiny_config, capsys):
 
 
 def test_demo_prints_rmse_per_axis(capsys, tmp_path):
-    rc = main(["seam", "demo", "--particles", "30", "--out", str(tmp_path)])
+    """(The comparison report of ``--out`` is tested on synthetic sets in test_seam_plots.py.)"""
+    rc = main(["seam", "demo", "--particles", "30", "--steps", "60"])
     out = capsys.readouterr().out
     assert rc == 0
     rows = {l[:24].strip(): [float(v) for v in l[24:].split()] for l in out.splitlines()
@@ -197,9 +198,6 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     assert list(rows) == ["xy, 0 sensors", "xy, 1 sensor", "xy, 2 sensors", "yz, 0 sensors", "yz, 1 sensor",
                           "yz, 2 sensors", "xy, FK only"]
     assert all(len(v) == 6 and all(x >= 0 for x in v) for v in rows.values())
-    m = json.loads((tmp_path / "metrics.json").read_text())
-    assert (m["trajectory"], m["sensors"], m["particles"]) == ("xy", 2, 30)
-    assert set(m["comparison"]) == set(list(rows)[:6])
-    assert m["comparison"]["yz, 1 sensor"]["rmse_mm"]["x"] == pytest.approx(rows["yz, 1 sensor"][0], rel=1e-3)
-    text = (tmp_path / "report.html").read_text()
-    assert text.count('src="data:image/png;base64,') == 4 and "yz, 2 sensors" in text
+    assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
+    # the FK-only row is the 0-sensor run's kinematic error: the same for every sensor count
+    assert rows["xy, FK only"] != rows["xy, 0 sensors"]

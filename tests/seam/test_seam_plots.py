@@ -89,9 +89,8 @@ def test_fig5_density_png(tmp_path):
 
 def test_fig8_fig9_errors_and_heatmap_png(tmp_path):
     rng = np.random.default_rng(1)
-    groups = {f"{traj}, {s} sensors": rng.standard_normal((200, 6)) / (1 + s) for traj in ("xy", "yz")
-              for s in (0, 1, 2)}
-    check_png(plot_error_distributions(groups, tmp_path / "fig8.png"), (1980, 700))
+    groups = {f"xy, {s} sensors": rng.standard_normal((200, 6)) / (1 + s) for s in (0, 1, 2)}
+    check_png(plot_error_distributions(groups, tmp_path / "fig8.png"), (1000, 700))
     with pytest.raises(ConfigError, match="group 'bad' must be \\(M, 6\\), got \\(3, 5\\)"):
         plot_error_distributions({"bad": np.zeros((3, 5))}, tmp_path / "x.png")
 
@@ -152,3 +151,35 @@ def test_html_report_embeds_figures(tmp_path):
     assert "<title>T &lt;1&gt;</title>" in text
     assert text.count('src="data:image/png;base64,') == 1 and 'href="fig8.png"' in text
     assert "<td>1.235</td><td>x&lt;y</td>" in text
+
+
+def test_simulation_report_with_comparison(tmp_path):
+    """write_simulation with a Fig. 8 grid: metrics.json gains 'comparison', Fig. 9 shows xy and yz."""
+    from posekit.seam.compare import ConfigurationSet
+    from posekit.seam.report import write_simulation
+
+    rng = np.random.default_rng(4)
+
+    def metrics(err):
+        r = np.sqrt(np.mean(err ** 2, axis=0))
+        return {"rmse_mm": dict(zip("xyz", r[:3])), "rmse_deg": dict(zip(("rx", "ry", "rz"), r[3:])),
+                "kinematic_rmse_mm": dict(zip("xyz", 2 * r[:3])),
+                "kinematic_rmse_deg": dict(zip(("rx", "ry", "rz"), 2 * r[3:])), "step_ms_median": 0.5}
+
+    sets = []
+    for traj in ("xy", "yz"):
+        for n in (0, 1, 2):
+            res = [_episode(rng, T=15)]
+            label = f"{traj}, {n} sensor{'s' if n != 1 else ''}"
+            sets.append(ConfigurationSet(label, traj, n, None, res, metrics(res[0].error)))
+    main = sets[2]
+    paths = write_simulation(tmp_path, main.results, main.metrics, "seed: 0\n", comparison=sets)
+    assert set(paths) == {"metrics", "estimates", "config", "fig8", "fig9", "errors", "report"}   # no particles
+    import json
+    m = json.loads(paths["metrics"].read_text())
+    assert list(m["comparison"]) == [s.label for s in sets]
+    assert m["comparison"]["yz, 1 sensor"]["rmse_mm"]["x"] == pytest.approx(sets[4].metrics["rmse_mm"]["x"])
+    assert png_size(paths["fig8"]) == (1980, 700)
+    text = paths["report"].read_text()
+    assert text.count('src="data:image/png;base64,') == 3
+    assert "<td>yz, 2 sensors</td>" in text and "seed: 0" in text
