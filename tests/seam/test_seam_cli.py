@@ -6,6 +6,7 @@ metrics.json contract and that its numbers are those of estimates.csv, not track
 """
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -201,3 +202,15 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
     # the FK-only row is the 0-sensor run's kinematic error: the same for every sensor count
     assert rows["xy, FK only"] != rows["xy, 0 sensors"]
+
+
+EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples" / "seam").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
+def test_example_configs_load_and_dump(capsys, path):
+    """Every bundled example config loads through the CLI and --dump-config gives it back."""
+    from posekit.seam.config import config_from_dict, load_config
+    rc, out, err = _run(capsys, "seam", "simulate", "--config", str(path), "--dump-config")
+    assert rc == 0 and err == ""
+    assert config_from_dict(yaml.safe_load(out)) == load_config(path)
