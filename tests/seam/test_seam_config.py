@@ -62,8 +62,8 @@ def test_dump_load_round_trip(tmp_path):
         ("sensors:\n  count: 1\n  distances_mm: [20, 40]\n",
          "cfg.yaml: sensors: count is 1 but distances_mm has 2 entries"),
         ("filter:\n  resampler: multinomial\n",
-         "cfg.yaml: filter.resampler: expected one of 'systematic', 'stratified' or 'residual', "
-         "got 'multinomial'"),
+         ("cfg.yaml: filter.resampler: expected one of 'systematic', 'stratified' or 'residual', "
+         "got 'multinomial'")),
         ("trajectory:\n  kind: circle\n",
          "cfg.yaml: trajectory.kind: expected one of 'xy', 'yz', 'line' or 'bend', got 'circle'"),
         ("trajectory:\n  steps: many\n", "cfg.yaml: trajectory.steps: input should be a valid integer"),

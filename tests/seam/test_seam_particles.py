@@ -6,7 +6,11 @@ import pytest
 from filterpy import monte_carlo
 
 from posekit.errors import ConfigError
-from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix, se3_exp
+from posekit.geometry import (
+    matrix_from_rotation_vector,
+    rotation_vector_from_matrix,
+    se3_exp,
+)
 from posekit.seam.particles import (
     RESAMPLERS,
     effective_sample_size,

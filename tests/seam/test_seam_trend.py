@@ -1,5 +1,7 @@
 """Trend filtering (eq. 10): knots at the true corners of a piecewise-linear path, error <= eps."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -23,7 +25,7 @@ def test_knots_at_true_corners_and_error_within_eps(eps):
     assert res.max_error_mm <= eps * (1 + 1e-6)
     np.testing.assert_allclose(res.polyline, res.z[CORNERS])
     # the approximation is affine between the knots
-    for a, b in zip(CORNERS[:-1], CORNERS[1:]):
+    for a, b in itertools.pairwise(CORNERS):
         t = (np.arange(a, b + 1) - a) / (b - a)
         line = res.z[a] + t[:, None] * (res.z[b] - res.z[a])
         np.testing.assert_allclose(res.z[a:b + 1], line, atol=1e-5)

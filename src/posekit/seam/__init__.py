@@ -1,1 +1,231 @@
-"""Particle-filter 6-DoF tool pose relative to a weld seam from 2D laser seam trackers."""
+"""Particle-filter 6-DoF tool pose relative to a weld seam from 2D laser seam trackers.
+
+Engine: configuration (:mod:`.config`), particle-set primitives on SE(3) (:mod:`.particles`),
+the densities of the paper's §II-C (:mod:`.densities`), l1 trend filtering of the nominal
+path (:mod:`.trend`), the laser-plane/seam intersection (:mod:`.seamline`), the particle
+filter (:mod:`.filter`), seams and robot programs (:mod:`.trajectories`) and simulated
+episodes with their metrics (:mod:`.simulate`). Front end: figures (:mod:`.plots`),
+report files (:mod:`.report`), sensor-configuration comparisons (:mod:`.compare`) and the
+Monte-Carlo tuning study (:mod:`.study`).
+
+Frames and units: mm and rad inside; ``T_base_tool`` poses of the TCP in the robot base frame;
+the tool's y axis points along the travel, z along the tool axis; errors are reported in the
+nominal seam frame (translation mm, rotation deg).
+"""
+
+# --- engine ------------------------------------------------------------------------------
+from .config import (
+    RESAMPLER_NAMES,
+    TRAJECTORY_KINDS,
+    FilterConfig,
+    ProcessConfig,
+    RobotConfig,
+    SeamConfig,
+    SensorsConfig,
+    TrajectoryConfig,
+    apply_overrides,
+    config_from_dict,
+    dump_config,
+    load_config,
+)
+from .densities import (
+    RobotMeasurement,
+    angle_loglik,
+    fk_and_jacobian,
+    joint_compliance,
+    laser_loglik,
+    plateau_logpdf,
+    plateau_pdf_1d,
+    robot_loglik,
+    robot_measurement,
+    transition,
+)
+from .filter import SeamParticleFilter, StepEstimate, StepInputs
+from .particles import (
+    RESAMPLERS,
+    effective_sample_size,
+    normalize_log_weights,
+    resample,
+    residual_resample,
+    stratified_resample,
+    systematic_resample,
+    weighted_mean_se3,
+)
+from .seamline import Intersection, SeamLine
+from .simulate import (
+    AXES,
+    EpisodeResult,
+    SimulatedData,
+    metrics,
+    pose_coords,
+    pose_errors,
+    run_episode,
+    seam_knots,
+    simulate_data,
+)
+from .trajectories import (
+    NominalTrajectory,
+    nominal_trajectory,
+    resolved_rate_ik_step,
+    seam_points_T0,
+)
+from .trend import TrendResult, trend_filter
+
+__all__ = [
+    "AXES",
+    # particles
+    "RESAMPLERS",
+    # config
+    "RESAMPLER_NAMES",
+    "TRAJECTORY_KINDS",
+    "EpisodeResult",
+    "FilterConfig",
+    "Intersection",
+    "NominalTrajectory",
+    "ProcessConfig",
+    "RobotConfig",
+    "RobotMeasurement",
+    "SeamConfig",
+    # seam geometry, trend filter, trajectories
+    "SeamLine",
+    # filter and episodes
+    "SeamParticleFilter",
+    "SensorsConfig",
+    "SimulatedData",
+    "StepEstimate",
+    "StepInputs",
+    "TrajectoryConfig",
+    "TrendResult",
+    "angle_loglik",
+    "apply_overrides",
+    "config_from_dict",
+    "dump_config",
+    "effective_sample_size",
+    "fk_and_jacobian",
+    "joint_compliance",
+    "laser_loglik",
+    "load_config",
+    "metrics",
+    "nominal_trajectory",
+    "normalize_log_weights",
+    "plateau_logpdf",
+    "plateau_pdf_1d",
+    "pose_coords",
+    "pose_errors",
+    "resample",
+    "residual_resample",
+    "resolved_rate_ik_step",
+    "robot_loglik",
+    "robot_measurement",
+    "run_episode",
+    "seam_knots",
+    "seam_points_T0",
+    "simulate_data",
+    "stratified_resample",
+    "systematic_resample",
+    # densities
+    "transition",
+    "trend_filter",
+    "weighted_mean_se3",
+]
+
+# --- front end (figures import matplotlib lazily, inside the functions) --------------------
+from .compare import (
+    FIG8_SENSORS,
+    FIG8_TRAJECTORIES,
+    ConfigurationSet,
+    compare_configurations,
+    episode_seeds,
+    run_episodes,
+    with_sensors,
+)
+from .plots import (
+    AXIS_LABELS,
+    particle_histogram,
+    plot_error_distributions,
+    plot_errors_over_time,
+    plot_particle_density,
+    plot_pvalue_heatmap,
+    plot_trajectories,
+    positions_in_frame,
+)
+from .report import (
+    ERROR_AXES,
+    ERROR_COLUMNS,
+    ESTIMATE_COLUMNS,
+    html_figure,
+    html_table,
+    read_estimates_csv,
+    rmse_table_text,
+    write_csv,
+    write_estimates_csv,
+    write_html,
+    write_json,
+    write_simulation,
+)
+from .study import (
+    DEFAULT_FACTORS,
+    ERROR_NAMES,
+    RANKED_COLUMNS,
+    RUN_COLUMNS,
+    Factor,
+    ParameterEffects,
+    SeamStudy,
+    fit_parameter_effects,
+    get_dotted,
+    make_factors,
+    rank_parameters,
+    seam_study,
+    set_dotted,
+    study_task,
+    write_study,
+)
+
+__all__ += [
+    # plots
+    "AXIS_LABELS",
+    # study (Fig. 6)
+    "DEFAULT_FACTORS",
+    # report
+    "ERROR_AXES",
+    "ERROR_COLUMNS",
+    "ERROR_NAMES",
+    "ESTIMATE_COLUMNS",
+    # compare (Fig. 8)
+    "FIG8_SENSORS",
+    "FIG8_TRAJECTORIES",
+    "RANKED_COLUMNS",
+    "RUN_COLUMNS",
+    "ConfigurationSet",
+    "Factor",
+    "ParameterEffects",
+    "SeamStudy",
+    "compare_configurations",
+    "episode_seeds",
+    "fit_parameter_effects",
+    "get_dotted",
+    "html_figure",
+    "html_table",
+    "make_factors",
+    "particle_histogram",
+    "plot_error_distributions",
+    "plot_errors_over_time",
+    "plot_particle_density",
+    "plot_pvalue_heatmap",
+    "plot_trajectories",
+    "positions_in_frame",
+    "rank_parameters",
+    "read_estimates_csv",
+    "rmse_table_text",
+    "run_episodes",
+    "seam_study",
+    "set_dotted",
+    "study_task",
+    "with_sensors",
+    "write_csv",
+    "write_estimates_csv",
+    "write_html",
+    "write_json",
+    "write_simulation",
+    "write_study",
+]

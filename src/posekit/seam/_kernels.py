@@ -13,7 +13,15 @@ import math
 import numba as nb
 import numpy as np
 
-__all__ = ["propagate", "robot_loglik_kernel", "laser_loglik_kernel", "offsets_kernel"]
+__all__ = [
+    "fk_jacobian_kernel",
+    "inv_det3",
+    "laser_loglik_kernel",
+    "offsets_kernel",
+    "propagate",
+    "robot_loglik_kernel",
+    "window_kernel",
+]
 
 
 @nb.njit(cache=True, boundscheck=False)
@@ -273,3 +281,18 @@ def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
         s_prev = s
         r_prev = r
     return lo, hi
+
+
+@nb.njit(cache=True)
+def inv_det3(S):
+    """Inverse and determinant of a 3×3 matrix by cofactors: ``(S⁻¹ (3, 3), det S)``."""
+    a, b, c = S[0, 0], S[0, 1], S[0, 2]
+    d, e, f = S[1, 0], S[1, 1], S[1, 2]
+    g, h, i = S[2, 0], S[2, 1], S[2, 2]
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * A + b * B + c * C
+    inv = np.empty((3, 3))
+    inv[0, 0], inv[1, 0], inv[2, 0] = A / det, B / det, C / det
+    inv[0, 1], inv[1, 1], inv[2, 1] = (c * h - b * i) / det, (a * i - c * g) / det, (b * g - a * h) / det
+    inv[0, 2], inv[1, 2], inv[2, 2] = (b * f - c * e) / det, (c * d - a * f) / det, (a * e - b * d) / det
+    return inv, det

@@ -23,7 +23,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from posekit.errors import ConfigError
 
@@ -31,16 +38,16 @@ __all__ = [
     "DEFAULT_SENSOR_DISTANCES_MM",
     "RESAMPLER_NAMES",
     "TRAJECTORY_KINDS",
-    "TrajectoryConfig",
-    "RobotConfig",
-    "ProcessConfig",
-    "SensorsConfig",
     "FilterConfig",
+    "ProcessConfig",
+    "RobotConfig",
     "SeamConfig",
-    "load_config",
-    "config_from_dict",
+    "SensorsConfig",
+    "TrajectoryConfig",
     "apply_overrides",
+    "config_from_dict",
     "dump_config",
+    "load_config",
 ]
 
 TRAJECTORY_KINDS = ("xy", "yz", "line", "bend")
@@ -251,7 +258,7 @@ def _describe(err: dict) -> str:
         )
     if kind in ("model_type", "dict_type"):
         return f"{loc}: expected a mapping, got {type(got).__name__}"
-    if kind.endswith("_type") or kind.endswith("_parsing") or kind.endswith("_from_float"):
+    if kind.endswith(("_type", "_parsing", "_from_float")):
         return f"{loc}: {err['msg'][0].lower() + err['msg'][1:]} (got {got!r})"
     return f"{loc}: {err['msg']}"
 

@@ -23,7 +23,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.special import gammaln
 
 from posekit.robots import DHChain
 
@@ -31,25 +30,28 @@ from . import _kernels as _k
 from .seamline import SeamLine
 
 __all__ = [
+    "RobotMeasurement",
+    "angle_loglik",
+    "ball_volume",
+    "fk_and_jacobian",
+    "joint_compliance",
+    "laser_loglik",
     "plateau_logpdf",
     "plateau_pdf_1d",
-    "ball_volume",
-    "transition",
-    "fk_and_jacobian",
-    "RobotMeasurement",
-    "robot_measurement",
     "robot_loglik",
-    "laser_loglik",
-    "angle_loglik",
-    "joint_compliance",
+    "robot_measurement",
+    "transition",
 ]
+
+
+_TWO_PI_1P5 = (2.0 * math.pi) ** 1.5
 
 
 def ball_volume(d: float, k: int) -> float:
     """Volume ``V(d, k)`` of a k-dimensional ball of radius ``d``."""
     if d <= 0.0:
         return 0.0
-    return float(np.exp(0.5 * k * np.log(np.pi) - gammaln(0.5 * k + 1.0) + k * np.log(d)))
+    return math.exp(0.5 * k * math.log(math.pi) - math.lgamma(0.5 * k + 1.0) + k * math.log(d))
 
 
 def plateau_logpdf(delta: np.ndarray, d: float, Sigma: np.ndarray) -> np.ndarray:
@@ -176,7 +178,7 @@ class RobotMeasurement:
         Plateau radii ``d(f)``.
     """
 
-    __slots__ = ("T_mean", "Sigma_t", "Sigma_r", "d_t_mm", "d_r_rad")
+    __slots__ = ("Sigma_r", "Sigma_t", "T_mean", "d_r_rad", "d_t_mm")
 
     def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad):
         self.T_mean = T_mean
@@ -242,9 +244,11 @@ def robot_loglik(Ts: np.ndarray, meas: RobotMeasurement) -> np.ndarray:
     loglik : ndarray, shape (N,)
     """
     out = np.zeros(Ts.shape[0])
-    logD = _plateau_log_norm(meas.d_t_mm, meas.Sigma_t) + _plateau_log_norm(meas.d_r_rad, meas.Sigma_r)
-    _k.robot_loglik_kernel(Ts, meas.T_mean, np.linalg.inv(meas.Sigma_t), np.linalg.inv(meas.Sigma_r),
-                           meas.d_t_mm, meas.d_r_rad, logD, out)
+    Sinv_t, det_t = _k.inv_det3(meas.Sigma_t)
+    Sinv_r, det_r = _k.inv_det3(meas.Sigma_r)
+    logD = -math.log(_TWO_PI_1P5 * math.sqrt(det_t) + ball_volume(meas.d_t_mm, 3)) - math.log(
+        _TWO_PI_1P5 * math.sqrt(det_r) + ball_volume(meas.d_r_rad, 3))
+    _k.robot_loglik_kernel(Ts, meas.T_mean, Sinv_t, Sinv_r, meas.d_t_mm, meas.d_r_rad, logD, out)
     return out
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from posekit.errors import ConfigError
 
+from . import _kernels as _k
 from .config import SeamConfig
 from .densities import (
     angle_loglik,
@@ -30,12 +31,11 @@ from .densities import (
     robot_measurement,
     transition,
 )
-from . import _kernels as _k
 from .particles import RESAMPLERS, exp_small, normalize_log_weights, weighted_mean_se3
 from .seamline import SeamLine
 from .trajectories import tool_chain
 
-__all__ = ["StepInputs", "StepEstimate", "SeamParticleFilter"]
+__all__ = ["SeamParticleFilter", "StepEstimate", "StepInputs"]
 
 
 @dataclass
@@ -154,11 +154,11 @@ class SeamParticleFilter:
         deg = math.pi / 180.0
         self._sigma_r = f.sigma_r_deg * deg
         self._k_force_r = f.k_force_r * deg
-        self._robot_kw = dict(
-            joint_sigma_rad=f.joint_sigma_deg * deg, floor_t_mm=f.robot_floor_t_mm,
-            floor_r_rad=f.robot_floor_r_deg * deg, d0_mm=f.d0_mm, kd_mm_per_n=f.kd_mm_per_n,
-            d0_rad=f.d0_deg * deg, kd_rad_per_n=f.kd_deg_per_n * deg,
-        )
+        self._robot_kw = {
+            "joint_sigma_rad": f.joint_sigma_deg * deg, "floor_t_mm": f.robot_floor_t_mm,
+            "floor_r_rad": f.robot_floor_r_deg * deg, "d0_mm": f.d0_mm, "kd_mm_per_n": f.kd_mm_per_n,
+            "d0_rad": f.d0_deg * deg, "kd_rad_per_n": f.kd_deg_per_n * deg,
+        }
         self._angle_sigma = cfg.sensors.angle and f.angle_sigma_deg * deg
         self.n = f.particles
         self.recoveries = 0

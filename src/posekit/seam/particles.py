@@ -18,14 +18,14 @@ from ._kernels import offsets_kernel
 __all__ = [
     "RESAMPLERS",
     "NormalizedWeights",
-    "normalize_log_weights",
     "effective_sample_size",
-    "systematic_resample",
-    "stratified_resample",
-    "residual_resample",
-    "resample",
     "exp_small",
+    "normalize_log_weights",
+    "resample",
+    "residual_resample",
     "rotvec_from_matrix_fast",
+    "stratified_resample",
+    "systematic_resample",
     "weighted_mean_se3",
 ]
 

@@ -15,7 +15,7 @@ from posekit.errors import GeometryError
 
 from ._kernels import window_kernel as _window_kernel
 
-__all__ = ["SeamLine", "Intersection"]
+__all__ = ["Intersection", "SeamLine"]
 
 from typing import NamedTuple
 

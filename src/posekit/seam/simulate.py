@@ -33,8 +33,17 @@ from .seamline import SeamLine
 from .trajectories import NominalTrajectory, nominal_trajectory
 from .trend import TrendResult, trend_filter
 
-__all__ = ["EpisodeResult", "SimulatedData", "run_episode", "simulate_data", "seam_knots", "metrics",
-           "pose_errors", "pose_coords", "AXES"]
+__all__ = [
+    "AXES",
+    "EpisodeResult",
+    "SimulatedData",
+    "metrics",
+    "pose_coords",
+    "pose_errors",
+    "run_episode",
+    "seam_knots",
+    "simulate_data",
+]
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -325,7 +334,7 @@ def metrics(results: list[EpisodeResult]) -> dict:
     step = np.concatenate([r.step_ms for r in results])
     spread = np.median(np.concatenate([r.spread for r in results]), axis=0)
     laser = np.concatenate([r.laser_mm.reshape(-1, 2) for r in results])
-    fl = lambda v: float(round(float(v), 6))  # noqa: E731
+    fl = lambda v: float(round(float(v), 6))
     return {
         "rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], err[:3])},
         "rmse_deg": {a: fl(v) for a, v in zip(AXES[3:], err[3:])},

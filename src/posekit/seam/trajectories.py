@@ -29,13 +29,13 @@ from posekit.robots import DHChain, robot_model
 from .config import RobotConfig, TrajectoryConfig
 
 __all__ = [
+    "IK_SEED_DEG",
     "NominalTrajectory",
+    "nominal_trajectory",
     "resolved_rate_ik_step",
     "seam_points_T0",
     "start_pose",
     "tool_chain",
-    "nominal_trajectory",
-    "IK_SEED_DEG",
 ]
 
 #: Joint guess (deg) from which the first program pose is solved: elbow up, wrist down.
@@ -88,7 +88,7 @@ def _smooth_triangle(u: np.ndarray, period: float, blend: float) -> np.ndarray:
     """Triangle wave of unit amplitude (peak at ``u = period / 4``), its corners rounded by a
     moving average of width ``blend * period`` and rescaled to peak 1: exactly linear between
     the corners, parabolic at them."""
-    tri = lambda v: (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))  # noqa: E731
+    tri = lambda v: (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))
     if blend <= 0.0:
         return tri(u)
     nodes = (np.arange(64) + 0.5) / 64 - 0.5  # midpoint rule over [-1/2, 1/2]

@@ -17,7 +17,7 @@ import numpy as np
 
 from posekit.errors import EstimationError
 
-__all__ = ["TrendResult", "trend_filter", "KNOT_TOL"]
+__all__ = ["KNOT_TOL", "TrendResult", "trend_filter"]
 
 #: A second difference larger than this (relative to the path's extent) marks a knot.
 KNOT_TOL = 1e-6
