@@ -9,7 +9,8 @@ and returns ``T_dst_src`` (``T_B_W``). Two modes:
   paired positions rejects gross outliers;
 * without timestamps (correspondence-free): a coarse alignment that can never be mirrored
   (:mod:`.coarse`; orientations break ties between candidates on symmetric paths), then rigid CPD
-  with a uniform outlier component on the positions (:mod:`.cpd`). The CPD's matrix-Fisher
+  with a uniform outlier component on the positions (:mod:`.cpd`), polished by a trimmed
+  nearest-neighbour re-fit against every pose. The CPD's matrix-Fisher
   orientation term (hybrid-mixture style) is available in :func:`.cpd.rigid_cpd` but not used
   here: on synthetic paths it did not improve accuracy, it doubled the run time, and on the real
   TUM fr1/xyz pair it moved the result away from the timestamped reference (0.47 deg vs 0.24 deg).
@@ -49,6 +50,8 @@ CPD_MAX_POINTS = 400
 #: Orientations that all stay within this angle of their mean carry no information on R
 #: (the orientation term would be the same for every pair); the CPD then runs on positions only.
 ORIENTATION_STILL_DEG = 2.0
+#: Nearest-neighbour re-fits after the CPD, at most.
+POLISH_ITERS = 30
 
 
 @dataclass(frozen=True)
@@ -221,6 +224,29 @@ def _turns(R) -> bool:
     return bool(np.rad2deg(np.arccos(np.clip(c.min(), -1.0, 1.0))) > ORIENTATION_STILL_DEG)
 
 
+def _polish(ps, tree, pd, R, t, s, with_scale, max_iter=POLISH_ITERS):
+    """Trimmed nearest-neighbour refinement of the CPD result against every dst pose.
+
+    The CPD runs on thinned sets (``CPD_MAX_POINTS``), and the sample spacing on a fast path
+    biases it (seen up to 0.6 deg on random smooth paths); this polish pairs every src pose with
+    its nearest dst pose and re-fits (Umeyama) on the pairs within ``INLIER_SIGMAS`` robust sigmas
+    until the pairing settles. A second CPD level on 1000 points was as accurate but 5x slower.
+    """
+    for _ in range(max_iter):
+        dist, j = tree.query(s * ps @ R.T + t)
+        inl = dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+        if inl.sum() < 3:
+            break
+        R_new, t_new, s_new = umeyama(ps[inl], pd[j[inl]], with_scale=with_scale)
+        step = np.linalg.norm(R_new - R) * 1e3 + np.linalg.norm(t_new - t)
+        R, t, s = R_new, t_new, s_new
+        if step < 1e-4:
+            break
+    dist, j = tree.query(s * ps @ R.T + t)
+    inl = dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+    return R, t, s, inl, j
+
+
 def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
     ps, pd = src.positions, dst.positions
     turns = use_orientations and (_turns(src.rotations) or _turns(dst.rotations))
@@ -231,11 +257,7 @@ def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
     ks, kd = thin_indices(len(ps), CPD_MAX_POINTS), thin_indices(len(pd), CPD_MAX_POINTS)
     fine = rigid_cpd(pd[kd], ps[ks], R0=coarse.R, t0=coarse.t, s0=coarse.s, w=w, with_scale=with_scale,
                      sigma2=coarse.sigma2)
-    R, t, s = fine.R, fine.t, fine.s
-    moved = s * ps @ R.T + t
-    dist, j = cKDTree(pd).query(moved)
-    sigma = max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
-    inl = dist <= INLIER_SIGMAS * sigma
+    R, t, s, inl, j = _polish(ps, cKDTree(pd), pd, fine.R, fine.t, fine.s, with_scale)
     rmse, mean_e, max_e = _errors(ps, pd[j], R, t, s, inl)
     spread = np.rad2deg(body_rotation_spread(src.rotations[inl], dst.rotations[j][inl], R))
     return Registration(R, t, rmse, mean_e, max_e, len(ps), inl, s, 0.0,
