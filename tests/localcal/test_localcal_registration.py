@@ -284,7 +284,7 @@ def test_similarity_for_a_scaled_trajectory(use_timestamps):
 
 
 # ------------------------------------------------------------------ acceptance on unseen trajectories
-@pytest.mark.parametrize("seed", [11, 12, 13])
+@pytest.mark.parametrize("seed", [11, 12, 13, 129])  # 129: thinned CPD alone was off by 0.6 deg
 @pytest.mark.parametrize("kind", ["smooth", "planar"])
 @pytest.mark.parametrize("use_timestamps", [True, False])
 def test_recovers_camera_to_base_transform(seed, kind, use_timestamps):
