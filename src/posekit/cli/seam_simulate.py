@@ -7,7 +7,6 @@ import sys
 import time
 
 from ..errors import ConfigError
-from ._common import progress
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config"]
 
@@ -15,6 +14,14 @@ TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
 DEMO_STEPS = 300
 DEMO_PARTICLES = 300
+
+
+def progress(iterable, total=None, desc=None):
+    """A tqdm bar over episodes on a terminal (stderr), the bare iterable otherwise."""
+    if not sys.stderr.isatty():
+        return iterable
+    from tqdm import tqdm
+    return tqdm(iterable, total=total, desc=desc, unit="episode", leave=False)
 
 
 def _episode_flags(p):
