@@ -97,6 +97,13 @@ def test_time_offset_is_estimated_across_rates():
     src, dst = make_pair(rng, pose, 20.0, T_B_W=T, offset_s=-0.3141, outlier_fraction=0.05)
     off = estimate_time_offset(src.t_s, src.positions, dst.t_s, dst.positions, max_offset_s=1.0)
     assert off == pytest.approx(-0.3141, abs=2e-3)
+    src, dst = make_pair(rng, pose, 20.0, T_B_W=T, offset_s=1.6)
+    with pytest.raises(TrajectoryError, match=r"^the clock offset between cam and kin fits best at the edge of "
+                                              r"the search \(\+1.000 s\): it may lie beyond ±1 s"):
+        match_trajectories(src, dst, names=("cam", "kin"))
+    reg = match_trajectories(src, dst, max_offset_s=2.5)
+    assert reg.time_offset_s == pytest.approx(1.6, abs=3e-3)
+    assert rotation_error_deg(reg.R, T[:3, :3]) < 0.5
 
 
 # ------------------------------------------------------------------ real TUM RGB-D pairs

@@ -139,7 +139,8 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     Raises
     ------
     TrajectoryError
-        If no offset in the range gives at least ``MIN_POSES`` overlapping samples.
+        If no offset in the range gives at least ``MIN_POSES`` overlapping samples, or the best
+        offset is at the edge of the range (the true one may lie beyond).
     """
     if t_src.size > _OFFSET_SAMPLES:
         k = np.linspace(0, t_src.size - 1, _OFFSET_SAMPLES).round().astype(int)
@@ -162,6 +163,11 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     best = int(np.argmin(cost))
     if grid.size == 1:
         return float(grid[0])
+    if best in (0, grid.size - 1):
+        raise TrajectoryError(
+            f"the clock offset between {names[0]} and {names[1]} fits best at the edge of the search "
+            f"({grid[best]:+.3f} s): it may lie beyond ±{max_offset_s:g} s; widen the search "
+            f"(max_offset_s, --max-offset) or give the offset (time_offset_s, --time-offset)")
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
     opt = minimize_scalar(_alignment_cost, bounds=(lo, hi), args=args, method="bounded",
                           options={"xatol": 1e-4})
