@@ -4,6 +4,7 @@ Synthetic arrays in the EpisodeResult shapes; the figures must be real PNGs of t
 pixel size with content, and the histogram behind Fig. 5 must put the particles where they are.
 """
 
+import base64
 import struct
 from types import SimpleNamespace
 
@@ -32,6 +33,8 @@ from posekit.seam.report import (
 )
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+#: A 1×1 PNG.
+TINY_PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg==")
 
 
 def png_size(path):
@@ -87,24 +90,20 @@ def test_fig5_density_png(tmp_path):
         plot_particle_density(particles, truth[1:], tmp_path / "bad.png")
 
 
-def test_fig8_fig9_errors_and_heatmap_png(tmp_path):
+def test_fig8_bad_groups_and_fig6_heatmap_png(tmp_path):
+    """(Fig. 8 with six groups, Fig. 9 and the error traces: test_simulation_report_with_comparison.)"""
     rng = np.random.default_rng(1)
-    groups = {f"xy, {s} sensors": rng.standard_normal((200, 6)) / (1 + s) for s in (0, 1, 2)}
-    check_png(plot_error_distributions(groups, tmp_path / "fig8.png"), (1000, 700))
     with pytest.raises(ConfigError, match="group 'bad' must be \\(M, 6\\), got \\(3, 5\\)"):
         plot_error_distributions({"bad": np.zeros((3, 5))}, tmp_path / "x.png")
-
-    t = np.arange(100)
-    series = {"xy": np.c_[20 * np.abs(((t / 25) % 2) - 1), 2.0 * t, 0 * t],
-              "yz": np.c_[0 * t, 2.0 * t, 100 * np.sin(t / 16)]}
-    check_png(plot_trajectories(series, tmp_path / "fig9.png"), (800, 700), min_bytes=10_000)
-
-    e = rng.standard_normal((2, 50, 6))
-    check_png(plot_errors_over_time(e, 3 * e, tmp_path / "err.png"), (1100, 800))
-
+    with pytest.raises(ConfigError, match="'xy' must be \\(T, 3\\) positions, got \\(4, 2\\)"):
+        plot_trajectories({"xy": np.zeros((4, 2))}, tmp_path / "x.png")
+    with pytest.raises(ConfigError, match=r"expected two \(R, T, 6\) error arrays, got \(2, 5, 6\) and \(2, 4, 6\)"):
+        plot_errors_over_time(np.zeros((2, 5, 6)), np.zeros((2, 4, 6)), tmp_path / "x.png")
     lp = -np.abs(rng.standard_normal((6, 5))) * 3
     check_png(plot_pvalue_heatmap(lp, list("abcde"), ["x", "y", "z", "rx", "ry", "rz"], tmp_path / "fig6.png"),
               (700, 580), min_bytes=10_000)
+    with pytest.raises(ConfigError, match=r"expected log10_p of shape \(6, 4\), got \(6, 5\)"):
+        plot_pvalue_heatmap(lp, list("abcd"), ["x", "y", "z", "rx", "ry", "rz"], tmp_path / "x.png")
 
 
 def _episode(rng, T=12):
@@ -137,8 +136,8 @@ def test_estimates_csv_round_trip(tmp_path):
 
 
 def test_html_report_embeds_figures(tmp_path):
-    rng = np.random.default_rng(3)
-    fig = plot_error_distributions({"a": rng.standard_normal((20, 6))}, tmp_path / "fig8.png")
+    fig = tmp_path / "fig8.png"
+    fig.write_bytes(TINY_PNG)
     write_json(tmp_path / "m.json", {"v": np.float64(1.5), "n": np.int64(3), "nan": float("nan"),
                                      "arr": np.arange(2)})
     import json
@@ -179,7 +178,9 @@ def test_simulation_report_with_comparison(tmp_path):
     m = json.loads(paths["metrics"].read_text())
     assert list(m["comparison"]) == [s.label for s in sets]
     assert m["comparison"]["yz, 1 sensor"]["rmse_mm"]["x"] == pytest.approx(sets[4].metrics["rmse_mm"]["x"])
-    assert png_size(paths["fig8"]) == (1980, 700)
+    check_png(paths["fig8"], (1980, 700))
+    check_png(paths["fig9"], (800, 700), min_bytes=10_000)
+    check_png(paths["errors"], (1100, 800))
     text = paths["report"].read_text()
     assert text.count('src="data:image/png;base64,') == 3
     assert "<td>yz, 2 sensors</td>" in text and "seed: 0" in text
