@@ -17,7 +17,7 @@ __all__ = [
     "fk_jacobian_kernel",
     "inv_det3",
     "laser_loglik_kernel",
-    "offsets_kernel",
+    "mean_spread_kernel",
     "propagate",
     "robot_loglik_kernel",
     "window_kernel",
@@ -200,25 +200,6 @@ def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
 
 
 @nb.njit(cache=True, boundscheck=False)
-def offsets_kernel(T, T_ref, out):
-    """``out_i = [R_refᵀ (p_i - p_ref), log(R_refᵀ R_i)]`` (mm, rad), shape (N, 6)."""
-    n = T.shape[0]
-    q = np.empty(9)
-    for i in range(n):
-        dx = T[i, 0, 3] - T_ref[0, 3]
-        dy = T[i, 1, 3] - T_ref[1, 3]
-        dz = T[i, 2, 3] - T_ref[2, 3]
-        for a in range(3):
-            out[i, a] = T_ref[0, a] * dx + T_ref[1, a] * dy + T_ref[2, a] * dz
-            for b in range(3):
-                q[3 * a + b] = T_ref[0, a] * T[i, 0, b] + T_ref[1, a] * T[i, 1, b] + T_ref[2, a] * T[i, 2, b]
-        ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
-        out[i, 3] = ex
-        out[i, 4] = ey
-        out[i, 5] = ez
-
-
-@nb.njit(cache=True, boundscheck=False)
 def fk_jacobian_kernel(a, alpha, d, theta, revolute, q, T_tool, T_out, J_out):
     """Standard-DH forward kinematics ``T_base_tool`` and geometric Jacobian at one ``q``.
 
@@ -296,3 +277,59 @@ def inv_det3(S):
     inv[0, 1], inv[1, 1], inv[2, 1] = (c * h - b * i) / det, (a * i - c * g) / det, (b * g - a * h) / det
     inv[0, 2], inv[1, 2], inv[2, 2] = (b * f - c * e) / det, (c * d - a * f) / det, (a * e - b * d) / det
     return inv, det
+
+
+@nb.njit(cache=True, boundscheck=False)
+def mean_spread_kernel(T, w):
+    """Chordal weighted mean ``(T_mean (4, 4), spread (6,))`` of particles ``T (N, 4, 4)``.
+
+    ``p̄ = Σ w p``, ``R̄`` = the rotation nearest ``Σ w R`` (its polar factor; the cloud must be
+    narrower than 90°); the spread is the weighted
+    standard deviation of ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad).
+    """
+    n = T.shape[0]
+    S = np.zeros((4, 4))
+    for i in range(n):
+        wi = w[i]
+        for a in range(3):
+            for b in range(4):
+                S[a, b] += wi * T[i, a, b]
+    # nearest rotation to Σ w R: the polar factor, by Newton's iteration X <- (X + X⁻ᵀ) / 2
+    # (quadratic convergence; no LAPACK, which would cost seconds of compilation)
+    R = S[:3, :3].copy()
+    for _ in range(30):
+        Xi, det = inv_det3(R)
+        change = 0.0
+        for a in range(3):
+            for b in range(3):
+                v = 0.5 * (R[a, b] + Xi[b, a])
+                change = max(change, abs(v - R[a, b]))
+                R[a, b] = v
+        if change < 1e-15:
+            break
+    Tm = np.eye(4)
+    for a in range(3):
+        for b in range(3):
+            Tm[a, b] = R[a, b]
+        Tm[a, 3] = S[a, 3]
+    m1 = np.zeros(6)
+    m2 = np.zeros(6)
+    q = np.empty(9)
+    d = np.empty(6)
+    for i in range(n):
+        dx = T[i, 0, 3] - Tm[0, 3]
+        dy = T[i, 1, 3] - Tm[1, 3]
+        dz = T[i, 2, 3] - Tm[2, 3]
+        for a in range(3):
+            d[a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
+            for b in range(3):
+                q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
+        d[3], d[4], d[5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        wi = w[i]
+        for j in range(6):
+            m1[j] += wi * d[j]
+            m2[j] += wi * d[j] * d[j]
+    spread = np.empty(6)
+    for j in range(6):
+        spread[j] = math.sqrt(max(m2[j] - m1[j] * m1[j], 0.0))
+    return Tm, spread

@@ -13,7 +13,7 @@ import numpy as np
 
 from posekit.errors import ConfigError
 
-from ._kernels import offsets_kernel
+from ._kernels import mean_spread_kernel
 
 __all__ = [
     "RESAMPLERS",
@@ -237,7 +237,7 @@ def weighted_mean_se3(Ts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.nda
     """Weighted mean of rigid transforms and the spread around it.
 
     Translation: the weighted mean of the positions. Rotation: the chordal L2 mean, the
-    rotation nearest (SVD projection) to ``Σ w_i R_i``. Spread: weighted standard deviation
+    rotation nearest (SVD projection) to ``Σ w_i R_i``; one compiled pass. Spread: weighted standard deviation
     of each particle's offset from the mean expressed in the mean's frame, translation
     ``R̄ᵀ (p_i - p̄)`` (mm) and rotation vector of ``R̄ᵀ R_i`` (rad).
 
@@ -255,15 +255,4 @@ def weighted_mean_se3(Ts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.nda
     spread : ndarray, shape (6,)
         ``[sx, sy, sz (mm), srx, sry, srz (rad)]`` in the mean's frame.
     """
-    S = (w @ Ts.reshape(-1, 16)).reshape(4, 4)  # weighted sums of all entries (one GEMV)
-    p_mean = S[:3, 3]
-    U, _, Vt = np.linalg.svd(S[:3, :3])
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R_mean = U @ D @ Vt
-    T_mean = np.eye(4)
-    T_mean[:3, :3] = R_mean
-    T_mean[:3, 3] = p_mean
-    d = np.empty((Ts.shape[0], 6))
-    offsets_kernel(Ts, T_mean, d)
-    spread = np.sqrt(np.maximum(w @ (d * d) - (w @ d) ** 2, 0.0))
-    return T_mean, spread
+    return mean_spread_kernel(np.ascontiguousarray(Ts, dtype=np.float64), np.ascontiguousarray(w, dtype=np.float64))
