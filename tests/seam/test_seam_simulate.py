@@ -148,3 +148,16 @@ def test_ik_step_is_the_resolved_rate_update():
     ref = resolved_rate_step(nt.chain, q, target, RateGains(100.0, 100.0), 0.01, damping=1e-3)
     np.testing.assert_allclose(ours, ref.q, atol=1e-8)
     np.testing.assert_allclose(err, ref.error, atol=1e-8)
+
+
+def test_angle_measurement_pins_the_roll():
+    """The rotation about the laser-plane normal (roll ry about the travel direction) is what
+    the optional angle measurement sees; position-only lasers leave it at the plateau."""
+    kw = {"trajectory": {"kind": "xy", "steps": 200}, "filter": {"particles": 300}}
+    plain = run_episode(config_from_dict(kw), 1)
+    angled = run_episode(config_from_dict({**kw, "sensors": {"angle": True}}), 1)
+    assert np.isfinite(angled.laser_mm).all()
+    ry_plain = np.sqrt((plain.error[:, 4] ** 2).mean())
+    ry_angle = np.sqrt((angled.error[:, 4] ** 2).mean())
+    assert ry_angle < 0.3 * ry_plain
+    assert ry_angle < 0.1  # deg

@@ -298,7 +298,7 @@ def mean_spread_kernel(T, w):
     # (quadratic convergence; no LAPACK, which would cost seconds of compilation)
     R = S[:3, :3].copy()
     for _ in range(30):
-        Xi, det = inv_det3(R)
+        Xi, _det = inv_det3(R)
         change = 0.0
         for a in range(3):
             for b in range(3):
