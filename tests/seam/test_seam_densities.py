@@ -164,3 +164,27 @@ def test_angle_density():
     ll = angle_loglik(Ts, -0.01, nu, 0.005)
     assert np.argmax(ll) == 1
     assert ll[1] == pytest.approx(-np.log(np.sqrt(2 * np.pi) * 0.005), abs=1e-9)
+
+
+def test_seam_line_search_window_and_intersections():
+    from posekit.errors import GeometryError
+
+    seam = SeamLine(_straight_seam())  # knots at y = -50, 0, 30, 60, 100, 150
+    y_axis = np.array([0.0, 1.0, 0.0])
+    # planes y = const through the seam: the crossing is on the seam, the segment is the right one
+    origins = np.array([[0.0, -10.0, 3.0], [9.0, 45.0, 0.0], [0.0, 80.0, 0.0]])
+    hit = seam.intersect(origins, np.repeat(y_axis[None], 3, axis=0))
+    np.testing.assert_allclose(hit.point, [[5.0, -10.0, 0.0], [5.0, 45.0, 0.0], [15.0, 80.0, 0.0]])
+    assert hit.segment.tolist() == [0, 2, 3] and hit.found.all()
+    # beyond the ends: no crossing
+    miss = seam.intersect(np.array([[0.0, 200.0, 0.0]]), y_axis[None])
+    assert not miss.found[0] and miss.segment[0] == -1 and np.isnan(miss.point).all()
+    # the search window around y = 45: only the segments reaching within 10 mm of the plane
+    assert seam.candidates([5.0, 45.0, 0.0], y_axis, 10.0).tolist() == [2]
+    assert seam.candidates([5.0, 55.0, 0.0], y_axis, 10.0).tolist() == [2, 3]
+    assert seam.window([5.0, 55.0, 0.0], y_axis, 10.0) == (2, 4)
+    assert seam.window([5.0, 500.0, 0.0], y_axis, 10.0) == (-1, -1)
+    with pytest.raises(GeometryError, match=r"seam polyline: expected shape \(K >= 2, 3\), got \(1, 3\)"):
+        SeamLine(np.zeros((1, 3)))
+    with pytest.raises(GeometryError, match="seam polyline: non-finite vertices"):
+        SeamLine(np.full((3, 3), np.nan))
