@@ -1,12 +1,11 @@
 """Tables, figures and ``report.html`` of the closed-loop experiment (Fig. 5/6, Tables III/IV)."""
 
-import base64
-import csv
 import html
 from pathlib import Path
 
 import numpy as np
 
+from ..report import html_figure, html_table, pyplot, save_figure, write_csv, write_html
 from .loop import TABLE3_COLUMNS, TABLE4_COLUMNS, LoopExperiment
 from .response import amplitude_spectrum
 
@@ -27,14 +26,6 @@ PAPER_TABLE3 = {
     ("camera", "PC"): (0.14, 0.04, 0.12, 0.27, 0.10), ("proposed", "DT"): (6.61, 0.56, 0.65, 7.78, 5.59),
     ("proposed", "CD"): (0.11, 0.05, 0.10, 0.20, 0.06), ("proposed", "PC"): (0.26, 0.14, 0.21, 0.68, 0.12),
 }
-
-
-def _write_csv(path, columns, rows):
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
 def format_table4(exp: LoopExperiment) -> str:
@@ -68,10 +59,7 @@ def format_table3(exp: LoopExperiment) -> str:
 
 
 def _fig_open_loop(exp, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(2, 2, figsize=(11, 7))
     opens = [r for r in exp.runs if r.mode == "open"]
     run = next((r for r in opens if r.axis == "y"), opens[0])
@@ -98,16 +86,11 @@ def _fig_open_loop(exp, path):
     for a in ax.ravel():
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _fig_steps(exp, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     axes = [a for a in ("x", "y", "z", "xyz") if any(r.axis == a for r in exp.runs)]
     fig, ax = plt.subplots(1, len(axes), figsize=(4 * len(axes), 3.6), squeeze=False)
     for i, axis in enumerate(axes):
@@ -120,16 +103,7 @@ def _fig_steps(exp, path):
         ax[0, i].set(title=f"step along {axis}", xlabel="t [s]", ylabel="position [mm]")
         ax[0, i].grid(alpha=0.3)
         ax[0, i].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _html_table(columns, rows):
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
-    body = "".join("<tr>" + "".join(f"<td>{(f'{r[c]:.4g}' if isinstance(r[c], float) else html.escape(str(r[c])))}</td>"
-                                    for c in columns) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    save_figure(fig, path)
 
 
 def write_loop_report(exp: LoopExperiment, out) -> dict:
@@ -141,24 +115,22 @@ def write_loop_report(exp: LoopExperiment, out) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     paths = {"table3": out / "table3.csv", "table4": out / "table4.csv", "fig5": out / "fig5_open_loop.png",
              "fig6": out / "fig6_steps.png", "report": out / "report.html"}
-    _write_csv(paths["table3"], TABLE3_COLUMNS, exp.table3)
-    _write_csv(paths["table4"], TABLE4_COLUMNS, exp.table4)
+    write_csv(paths["table3"], exp.table3, TABLE3_COLUMNS)
+    write_csv(paths["table4"], exp.table4, TABLE4_COLUMNS)
     _fig_open_loop(exp, paths["fig5"])
     _fig_steps(exp, paths["fig6"])
-    imgs = {k: base64.b64encode(paths[k].read_bytes()).decode() for k in ("fig5", "fig6")}
     paper4 = [{"axis": a, "step_mm": s, "mode": m, "Mp_pct": v[0], "zeta": v[1], "Mf_um": v[2]}
               for (a, s, m), v in PAPER_TABLE4.items()]
-    doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>posekit closed loop</title>
-<style>body{{font-family:sans-serif;max-width:1100px;margin:auto}}table{{border-collapse:collapse;margin:8px 0}}
-td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}pre{{background:#f6f6f6;padding:8px}}</style></head><body>
-<h1>Real-time closed loop (paper §IV-C), simulated over loopback sockets</h1>
-<p>{len(exp.runs)} step runs + 1 impulse run; wall time {exp.wall_s:.1f} s; server: {html.escape(str(exp.server_stats))}</p>
-<h2>Table IV — step responses (measured by posekit, mean over repeats)</h2>{_html_table(TABLE4_COLUMNS, exp.table4)}
-<pre>{html.escape(format_table4(exp))}</pre>
-<h3>Paper's Table IV</h3>{_html_table(TABLE4_COLUMNS, paper4)}
-<h2>Table III — stage times</h2>{_html_table(TABLE3_COLUMNS, exp.table3)}<pre>{html.escape(format_table3(exp))}</pre>
-<h2>Fig. 5 — open loop and impulse</h2><img src="data:image/png;base64,{imgs['fig5']}" width="100%">
-<h2>Fig. 6 — open vs closed loop</h2><img src="data:image/png;base64,{imgs['fig6']}" width="100%">
-</body></html>"""
-    paths["report"].write_text(doc)
+    intro = (f"<p>{len(exp.runs)} step runs + 1 impulse run; wall time {exp.wall_s:.1f} s; "
+             f"server: {html.escape(str(exp.server_stats))}</p>")
+    sections = [
+        ("Table IV — step responses (measured by posekit, mean over repeats)",
+         html_table(exp.table4, TABLE4_COLUMNS) + f"<pre>{html.escape(format_table4(exp))}</pre>"
+         + "<h3>Paper's Table IV</h3>" + html_table(paper4, TABLE4_COLUMNS)),
+        ("Table III — stage times",
+         html_table(exp.table3, TABLE3_COLUMNS) + f"<pre>{html.escape(format_table3(exp))}</pre>"),
+        ("Fig. 5 — open loop and impulse", html_figure(paths["fig5"], "Open loop and impulse response")),
+        ("Fig. 6 — open vs closed loop", html_figure(paths["fig6"], "Step responses, open vs closed loop")),
+    ]
+    write_html(out, "Real-time closed loop (paper §IV-C), simulated over loopback sockets", intro, sections)
     return paths

@@ -6,13 +6,13 @@
 the report embeds each figure (base64) and links its PNG file.
 """
 
-import base64
-import csv
 import html
 import math
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..report import html_figure as _figure
+from ..report import html_table, pyplot, save_figure, write_csv, write_html
 from .study import (
     METHODS,
     PAPER_TABLE1,
@@ -29,31 +29,6 @@ __all__ = ["write_report", "write_csv"]
 LABEL = {"cf": "CF", "mle": "CF-Opt"}
 
 
-def write_csv(path, rows, columns) -> Path:
-    """Write dict rows with exactly ``columns`` (floats to 6 significant digits, NaN as 'nan')."""
-    path = Path(path)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(columns)
-        for row in rows:
-            w.writerow([f"{row[c]:.6g}" if isinstance(row[c], float) else row[c] for c in columns])
-    return path
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(fig, path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    _plt().close(fig)
-    return Path(path)
-
-
 def _num(v: float) -> str:
     """3 significant digits, without exponents between 1e-3 and 1e6."""
     if math.isnan(v):
@@ -63,21 +38,12 @@ def _num(v: float) -> str:
     return f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}"
 
 
-def _fmt(v):
+def _cell(v, column: str) -> str:
     return _num(v) if isinstance(v, float) else html.escape(str(v))
 
 
 def _table(rows, columns, headers=None) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in (headers or columns))
-    body = "".join("<tr>" + "".join(f"<td>{_fmt(r[c])}</td>" for c in columns) + "</tr>" for r in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def _figure(path: Path, caption: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    name = html.escape(path.name)
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{name}">'
-            f'<figcaption>{html.escape(caption)} (<a href="{name}">{name}</a>)</figcaption></figure>')
+    return html_table(rows, columns, headers, cell=_cell)
 
 
 def _failures(failures) -> str:
@@ -86,18 +52,6 @@ def _failures(failures) -> str:
     rows = [{"method": LABEL[m], "reason": STATUS_NAMES[s], "count": c, "example": msg}
             for (m, s), (c, msg) in failures.items()]
     return _table(rows, ["method", "reason", "count", "example"])
-
-
-def _html(out: Path, title: str, intro: str, sections) -> Path:
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;"
-             "text-align:right}th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}")
-    body = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
-    text = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>{intro}{body}</body></html>")
-    path = out / "report.html"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 def _config(study) -> str:
@@ -115,7 +69,7 @@ DIAG_COLUMNS = ("n", "method", "estimates", "beyond_fail_um", "t_err_median_um",
 
 
 def _corners(study: CornersStudy, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     write_csv(out / "table1.csv", study.table, TABLE1_COLUMNS)
     write_csv(out / "table1_diagnostics.csv", study.diagnostics, DIAG_COLUMNS)
     cfg = study.config
@@ -130,7 +84,7 @@ def _corners(study: CornersStudy, out: Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("reprojection error (µm)")
     axes[1].legend(fontsize=8, ncol=2)
-    f1 = _save(fig, out / "table1_reprojection.png")
+    f1 = save_figure(fig, out / "table1_reprojection.png")
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     m = max(cfg.gauges)
     for method in METHODS:
@@ -151,7 +105,7 @@ def _corners(study: CornersStudy, out: Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
     twin.legend(fontsize=8, loc="lower right")
-    f2 = _save(fig, out / "table1_pose_error.png")
+    f2 = save_figure(fig, out / "table1_pose_error.png")
 
     def cell(r):
         if math.isnan(r["reproj_mean_um"]):
@@ -185,7 +139,7 @@ def _corners(study: CornersStudy, out: Path) -> Path:
          + _figure(f2, "True pose error vs corner count")),
         ("Failures", _failures(study.failures)),
     ]
-    return _html(out, "posekit profiler study: corners (Table I)", intro, sections)
+    return write_html(out, "posekit profiler study: corners (Table I)", intro, sections)
 
 
 # --------------------------------------------------------------------------- noise
@@ -195,7 +149,7 @@ COV_COLUMNS = ("noise_um", "axis", "predicted_std_um", "empirical_rmse_um", "nor
 
 
 def _noise(study: NoiseStudy, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     write_csv(out / "fig3.csv", study.table, NOISE_COLUMNS)
     write_csv(out / "noise_covariance.csv", study.covariance, COV_COLUMNS)
     cfg = study.config
@@ -207,7 +161,7 @@ def _noise(study: NoiseStudy, out: Path) -> Path:
         ax.set(xlabel="noise σ_z (µm)", ylabel="reprojection error (µm)", title=f"({tag}) {LABEL[method]}")
         ax.grid(True, alpha=0.3)
         ax.legend()
-    f1 = _save(fig, out / "fig3_reprojection.png")
+    f1 = save_figure(fig, out / "fig3_reprojection.png")
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for axis, color in zip("xyz", ("C0", "C1", "C2")):
         rs = [r for r in study.covariance if r["axis"] == axis and r["noise_um"] > 0]
@@ -218,7 +172,7 @@ def _noise(study: NoiseStudy, out: Path) -> Path:
            title="CF-Opt: predicted std (covariance) vs empirical RMSE")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    f2 = _save(fig, out / "noise_predicted_vs_empirical.png")
+    f2 = save_figure(fig, out / "noise_predicted_vs_empirical.png")
     intro = (f"<p>Paper Fig. 3 by simulation: n = {cfg.n_corners}, {cfg.gauges} random gauges × {cfg.poses} "
              f"poses at each noise level (σ in z; σ_x = {cfg.x_ratio:g} σ_z). The same gauges, poses and "
              f"standard-normal draws at every level.</p>" + _config(study))
@@ -231,7 +185,7 @@ def _noise(study: NoiseStudy, out: Path) -> Path:
          + _figure(f2, "Predicted standard deviation vs empirical RMSE per axis")),
         ("Failures", _failures(study.failures)),
     ]
-    return _html(out, "posekit profiler study: noise (Fig. 3)", intro, sections)
+    return write_html(out, "posekit profiler study: noise (Fig. 3)", intro, sections)
 
 
 # --------------------------------------------------------------------------- limits
@@ -244,7 +198,7 @@ TILT_COLUMNS = ("beta_deg", "alpha_deg", "trials", "success_rate", "visible_rate
 
 
 def _limits(study: LimitsStudy, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     rng_rows = [{k: (float(v) if k in RANGE_COLUMNS[3:] else v) for k, v in r.items()} for r in study.ranges]
     write_csv(out / "limits_range.csv", rng_rows, RANGE_COLUMNS)
     summary = range_summary(study)
@@ -270,7 +224,7 @@ def _limits(study: LimitsStudy, out: Path) -> Path:
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    f1 = _save(fig, out / "fig4a_range.png")
+    f1 = save_figure(fig, out / "fig4a_range.png")
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for i, beta in enumerate(cfg.betas_deg):
         rs = [r for r in tilts if r["beta_deg"] == beta]
@@ -282,7 +236,7 @@ def _limits(study: LimitsStudy, out: Path) -> Path:
            title="(b) self-occlusion: tracked poses vs tilt (dotted: ±β)")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    f2 = _save(fig, out / "fig4b_tilt.png")
+    f2 = save_figure(fig, out / "fig4b_tilt.png")
     intro = ("<p>Paper Fig. 4 by simulation. (a) From the nominal pose, the sensor is moved along F's x and z "
              "(gauges scaled in x–z to each width) or y (gauges cut to each length) until the pose is lost: "
              "<em>tracked</em> = all corners detected on a noisy rendered profile and a CF-Opt estimate that "
@@ -297,7 +251,7 @@ def _limits(study: LimitsStudy, out: Path) -> Path:
          + _figure(f2, "Fig. 4(b): success rate vs tilt α for gauges of different β")),
         ("Success rate vs tilt (limits_tilt.csv)", _table(tilts, list(TILT_COLUMNS))),
     ]
-    return _html(out, "posekit profiler study: limits (Fig. 4)", intro, sections)
+    return write_html(out, "posekit profiler study: limits (Fig. 4)", intro, sections)
 
 
 def write_report(study, out) -> Path:
