@@ -10,15 +10,13 @@ Figures after the paper:
   time, with the look-then-move updates marked.
 """
 
-import base64
-import csv
 import html
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..report import html_figure, html_table, pyplot, save_figure, write_csv, write_html, write_json
 from .experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,
@@ -47,20 +45,6 @@ TABLE_TITLES = {
 }
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(fig, path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    _plt().close(fig)
-    return Path(path)
-
-
 def _plane_coords(points, T_B_F):
     """Coordinates of base-frame points in the (n, s) plane of a TCP pose, mm."""
     d = np.asarray(points, float) - T_B_F[:3, 3]
@@ -69,7 +53,7 @@ def _plane_coords(points, T_B_F):
 
 def plot_circle_path(episode, path):
     """Fig. 6-like figure of a line-method episode: reference circle vs completed path."""
-    plt = _plt()
+    plt = pyplot()
     lg = episode.logs
     T0 = lg["T_B_F_centre"]
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.8))
@@ -103,12 +87,12 @@ def plot_circle_path(episode, path):
         a.grid(True, alpha=0.3)
         a.legend(fontsize=7)
     fig.suptitle(f"Line-equation range adjustment: circular path (r = {episode.config.radius_mm:.0f} mm)")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_trajectory_matching(episode, path):
     """Fig. 8-like figure: reference path, encoder-based TCP and calibrated VO positions."""
-    plt = _plt()
+    plt = pyplot()
     lg = episode.logs
     T0 = lg["T_B_F_start"]
     series = ((lg["reference_path_B"], "g.-", "reference path"),
@@ -128,12 +112,12 @@ def plot_trajectory_matching(episode, path):
     m = episode.matching
     fig.suptitle("Trajectory matching (VO vs kinematic model): mean |error| x/y/z = "
                  + "/".join(f"{v:.1f}" for v in m["mean_abs_err_mm"]) + " mm")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_errors_over_time(episode, path):
     """Fig. 7/9-like figure: image-based errors e_x, e_y, e_z over time with the updates."""
-    plt = _plt()
+    plt = pyplot()
     tl = episode.timeline
     t, e = np.asarray(tl["t_s"]), np.asarray(tl["e_C_mm"])
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
@@ -153,25 +137,10 @@ def plot_errors_over_time(episode, path):
     ax[0].set(ylabel="image-based error (mm)",
               title=f"{episode.method} method: tool marker vs OOI in the camera frame (gaps: not seen)")
     ax[1].set(xlabel="time (s)", ylabel="XY error (mm), ±5 mm band")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # --------------------------------------------------------------------------- files
-
-def _write_csv(path, rows, columns):
-    with Path(path).open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(columns)
-        for r in rows:
-            w.writerow([f"{r[c]:.6g}" if isinstance(r[c], float) else r[c] for c in columns])
-    return Path(path)
-
-
-def _json_safe(v):
-    if isinstance(v, float) and math.isnan(v):
-        return None
-    return v
-
 
 def _num(v, col):
     if isinstance(v, str):
@@ -183,19 +152,9 @@ def _num(v, col):
 
 def _html_table(rows, columns):
     cols = [c for c in columns if c != "error"]
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{_num(r[c], c)}</td>" for c in cols) + "</tr>" for r in rows)
     fails = "".join(f"<li>{html.escape(r['run'])}: {html.escape(r['error'])}</li>"
                     for r in rows if r["status"] == "error" and r["run"] != "mean")
-    return (f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-            + (f"<ul>{fails}</ul>" if fails else ""))
-
-
-def _figure(path: Path, caption: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    name = html.escape(path.name)
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{name}">'
-            f'<figcaption>{html.escape(caption)} (<a href="{name}">{name}</a>)</figcaption></figure>')
+    return html_table(rows, cols, cell=_num) + (f"<ul>{fails}</ul>" if fails else "")
 
 
 def _paper_rows(method: str, updates: int) -> str:
@@ -235,17 +194,15 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     out.mkdir(parents=True, exist_ok=True)
     files = {}
     for name, rows in result.tables.items():
-        files[name] = _write_csv(out / f"{name}.csv", rows, table_columns(name, result.updates))
+        files[name] = write_csv(out / f"{name}.csv", rows, table_columns(name, result.updates))
     record = {
         "method": result.method, "seed": result.seed, "runs": len(result.episodes), "updates": result.updates,
         "wall_s": result.wall_s,
-        "tables": {name: [{k: _json_safe(v) for k, v in r.items()} for r in rows]
-                   for name, rows in result.tables.items()},
+        "tables": result.tables,
         "matching": [ep.matching if ep is not None else None for ep in result.episodes]
         if result.method == "trajectory" else None,
     }
-    files["results"] = out / "results.json"
-    files["results"].write_text(json.dumps(record, indent=1), encoding="utf-8")
+    files["results"] = write_json(out / "results.json", record)
 
     figures = []
     first = next((ep for ep in result.episodes if ep is not None), None)
@@ -266,21 +223,14 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
         sections.append((TABLE_TITLES.get(name, name),
                          _html_table(rows, table_columns(name, result.updates))))
     sections.append(("The paper's numbers (real HIAB033 crane)", _paper_rows(result.method, result.updates)))
-    sections.append(("Figures", "".join(_figure(p, c) for p, c in figures) or "<p>Every run failed.</p>"))
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;"
-             "text-align:right}th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}")
+    sections.append(("Figures", "".join(html_figure(p, c) for p, c in figures) or "<p>Every run failed.</p>"))
     title = f"posekit localcal simulate: {result.method} method"
     intro = (f"<p>{len(result.episodes)} simulated look-then-move episodes, seed {result.seed}, "
              f"{result.updates} update(s) each; wall time {result.wall_s:.1f} s."
              + (f" Command: <code>{html.escape(command)}</code>" if command else "") + "</p>"
              "<p>Errors are those the camera measures between the tool marker and the OOI (absolute, in "
              "the camera frame); the <em>truth</em> tables give the simulator's true errors.</p>")
-    body = "".join(f"<h2>{html.escape(h)}</h2>{c}" for h, c in sections)
-    text = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>{intro}{body}</body></html>")
-    files["report"] = out / "report.html"
-    files["report"].write_text(text, encoding="utf-8")
+    files["report"] = write_html(out, title, intro, sections)
     return files
 
 
