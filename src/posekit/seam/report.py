@@ -7,17 +7,18 @@ Units at this edge: positions in mm, quaternions ``[w, x, y, z]``, errors in mm 
 (the unit is in every column name).
 """
 
-import base64
 import csv
 import html
 import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..geometry import quaternion_from_matrix
+from ..report import html_figure, to_jsonable, write_csv, write_html, write_json
+from ..report import html_table as _html_table
 
 __all__ = [
     "ERROR_AXES",
@@ -99,41 +100,6 @@ def read_estimates_csv(path) -> dict[str, np.ndarray]:
     return {name: data[:, i] for i, name in enumerate(header)}
 
 
-def write_csv(path, rows: Sequence[Mapping], columns: Sequence[str]) -> Path:
-    """Write dict rows with exactly ``columns`` (floats with 6 significant digits, NaN as 'nan')."""
-    path = Path(path)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(columns)
-        for row in rows:
-            w.writerow([f"{row[c]:.6g}" if isinstance(row[c], float) else row[c] for c in columns])
-    return path
-
-
-def _jsonable(obj):
-    if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
-def write_json(path, data) -> Path:
-    """Write ``data`` as indented JSON (NumPy scalars and arrays converted; NaN/inf as null)."""
-    path = Path(path)
-    path.write_text(json.dumps(_jsonable(data), indent=2) + "\n", encoding="utf-8")
-    return path
-
-
 def _num(v: float) -> str:
     if math.isnan(v):
         return "–"
@@ -142,7 +108,7 @@ def _num(v: float) -> str:
     return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.4g}"
 
 
-def _cell(v) -> str:
+def _cell(v, column: str = "") -> str:
     if isinstance(v, (float, np.floating)):
         return _num(float(v))
     return html.escape(str(v))
@@ -150,33 +116,7 @@ def _cell(v) -> str:
 
 def html_table(rows: Sequence[Mapping], columns: Sequence[str], headers: Sequence[str] | None = None) -> str:
     """An HTML table of dict rows (floats with 4 significant digits)."""
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in (headers or columns))
-    body = "".join("<tr>" + "".join(f"<td>{_cell(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def html_figure(path, caption: str) -> str:
-    """A ``<figure>`` that embeds the PNG at ``path`` (base64) and links the file by name."""
-    path = Path(path)
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    name = html.escape(path.name)
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{name}">'
-            f'<figcaption>{html.escape(caption)} (<a href="{name}">{name}</a>)</figcaption></figure>')
-
-
-def write_html(out, title: str, intro: str, sections: Iterable[tuple[str, str]]) -> Path:
-    """Write ``out/report.html`` with a title, an intro (HTML) and (heading, HTML) sections."""
-    out = Path(out)
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;"
-             "text-align:right}th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}"
-             "pre{background:#f6f6f6;padding:.5em;overflow-x:auto}")
-    body = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
-    text = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body><h1>{html.escape(title)}</h1>{intro}{body}</body></html>")
-    path = out / "report.html"
-    path.write_text(text, encoding="utf-8")
-    return path
+    return _html_table(rows, columns, headers, cell=_cell)
 
 
 def _rmse_rows(metrics: Mapping) -> list[dict]:
@@ -292,7 +232,7 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
     if config_yaml:
         sections.append(("Configuration", f"<pre>{html.escape(config_yaml)}</pre>"))
     skip = {"rmse_mm", "rmse_deg", "kinematic_rmse_mm", "kinematic_rmse_deg", "comparison"}
-    facts = "".join(f"<li><code>{html.escape(str(k))}</code> = {html.escape(json.dumps(_jsonable(v)))}</li>"
+    facts = "".join(f"<li><code>{html.escape(str(k))}</code> = {html.escape(json.dumps(to_jsonable(v)))}</li>"
                     for k, v in metrics.items() if k not in skip)
     cfg_link = ", <a href='config.yaml'>config.yaml</a>" if config_yaml else ""
     intro = (f"<p>Files: <a href='metrics.json'>metrics.json</a>, <a href='estimates.csv'>estimates.csv</a>"
