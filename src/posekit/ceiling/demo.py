@@ -146,10 +146,10 @@ def plot_trajectories(result, truth: SceneTruthTable, calibration, reference_bgr
                       holes_mm=(), corners_uv=None) -> list[Path]:
     """Fig. 8 (trajectory in the image over the reference image) and Fig. 9 (on the ceiling
     plane, mm), each with the truth; PNG files in ``out_dir``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
+
+    from ..report import pyplot, save_figure
+    plt = pyplot()
 
     out_dir = Path(out_dir)
     n = min(len(result.rows), len(truth.frame))
@@ -171,10 +171,7 @@ def plot_trajectories(result, truth: SceneTruthTable, calibration, reference_bgr
     ax.set_ylabel("v (px)")
     ax.set_title("Trajectory of the laser dot in the image plane (cf. Fig. 8)")
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    paths.append(out_dir / "fig8_image_trajectory.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "fig8_image_trajectory.png", dpi=120))
 
     fig, ax = plt.subplots(figsize=(9, 5.4))
     for x0, y0, x1, y1 in holes_mm:
@@ -188,10 +185,7 @@ def plot_trajectories(result, truth: SceneTruthTable, calibration, reference_bgr
     ax.set_ylabel("Y (mm)")
     ax.set_title("Trajectory on the ceiling plane (cf. Fig. 9); grey: air-conditioning vents")
     ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    paths.append(out_dir / "fig9_world_trajectory.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "fig9_world_trajectory.png", dpi=120))
     return paths
 
 
