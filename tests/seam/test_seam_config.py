@@ -71,6 +71,12 @@ def test_dump_load_round_trip(tmp_path):
         ("- 1\n- 2\n", "cfg.yaml: expected a mapping of sections"),
         ("filter:\n  particles: [1\n", "cfg.yaml: not valid YAML at line"),
         ("filter:\n  ess_threshold: 1.5\n", "cfg.yaml: filter.ess_threshold: expected <= 1.0, got 1.5"),
+        ("filter:\n  sigma_t_mm: .inf\n", "cfg.yaml: filter.sigma_t_mm: expected a finite number, got inf"),
+        ("sensors:\n  noise_mm: .nan\n", "cfg.yaml: sensors.noise_mm: expected a finite number, got nan"),
+        ("trajectory:\n  start_mm: [450, -100]\n",
+         "cfg.yaml: trajectory.start_mm: too few values (no item 2), got [450, -100]"),
+        ("trajectory:\n  start_mm: [1, 2, 3, 4]\n",
+         "cfg.yaml: trajectory.start_mm: expected at most 3 values, got [1, 2, 3, 4]"),
     ],
 )
 def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, message):
@@ -85,6 +91,10 @@ def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, mes
 def test_missing_file_and_empty_file(tmp_path):
     with pytest.raises(ConfigError, match=r"nope\.yaml: cannot read config file"):
         load_config(tmp_path / "nope.yaml")
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"filter:\n  particles: 5\xff\n")
+    with pytest.raises(ConfigError, match=r"binary\.yaml: not a YAML text file \(byte 22 is not UTF-8\)$"):
+        load_config(binary)
     assert load_config(_write(tmp_path, "")) == SeamConfig()
 
 

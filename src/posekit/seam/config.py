@@ -2,7 +2,8 @@
 
 Every parameter lives here with its default and its unit in its name (mm, deg, N, s). The
 defaults are the paper's setup: h = 0.01 s, T = 500 steps, two laser sensors 20 mm and 40 mm
-ahead of the tool, the xy trajectory. Unknown keys are errors (``extra='forbid'``).
+ahead of the tool, the xy trajectory. Unknown keys are errors (``extra='forbid'``), and so are
+inf and NaN values.
 
 Sections
 --------
@@ -56,7 +57,8 @@ RESAMPLER_NAMES = ("systematic", "stratified", "residual")
 DEFAULT_SENSOR_DISTANCES_MM = (20.0, 40.0, 60.0, 80.0)
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # inf and NaN are no parameter values: a NaN noise would turn every estimate into NaN
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class TrajectoryConfig(_Section):
@@ -240,7 +242,14 @@ def _describe(err: dict) -> str:
     if kind == "extra_forbidden":
         return f"unknown key '{loc}'"
     if kind == "missing":
+        *parent, last = err["loc"]
+        if isinstance(last, int) and isinstance(got, (list, tuple)):  # a tuple with too few items
+            return f"{'.'.join(str(p) for p in parent)}: too few values (no item {last}), got {list(got)!r}"
         return f"missing key '{loc}'"
+    if kind == "too_long":
+        return f"{loc}: expected at most {ctx.get('max_length', '?')} values, got {got!r}"
+    if kind == "finite_number":
+        return f"{loc}: expected a finite number, got {got!r}"
     bounds = {
         "greater_than": ">",
         "greater_than_equal": ">=",
@@ -311,9 +320,11 @@ def load_config(path) -> SeamConfig:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read config file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a YAML text file (byte {exc.start} is not UTF-8)") from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
