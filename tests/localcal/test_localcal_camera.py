@@ -88,6 +88,47 @@ def test_markers_out_of_view_behind_or_backwards_are_not_detected():
     assert sorted(MarkerDetector(INTR, {1: 90.0, 2: 90.0}).detect(image)) == [2]
 
 
+def test_render_is_reproducible_and_noise_level_is_the_same_at_the_markers_and_elsewhere():
+    markers = [(1, 90.0, _pose([0.0, 0.0, 0.0], [0.0, 0.0, 1000.0]))]
+    image = render_markers(INTR, markers, 7)
+    np.testing.assert_array_equal(render_markers(INTR, markers, 7), image)
+    assert np.any(render_markers(INTR, markers, 8) != image)
+    # without corner jitter the grey-level noise is the only difference to a noiseless frame
+    for seed in (0, 1):
+        noise = render_markers(INTR, markers, seed, noise_px=0.0).astype(float) - render_markers(
+            INTR, markers, seed, noise_px=0.0, noise_gray=0.0
+        )
+        (u0, v0), (u1, v1) = INTR.project([[-40.0, -40.0, 1000.0], [40.0, 40.0, 1000.0]]).astype(int)
+        at_marker, on_wall = noise[v0:v1, u0:u1], noise[:200, :300]  # 42x42 px inside the marker
+        for region in (at_marker, on_wall):
+            assert 2.7 < np.std(region) < 3.3 and abs(np.mean(region)) < 0.2
+    # no noise at all: the seed no longer matters
+    quiet = {"noise_px": 0.0, "noise_gray": 0.0}
+    np.testing.assert_array_equal(render_markers(INTR, markers, 0, **quiet), render_markers(INTR, markers, 1, **quiet))
+
+
+def test_markers_close_together_in_the_image_are_both_drawn():
+    # the patches rendered around the two markers overlap (one merged patch), the markers do not
+    truth = {1: _pose([0.0, 0.0, 0.0], [0.0, 0.0, 1000.0]), 2: _pose([0.0, 0.0, 0.0], [110.0, 0.0, 500.0])}
+    found = MarkerDetector(INTR, {1: 90.0, 2: 90.0}).detect(
+        render_markers(INTR, [(i, 90.0, T) for i, T in truth.items()], 0)
+    )
+    assert sorted(found) == [1, 2]
+    for i, depth_mm in ((1, 15.0), (2, 5.0)):
+        d = found[i][:3, 3] - truth[i][:3, 3]
+        assert np.all(np.abs(d[:2]) < 1.0) and abs(d[2]) < depth_mm, (i, d)
+
+
+def test_given_background():
+    flat = np.full((720, 1280), 100.0)
+    np.testing.assert_array_equal(render_markers(INTR, [], 0, noise_gray=0.0, background=flat), 100)
+    image = render_markers(INTR, [(1, 90.0, _pose([0, 0, 0], [0.0, 0.0, 1000.0]))], 0, background=flat)
+    assert sorted(MarkerDetector(INTR, {1: 90.0}).detect(image)) == [1]
+    assert 2.7 < np.std(image[:200, :300]) < 3.3 and abs(np.mean(image[:200, :300]) - 100.0) < 0.2
+    with pytest.raises(ConfigError, match=r"^background: expected shape \(720, 1280\), got \(10, 10\)$"):
+        render_markers(INTR, [], 0, background=np.zeros((10, 10)))
+
+
 def test_bad_input_messages():
     detector = MarkerDetector(INTR, {1: 90.0})
     with pytest.raises(
