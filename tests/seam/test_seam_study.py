@@ -151,3 +151,38 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
     assert png_size(serial / "fig6_pvalues.png") == (600, 580)
     assert (serial / "report.html").read_text().count("data:image/png;base64,") == 1
     assert "seam study: 6 runs × 1 episode(s), 2 parameters, 0 failed" in out
+
+
+def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
+    """A run that breaks (here: a numerical error that is not a PosekitError, in run 1) is a row with
+    status=error and the reason; the other runs, the models and the files go on; the CLI exits 1."""
+    import yaml
+
+    import posekit.seam.simulate as simulate
+    from posekit.cli.main import main
+
+    real = simulate.run_episode
+    calls = []
+
+    def flaky(cfg, seed=None, **kw):
+        calls.append(seed)
+        if len(calls) == 2:
+            raise ZeroDivisionError("float division by zero")
+        return real(cfg, seed, **kw)
+
+    monkeypatch.setattr(simulate, "run_episode", flaky)
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    rc = main(["seam", "study", "--config", str(cfg), "--runs", "5", "--scheduler", "serial",
+               "--parameters", "filter.sigma_t_mm", "--out", str(tmp_path / "out")])
+    out, err = capsys.readouterr()
+    assert rc == 1
+    assert err == "posekit: error: 1 of 5 study runs failed; their rows in runs.csv say why\n"
+    assert "seam study: 5 runs × 1 episode(s), 1 parameters, 1 failed" in out
+    runs = _read(tmp_path / "out" / "runs.csv")
+    head = runs[0]
+    assert [r[head.index("status")] for r in runs[1:]] == ["ok", "error", "ok", "ok", "ok"]
+    assert runs[2][head.index("error")] == "ZeroDivisionError: float division by zero"
+    assert runs[2][head.index("rmse_x_mm")] == "nan" and runs[1][head.index("rmse_x_mm")] != "nan"
+    ranked = _read(tmp_path / "out" / "parameters_ranked.csv")
+    assert [r[1] for r in ranked[1:]] == ["filter.sigma_t_mm"]      # the OLS used the 4 good runs

@@ -84,4 +84,8 @@ def run_study(args) -> int:
                   + "".join(f"{r['log10_p_' + a]:>9.2f}" for a in ERROR_AXES))
     print(f"wrote {report.parent}: fig6_pvalues.png, parameters_ranked.csv, runs.csv, report.html")
     sys.stdout.flush()
+    if failed:  # a batch with failed items: every row is written, the exit code says so
+        print(f"posekit: error: {failed} of {len(study.X)} study runs failed; their rows in runs.csv say why",
+              file=sys.stderr)
+        return 1
     return 0

@@ -13,6 +13,7 @@ in a single process (``scheduler='serial'``), on a local cluster or on a remote 
 first R runs of a larger study are the R runs of a smaller one.
 """
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -310,8 +311,9 @@ def study_task(task: dict) -> dict:
     """One study run (top level, picklable): simulate its episodes, return the RMSE per error axis.
 
     ``task`` holds ``config`` (a full configuration dict with the factor values set), ``seeds``
-    (one int per episode) and ``run``. Bad configurations or a failed estimate give
-    ``status='error'`` and the reason, never an exception.
+    (one int per episode) and ``run``. Any failure (a bad configuration, a failed estimate, a
+    numerical breakdown at extreme parameter values) gives ``status='error'`` and the reason on
+    one line, never an exception: one bad run must not cancel the study.
     """
     from .config import config_from_dict
     from .simulate import run_episode
@@ -323,9 +325,11 @@ def study_task(task: dict) -> dict:
         rmse = np.sqrt(np.nanmean(errors ** 2, axis=0))
         return {"run": task["run"], "status": "ok", "rmse": rmse.tolist(), "error": "",
                 "seconds": time.process_time() - t0}
-    except PosekitError as exc:
-        return {"run": task["run"], "status": "error", "rmse": [float("nan")] * 6,
-                "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__,
+    except Exception as exc:  # noqa: BLE001 -- recorded in the run's row (DESIGN: never drop an item)
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        if not isinstance(exc, PosekitError):
+            text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+        return {"run": task["run"], "status": "error", "rmse": [float("nan")] * 6, "error": text or type(exc).__name__,
                 "seconds": time.process_time() - t0}
 
 
@@ -371,14 +375,14 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     for i in range(int(runs)):
         rng = np.random.default_rng(task_seed(seed, i, 0))
         X[i] = lows + (highs - lows) * rng.random(len(factors))
-        cfg = _copy(base)
+        cfg = copy.deepcopy(base)
         for f, v in zip(factors, X[i]):
             set_dotted(cfg, f.name, float(v))
         tasks.append({"run": i, "config": cfg, "seeds": [_episode_seed(seed, i, j) for j in range(int(episodes))]})
     # A bad range (e.g. a noise pushed below 0) is the user's error: say so before any work starts.
     for f in factors:
         for v in (f.low, f.high):
-            cfg = _copy(base)
+            cfg = copy.deepcopy(base)
             set_dotted(cfg, f.name, float(v))
             try:
                 config_from_dict(cfg, "study")
@@ -403,14 +407,6 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     return SeamStudy(base=base, factors=factors, seed=int(seed), episodes=int(episodes), X=X, rmse=rmse,
                      status=status, messages=messages, seconds=seconds, effects=effects, effects_error=why,
                      ranked=ranked, wall_s=wall, task_cpu_s=float(seconds.sum()), scheduler=sched)
-
-
-def _copy(d):
-    if isinstance(d, dict):
-        return {k: _copy(v) for k, v in d.items()}
-    if isinstance(d, list):
-        return [_copy(v) for v in d]
-    return d
 
 
 def write_study(study: SeamStudy, out) -> Path:
