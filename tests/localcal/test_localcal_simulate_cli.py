@@ -59,6 +59,9 @@ def test_simulate_with_the_ooi_never_seen_is_a_one_line_error(tmp_path, capsys):
     (["--method", "line", "--occlude-ooi", "maybe"],
      "--occlude-ooi: expected one of never | calibration | always, got 'maybe'"),
     (["--method", "line", "--camera-hz", "0"], "--camera-hz: expected a rate > 0, got 0"),
+    (["--method", "line", "--camera-hz", "inf"], "--camera-hz: expected a rate > 0, got inf"),
+    (["--method", "line", "--plot-hz", "nan"], "--plot-hz: expected a rate >= 0, got nan"),
+    (["--method", "line", "--seed", "-1"], "--seed: expected an integer >= 0, got -1"),
     (["--method", "line", "--scheduler", "cluster"],
      "--scheduler: expected serial, local or a Dask address like tcp://HOST:PORT, got 'cluster'"),
 ])
@@ -66,3 +69,16 @@ def test_simulate_bad_options(tmp_path, capsys, argv, message):
     rc = main(["localcal", "simulate", *argv, "--out", str(tmp_path)])
     assert rc == 1
     assert capsys.readouterr().err == f"posekit: error: {message}\n"
+
+
+@pytest.mark.parametrize("verb", [["simulate", "--method", "line", "--runs", "1"], ["demo"]])
+def test_an_unwritable_out_fails_before_any_run(tmp_path, capsys, verb):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    out = blocker / "results"
+    rc = main(["localcal", *verb, "--plot-hz", "0", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == 1
+    assert captured.out == ""                          # nothing was run
+    folder = out if verb[0] == "simulate" else out / "line"
+    assert captured.err == f"posekit: error: --out {folder}: cannot create the output folder (Not a directory)\n"

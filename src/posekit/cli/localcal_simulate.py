@@ -57,12 +57,38 @@ def _camera_options(s):
 
 
 def _config(args, **extra):
+    import math
+
     from ..localcal.episode import EpisodeConfig
-    if not args.camera_hz > 0:
+    if not (math.isfinite(args.camera_hz) and args.camera_hz > 0):
         raise ConfigError(f"--camera-hz: expected a rate > 0, got {args.camera_hz:g}")
-    if not args.plot_hz >= 0:
+    if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
         raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
     return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
+
+
+def _out_folder(out):
+    """Create the output folder before the (long) runs; a one-line ConfigError if it cannot be written."""
+    import os
+    from pathlib import Path
+
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {folder}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out {folder}: the output folder is not writable")
+    return folder
+
+
+def _write(result, out, command):
+    """``write_experiment`` with a write failure as a one-line ConfigError."""
+    from ..localcal.plots import write_experiment
+    try:
+        return write_experiment(result, out, command=command)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot write the results ({exc.strerror or exc})") from None
 
 
 def _all_failed(result):
@@ -82,9 +108,10 @@ def _scheduler(text: str):
 
 
 def run_simulate(args) -> int:
+    """Run ``posekit localcal simulate``; the exit code is 0 if every run succeeded, else 1."""
     from ..localcal.episode import METHODS, OCCLUSIONS
     from ..localcal.experiments import run_experiment
-    from ..localcal.plots import tables_text, write_experiment
+    from ..localcal.plots import tables_text
 
     if args.method not in METHODS:
         raise ConfigError(f"--method: expected one of {' | '.join(METHODS)}, got '{args.method}'")
@@ -97,13 +124,14 @@ def run_simulate(args) -> int:
     if args.occlude_ooi not in OCCLUSIONS:
         raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
     config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi)
+    _out_folder(args.out)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
                             scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())
     _all_failed(result)
     print(tables_text(result, truth=args.truth))
     command = "posekit localcal simulate " + " ".join(
         shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
-    files = write_experiment(result, args.out, command=command)
+    files = _write(result, args.out, command)
     failed = sum(ep is None for ep in result.episodes)
     print(f"\n{len(result.episodes) - failed}/{len(result.episodes)} runs ok in {result.wall_s:.1f} s; "
           f"wrote {len(files)} files to {args.out} (report.html)")
@@ -111,14 +139,18 @@ def run_simulate(args) -> int:
 
 
 def run_demo(args) -> int:
+    """Run ``posekit localcal demo``; the exit code is 0 if both episodes succeeded, else 1."""
     from pathlib import Path
 
     from ..localcal.experiments import run_experiment
-    from ..localcal.plots import tables_text, write_experiment
+    from ..localcal.plots import tables_text
 
     if args.seed < 0:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
     config = _config(args)
+    if args.out:
+        for method in ("line", "trajectory"):
+            _out_folder(Path(args.out) / method)
     failed = 0
     for method in ("line", "trajectory"):
         result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
@@ -129,7 +161,7 @@ def run_demo(args) -> int:
         print()
         failed += sum(ep is None for ep in result.episodes)
         if args.out:
-            write_experiment(result, Path(args.out) / method, command=f"posekit localcal demo --seed {args.seed}")
+            _write(result, Path(args.out) / method, f"posekit localcal demo --seed {args.seed}")
     if args.out:
         print(f"wrote the tables, figures and report.html to {Path(args.out) / 'line'} and "
               f"{Path(args.out) / 'trajectory'}")
