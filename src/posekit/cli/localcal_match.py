@@ -38,6 +38,7 @@ def run_match(args) -> int:
     import numpy as np
 
     from ..errors import ConfigError
+    from ..geometry import rotation_angle_between
     from ..localcal.registration import match_trajectories
     from ..localcal.tum import read_tum
 
@@ -52,7 +53,7 @@ def run_match(args) -> int:
         out.write_text(json.dumps(reg.to_json(), indent=2) + "\n")
     except OSError as exc:
         raise ConfigError(f"--out {out}: cannot write the result ({exc.strerror or exc})") from None
-    angle = np.rad2deg(np.arccos(np.clip((np.trace(reg.R) - 1.0) / 2.0, -1.0, 1.0)))
+    angle = np.rad2deg(float(rotation_angle_between(np.eye(3), reg.R, check=False)))
     how = (f"{reg.n_pairs} pose pairs within {args.max_dt:g} s at a clock offset of "
            f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps
            else f"{len(src)} camera poses against {len(dst)} kinematic poses without timestamps")

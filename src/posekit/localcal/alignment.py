@@ -8,6 +8,7 @@ re-fit that rejects gross outliers by a median-based threshold.
 import numpy as np
 
 from posekit.errors import TrajectoryError
+from posekit.geometry import nearest_rotation, rotation_angle_between
 
 __all__ = [
     "INLIER_SIGMAS",
@@ -188,11 +189,7 @@ def body_rotation_spread(R_src, R_dst, R) -> float:
     if len(R_src) == 0:
         return float("nan")
     Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst
-    U, _, Vt = np.linalg.svd(Xs.sum(0))
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
-    c = (np.einsum("nij,ij->n", Xs, (U * d) @ Vt) - 1.0) / 2.0
-    return float(np.median(np.arccos(np.clip(c, -1.0, 1.0))))
+    return float(np.median(rotation_angle_between(Xs, nearest_rotation(Xs.sum(0)), check=False)))
 
 
 def thin_indices(n: int, k: int) -> np.ndarray:

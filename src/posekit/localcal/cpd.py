@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from posekit.geometry import nearest_rotation
+
 __all__ = ["CPDResult", "initial_sigma2", "rigid_cpd"]
 
 #: Floor of the mixture variance, mm^2 (exact data would otherwise drive it to 0).
@@ -63,14 +65,6 @@ def _mm(A, B) -> np.ndarray:
     if A.shape[1] == 9:
         return A[:, :3] @ B[:3] + A[:, 3:6] @ B[3:6] + A[:, 6:] @ B[6:]
     return np.hstack([A @ B[:, :3], A @ B[:, 3:6], A @ B[:, 6:]])
-
-
-def _procrustes(A) -> np.ndarray:
-    """Rotation R maximising tr(R^T A) (det +1)."""
-    U, _, Vt = np.linalg.svd(A)
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
-    return (U * d) @ Vt
 
 
 def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_scale: bool = False,
@@ -143,7 +137,7 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
                 P0 = np.exp(logp - logp.max(0))
                 P0 /= P0.sum(0)
                 G = _mm(P0.T, Ry.reshape(M, 9)).reshape(N, 3, 3)
-                Xb = _procrustes(np.einsum("nji,kj,nkl->il", G, R, Rx))
+                Xb = nearest_rotation(np.einsum("nji,kj,nkl->il", G, R, Rx))
                 tr = _mm((R @ Ry @ Xb).reshape(M, 9), Rx_flat.T)
                 mean_gap = max(float((P0 * (3.0 - tr)).sum() / N), 1e-12)
                 kappa = min(1.5 / mean_gap, KAPPA_MAX)
@@ -170,14 +164,14 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
         if use_rot:
             G = _mm(P.T, Ry.reshape(M, 9)).reshape(N, 3, 3)      # sum_m P_mn Ry_m
             B = B + kappa * np.einsum("nij,kj,nlk->il", Rx, Xb, G)
-        R_new = _procrustes(B)
+        R_new = nearest_rotation(B)                              # argmax tr(R^T B), det +1
         if with_scale:
             s = float(np.trace(A.T @ R_new) / yPy)
         t_new = mu_x - s * R_new @ mu_y
         sigma2_new = max((xPx - 2.0 * s * np.trace(R_new.T @ A) + s * s * yPy) / (3.0 * Np), SIGMA2_FLOOR)
         if use_rot:
             C = np.einsum("nji,kj,nkl->il", G, R_new, Rx)   # sum G_n^T R^T Rx_n
-            Xb = _procrustes(C)
+            Xb = nearest_rotation(C)
             Z = (R_new @ Ry @ Xb).reshape(M, 9)
             gap = max(float((P * (3.0 - _mm(Z, Rx_flat.T))).sum() / Np), 1e-12)
             kappa = min(1.5 / gap, KAPPA_MAX)

@@ -27,6 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from posekit.errors import ConfigError, TrajectoryError
+from posekit.geometry import nearest_rotation, rotation_angle_between
 
 from .alignment import (
     _CHI3_MEDIAN,
@@ -217,11 +218,8 @@ def _match_timed(src, dst, max_dt_s, offset, max_offset_s, with_scale, outlier_f
 
 def _turns(R) -> bool:
     """True if the orientations along a path vary by more than ORIENTATION_STILL_DEG."""
-    U, _, Vt = np.linalg.svd(R.sum(0))
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0
-    c = (np.einsum("nij,ij->n", R, (U * d) @ Vt) - 1.0) / 2.0
-    return bool(np.rad2deg(np.arccos(np.clip(c.min(), -1.0, 1.0))) > ORIENTATION_STILL_DEG)
+    angles = rotation_angle_between(R, nearest_rotation(R.sum(0)), check=False)
+    return bool(np.rad2deg(angles.max()) > ORIENTATION_STILL_DEG)
 
 
 def _polish(ps, tree, pd, R, t, s, with_scale, max_iter=POLISH_ITERS):
