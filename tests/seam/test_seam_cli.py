@@ -199,6 +199,9 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     assert list(rows) == ["xy, 0 sensors", "xy, 1 sensor", "xy, 2 sensors", "yz, 0 sensors", "yz, 1 sensor",
                           "yz, 2 sensors", "xy, FK only"]
     assert all(len(v) == 6 and all(x >= 0 for x in v) for v in rows.values())
+    # fixed decimals (mm and deg to 3 places), never a mix of significant-digit widths
+    numbers = [t for l in out.splitlines() if l.startswith(("xy,", "yz,")) for t in l[24:].split()]
+    assert len(numbers) == 42 and all(len(t.split(".")[1]) == 3 for t in numbers)
     assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
     # the FK-only row is the 0-sensor run's kinematic error: the same for every sensor count
     assert rows["xy, FK only"] != rows["xy, 0 sensors"]
@@ -214,3 +217,14 @@ def test_example_configs_load_and_dump(capsys, path):
     rc, out, err = _run(capsys, "seam", "simulate", "--config", str(path), "--dump-config")
     assert rc == 0 and err == ""
     assert config_from_dict(yaml.safe_load(out)) == load_config(path)
+
+
+def test_rmse_table_fixed_decimals():
+    from posekit.cli.seam_simulate import rmse_table
+    text = rmse_table([("xy, 2 sensors", [0.76654, 2.236, 0.0, 10.0, 0.0005, 123.4567]),
+                       ("a label longer than twenty-four", [1, 2, 3, 4, 5, 6])])
+    assert text.splitlines() == [
+        "configuration                         x mm      y mm      z mm    rx deg    ry deg    rz deg",
+        "xy, 2 sensors                        0.767     2.236     0.000    10.000     0.001   123.457",
+        "a label longer than twenty-four      1.000     2.000     3.000     4.000     5.000     6.000",
+    ]

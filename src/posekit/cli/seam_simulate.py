@@ -8,7 +8,7 @@ import time
 
 from ..errors import ConfigError
 
-__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config"]
+__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
 
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
@@ -22,6 +22,28 @@ def progress(iterable, total=None, desc=None):
         return iterable
     from tqdm import tqdm
     return tqdm(iterable, total=total, desc=desc, unit="episode", leave=False)
+
+
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def _rmse_values(m, prefix: str = "") -> list[float]:
+    """RMSE per axis ``[x, y, z mm, rx, ry, rz deg]`` from a metrics dict (``prefix='kinematic_'``: FK only)."""
+    return [m[f"{prefix}rmse_mm"][a] for a in AXES[:3]] + [m[f"{prefix}rmse_deg"][a] for a in AXES[3:]]
+
+
+def rmse_table(rows, decimals: int = 3) -> str:
+    """Plain-text RMSE table: a header, then one line per ``(label, values (6,))`` row.
+
+    Values are ``[x, y, z (mm), rx, ry, rz (deg)]`` printed with ``decimals`` fixed decimals
+    (µm and millidegree resolution by default), right-aligned in 10 columns; labels in a column
+    of at least 24 characters.
+    """
+    width = max([24, *(len(label) + 1 for label, _ in rows)])
+    head = f"{'configuration':<{width}}" + "".join(f"{a + (' mm' if i < 3 else ' deg'):>10}"
+                                                   for i, a in enumerate(AXES))
+    return "\n".join([head, *(f"{label:<{width}}" + "".join(f"{v:>10.{decimals}f}" for v in values)
+                              for label, values in rows)])
 
 
 def _episode_flags(p):
@@ -100,7 +122,7 @@ def run_simulate(args) -> int:
     if args.record_particles < 0:
         raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
     from ..seam.compare import compare_configurations, run_episodes
-    from ..seam.report import rmse_table_text, write_simulation
+    from ..seam.report import write_simulation
     from ..seam.simulate import metrics
 
     results = run_episodes(cfg, args.runs, record_particles=args.record_particles, progress=progress,
@@ -110,13 +132,16 @@ def run_simulate(args) -> int:
                   if args.compare else None)
     paths = write_simulation(args.out, results, m, dump_config(cfg), comparison=comparison)
     count = cfg.sensors.count
-    sets = [(f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}", m)]
+    label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"
+    rows = [(label, _rmse_values(m))]
     if comparison:
-        sets += [(s.label, s.metrics) for s in comparison if s.label != sets[0][0]]
+        rows += [(s.label, _rmse_values(s.metrics)) for s in comparison if s.label != label]
+    else:
+        rows.append((f"{label} (FK only)", _rmse_values(m, "kinematic_")))
     print(f"seam simulate: {args.runs} run(s) × {cfg.trajectory.steps} steps, {cfg.filter.particles} particles, "
           f"filter step median {m['step_ms_median']:.3f} ms")
     print("RMSE per axis in the seam frame (mm, deg):")
-    print(rmse_table_text(sets, kinematics=not comparison))
+    print(rmse_table(rows))
     print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
     return 0
 
@@ -124,7 +149,7 @@ def run_simulate(args) -> int:
 def run_demo(args) -> int:
     from ..seam.compare import compare_configurations
     from ..seam.config import apply_overrides, config_from_dict, dump_config
-    from ..seam.report import rmse_table_text, write_simulation
+    from ..seam.report import write_simulation
 
     _check_runs(args.runs)
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
@@ -138,12 +163,10 @@ def run_demo(args) -> int:
     print(f"seam demo: {args.runs} run(s) × {args.steps} steps, {args.particles} particles, sensors 20/40 mm ahead "
           f"({time.perf_counter() - t0:.1f} s)")
     print("RMSE per axis in the seam frame (mm, deg):")
-    print(rmse_table_text([(s.label, s.metrics) for s in sets], kinematics=False))
-    fk = sets[0].metrics
-    if "kinematic_rmse_mm" in fk:
-        print(rmse_table_text([("xy, FK only", {"rmse_mm": fk["kinematic_rmse_mm"],
-                                                "rmse_deg": fk["kinematic_rmse_deg"]})],
-                              kinematics=False).splitlines()[1])
+    rows = [(s.label, _rmse_values(s.metrics)) for s in sets]
+    # the kinematics-only pose does not depend on the sensors: one row, from the first set
+    rows.append((f"{sets[0].trajectory}, FK only", _rmse_values(sets[0].metrics, "kinematic_")))
+    print(rmse_table(rows))
     if args.out:
         main = next(s for s in sets if s.trajectory == "xy" and s.sensors == 2)
         paths = write_simulation(args.out, main.results, main.metrics, dump_config(main.config), comparison=sets,
