@@ -320,11 +320,9 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
 def _goal_B(cell, arm):
     """Base-frame TCP position (nominal model) that would put the tool marker on the OOI's axis
     b in front of it — for the plots only (truth, mapped through the current model error), mm."""
-    T_true, T_nom = arm.true_pose(), arm.nominal_pose()
-    T_B_C = T_true @ cell.T_F_C
-    T_C_O = np.linalg.inv(T_B_C) @ cell.T_B_O
-    delta_C = T_C_O[:3, 3] - cell.T_C_M[:3, 3]
-    return T_nom[:3, 3] + T_B_C[:3, :3] @ delta_C
+    delta_C = _truth(cell, arm)[0]                  # true t_C_O - t_C_M
+    R_B_C = (arm.true_pose() @ cell.T_F_C)[:3, :3]
+    return arm.nominal_pose()[:3, 3] + R_B_C @ delta_C
 
 
 def _line(arm, cell, camera, config, updates):
