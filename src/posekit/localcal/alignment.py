@@ -89,7 +89,7 @@ def robust_umeyama(src, dst, *, with_scale: bool = False, outlier_fraction: floa
     Parameters
     ----------
     src, dst : array_like, shape (N, 3)
-        Corresponding points, mm.
+        Corresponding points in the src and dst frames, mm.
     with_scale : bool
         Estimate a scale too.
     outlier_fraction : float
@@ -100,10 +100,13 @@ def robust_umeyama(src, dst, *, with_scale: bool = False, outlier_fraction: floa
     Returns
     -------
     R : ndarray, shape (3, 3)
+        Rotation ``R_dst_src`` (det +1), fitted on the inliers.
     t : ndarray, shape (3,)
-        mm.
+        Translation ``t_dst_src``, mm.
     s : float
+        Scale (1.0 unless ``with_scale``).
     inliers : ndarray, shape (N,), bool
+        Pairs kept by the gate.
     residuals : ndarray, shape (N,)
         ``|dst - (s R src + t)|`` of every pair, mm.
     """
@@ -193,7 +196,20 @@ def body_rotation_spread(R_src, R_dst, R) -> float:
 
 
 def thin_indices(n: int, k: int) -> np.ndarray:
-    """At most ``k`` evenly spaced indices of ``range(n)`` (all of them if ``n <= k``)."""
+    """At most ``k`` evenly spaced indices of ``range(n)`` (all of them if ``n <= k``).
+
+    Parameters
+    ----------
+    n : int
+        Length of the sequence.
+    k : int
+        Largest number of indices to keep.
+
+    Returns
+    -------
+    idx : ndarray of int, shape (min(n, k),)
+        Increasing indices, the first and last of the sequence included.
+    """
     if n <= k:
         return np.arange(n)
     return np.linspace(0, n - 1, k).round().astype(int)

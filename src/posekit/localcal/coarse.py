@@ -109,6 +109,28 @@ def orientation_spread(R, t, s, p_src, R_src, p_dst, R_dst) -> float:
 
     Each src pose is paired with its nearest dst pose after ``s R p + t``; see
     :func:`.alignment.body_rotation_spread`.
+
+    Parameters
+    ----------
+    R : ndarray, shape (3, 3)
+        Candidate rotation ``R_dst_src``.
+    t : ndarray, shape (3,)
+        Candidate translation ``t_dst_src``, mm.
+    s : float
+        Candidate scale.
+    p_src : ndarray, shape (M, 3)
+        Source positions (src world frame), mm.
+    R_src : ndarray, shape (M, 3, 3)
+        Source orientations ``R_srcworld_body``.
+    p_dst : ndarray, shape (N, 3)
+        Destination positions (dst world frame), mm.
+    R_dst : ndarray, shape (N, 3, 3)
+        Destination orientations ``R_dstworld_body``.
+
+    Returns
+    -------
+    float
+        Median angle of the paired body-to-body rotations from their mean, rad.
     """
     _, j = cKDTree(p_dst).query(s * p_src @ R.T + t)
     return body_rotation_spread(R_src, R_dst[j], R)

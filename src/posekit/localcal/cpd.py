@@ -51,7 +51,20 @@ class CPDResult(NamedTuple):
 
 
 def initial_sigma2(X, Y) -> float:
-    """CPD's initial variance: mean squared distance of all pairs / 3 (mm^2)."""
+    """CPD's initial variance: mean squared distance of all pairs / 3.
+
+    Parameters
+    ----------
+    X : ndarray, shape (N, 3)
+        Data points, mm.
+    Y : ndarray, shape (M, 3)
+        Centroids, in the same frame as ``X``, mm.
+
+    Returns
+    -------
+    float
+        ``sum |x_n - y_m|^2 / (3 M N)``, mm^2.
+    """
     n, m = len(X), len(Y)
     return float((m * (X ** 2).sum() + n * (Y ** 2).sum() - 2.0 * X.sum(0) @ Y.sum(0)) / (3 * m * n))
 
@@ -78,7 +91,12 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
         Data points (the fixed set), mm.
     Y : ndarray, shape (M, 3)
         Centroids (the moving set), mm.
-    R0, t0, s0 : initial transform, ``x ≈ s0 R0 y + t0`` (default identity, 0, 1).
+    R0 : ndarray, shape (3, 3), optional
+        Initial rotation ``R_X_Y`` (default identity).
+    t0 : ndarray, shape (3,), optional
+        Initial translation, mm (default 0): ``x ≈ s0 R0 y + t0``.
+    s0 : float
+        Initial scale.
     w : float
         Weight of the uniform outlier component, in [0, 1).
     with_scale : bool
@@ -103,6 +121,7 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
     Returns
     -------
     CPDResult
+        ``x ≈ s R y + t`` (maps the Y frame into the X frame), the final variance and posteriors.
     """
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)

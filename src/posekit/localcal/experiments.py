@@ -81,7 +81,25 @@ def _update_columns(updates: int) -> list[str]:
 
 
 def table_columns(name: str, updates: int) -> list[str]:
-    """Column names of a table (``table2``, ``table3``, ``table4`` or their ``_truth`` variants)."""
+    """Column names of a table (``table2``, ``table3``, ``table4`` or their ``_truth`` variants).
+
+    Parameters
+    ----------
+    name : str
+        Table name.
+    updates : int
+        Look-then-move updates per episode (Tables 2 and 4 have three columns per update).
+
+    Returns
+    -------
+    list of str
+        ``run``, the value columns (``*_deg`` in degrees, ``*_mm`` in mm), ``status``, ``error``.
+
+    Raises
+    ------
+    ConfigError
+        An unknown table name.
+    """
     base = name.removesuffix("_truth")
     if base == "table2":
         cols = ["rot_x_deg", "rot_y_deg", "rot_z_deg"] + _update_columns(updates)
@@ -218,7 +236,22 @@ def _header(col: str) -> str:
 
 
 def format_table(rows: list[dict], columns: list[str], title: str = "") -> str:
-    """A fixed-width text table (2 decimals for degrees, 1 for mm; errors after the table)."""
+    """A fixed-width text table (2 decimals for degrees, 1 for mm; errors after the table).
+
+    Parameters
+    ----------
+    rows : list of dict
+        Table rows (as in :attr:`ExperimentResult.tables`).
+    columns : list of str
+        Columns to show, in order (``status`` and ``error`` are left out of the grid).
+    title : str
+        Line printed above the table.
+
+    Returns
+    -------
+    str
+        The table; a line per failed run follows it with the reason.
+    """
     cols = [c for c in columns if c not in ("status", "error")]
     head = [_header(c) for c in cols]
 

@@ -171,6 +171,8 @@ def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool
     Returns
     -------
     Registration
+        ``R`` is ``R_dst_src``, ``t_mm`` is ``t_dst_src`` (mm), with the residual statistics of
+        the inlier pairs (mm) and the clock offset used (s).
 
     Raises
     ------
