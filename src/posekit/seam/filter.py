@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posekit.errors import ConfigError
+from posekit.geometry import matrix_from_rotation_vector, transform_from
 
 from . import _kernels as _k
 from .config import SeamConfig
@@ -31,7 +32,7 @@ from .densities import (
     robot_measurement,
     transition,
 )
-from .particles import RESAMPLERS, exp_small, normalize_log_weights, weighted_mean_se3
+from .particles import RESAMPLERS, effective_sample_size, normalize_log_weights, weighted_mean_se3
 from .seamline import SeamLine
 from .trajectories import tool_chain
 
@@ -176,7 +177,8 @@ class SeamParticleFilter:
         xi = self.rng.standard_normal((self.n, 6))
         xi[:, :3] *= f.init_sigma_t_mm
         xi[:, 3:] *= math.radians(f.init_sigma_r_deg)
-        self.T = np.matmul(np.asarray(T_center, dtype=np.float64), exp_small(xi))
+        offsets = transform_from(matrix_from_rotation_vector(xi[:, 3:]), xi[:, :3], check=False)
+        self.T = np.matmul(np.asarray(T_center, dtype=np.float64), offsets)
         self.logw = np.full(self.n, -math.log(self.n))
 
     def _loglik(self, T: np.ndarray, inputs: StepInputs, meas) -> tuple[np.ndarray, int]:
@@ -203,8 +205,7 @@ class SeamParticleFilter:
     def _temper(self, ll: np.ndarray, remaining: float, target: float) -> float:
         """Largest exponent ``β <= remaining`` with ``ESS(logw + β ll) >= target`` (bisection)."""
         def ess(beta):
-            w = normalize_log_weights(self.logw + beta * ll).w
-            return 1.0 / float(w @ w)
+            return effective_sample_size(normalize_log_weights(self.logw + beta * ll).w)
 
         if ess(remaining) >= target:
             return remaining
@@ -243,7 +244,7 @@ class SeamParticleFilter:
                                      compliance=self.compliance, **self._robot_kw)
             ll, used = self._loglik(self.T, inputs, meas)
         norm = normalize_log_weights(self.logw + ll)
-        ess = 1.0 / float(norm.w @ norm.w)
+        ess = effective_sample_size(norm.w)
         # 2b. a likelihood far narrower than the cloud (start-up, a feature): temper it in stages
         stages = 0
         remaining = 1.0
@@ -254,7 +255,7 @@ class SeamParticleFilter:
             remaining -= beta
             ll, used = self._loglik(self.T, inputs, meas)
             norm = normalize_log_weights(self.logw + remaining * ll)
-            ess = 1.0 / float(norm.w @ norm.w)
+            ess = effective_sample_size(norm.w)
             stages += 1
         self.annealings += stages
         # 3. normalise (recover from vanishing weights), estimate

@@ -19,7 +19,6 @@ __all__ = [
     "RESAMPLERS",
     "NormalizedWeights",
     "effective_sample_size",
-    "exp_small",
     "normalize_log_weights",
     "resample",
     "residual_resample",
@@ -171,47 +170,6 @@ def resample(name: str, w, rng=None) -> np.ndarray:
             f"unknown resampler {name!r}, expected one of {sorted(RESAMPLERS)}"
         ) from None
     return fn(w, rng)
-
-
-def exp_small(xi: np.ndarray) -> np.ndarray:
-    """Fast exponential of small twists for particle noise (no validation; hot path).
-
-    Rotation by Rodrigues' formula (exact); the translation is ``rho`` itself (the ``V``
-    factor of the exact map differs from I by O(|phi| |rho|), negligible for noise).
-
-    Parameters
-    ----------
-    xi : ndarray, shape (N, 6)
-        ``[rho (mm), phi (rad)]`` per row.
-
-    Returns
-    -------
-    T : ndarray, shape (N, 4, 4)
-    """
-    n = xi.shape[0]
-    phi = xi[:, 3:]
-    theta2 = (phi * phi).sum(1)
-    theta = np.sqrt(theta2)
-    small = theta < 1e-4
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    x, y, z = phi[:, 0], phi[:, 1], phi[:, 2]
-    T = np.zeros((n, 4, 4))
-    # R = I + a K + b K^2, K = hat(phi); K^2 = phi phi^T - theta^2 I
-    bx, by = b * x, b * y
-    T[:, 0, 0] = 1.0 - b * (y * y + z * z)
-    T[:, 1, 1] = 1.0 - b * (x * x + z * z)
-    T[:, 2, 2] = 1.0 - b * (x * x + y * y)
-    T[:, 0, 1] = bx * y - a * z
-    T[:, 1, 0] = bx * y + a * z
-    T[:, 0, 2] = bx * z + a * y
-    T[:, 2, 0] = bx * z - a * y
-    T[:, 1, 2] = by * z - a * x
-    T[:, 2, 1] = by * z + a * x
-    T[:, :3, 3] = xi[:, :3]
-    T[:, 3, 3] = 1.0
-    return T
 
 
 def rotvec_from_matrix_fast(R: np.ndarray) -> np.ndarray:

@@ -24,11 +24,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from posekit.geometry import matrix_from_rotation_vector, transform_from
 from posekit.robots import DHChain
 
 from .config import RobotConfig, SeamConfig, TrajectoryConfig
 from .filter import SeamParticleFilter, StepInputs
-from .particles import exp_small, rotvec_from_matrix_fast, systematic_resample
+from .particles import rotvec_from_matrix_fast, systematic_resample
 from .seamline import SeamLine
 from .trajectories import NominalTrajectory, nominal_trajectory
 from .trend import TrendResult, trend_filter
@@ -214,7 +215,8 @@ def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
     xi = np.zeros((n, 6))
     xi[:, :3] = pr.cartesian_compliance_mm_per_n * f_T
     xi[:, 3:] = math.radians(pr.cartesian_compliance_deg_per_n) * np.cross([0.0, 0.0, 1.0], f_T)
-    truth = np.matmul(true_chain.forward_kinematics(q_arm), exp_small(xi))
+    cartesian = transform_from(matrix_from_rotation_vector(xi[:, 3:]), xi[:, :3], check=False)
+    truth = np.matmul(true_chain.forward_kinematics(q_arm), cartesian)
     q_meas = nt.q + math.radians(cfg.robot.joint_noise_deg) * rng.standard_normal(nt.q.shape)
     force_meas = f_W + pr.force_sensor_noise_n * rng.standard_normal((n, 3))
     # laser sensors on the true seam
