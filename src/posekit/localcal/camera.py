@@ -380,7 +380,8 @@ def render_markers(
     front &= np.all(p_C[:, 4:, 2] >= _NEAR_MM, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         uv_all = intr.project(p_C)
-    uv = (uv_all[:, :4] + rng.normal(0.0, noise_px, (len(ids), 4, 2))).astype(np.float32)
+    uv = uv_all[:, :4].copy()
+    uv[front] += rng.normal(0.0, noise_px, (np.count_nonzero(front), 4, 2))  # far first
     # box of each quiet zone in the image (clipped), texture px per cell
     uv_quiet = np.clip(np.nan_to_num(uv_all[:, 4:]), -1e6, 1e6)  # finite for markers behind too
     lo, hi = uv_quiet.min(axis=1), uv_quiet.max(axis=1)
@@ -397,16 +398,18 @@ def render_markers(
         # texture pixel centres: the black square spans [ppc - 0.5, n - ppc - 0.5]
         a, b = ppc - 0.5, tex.shape[0] - ppc - 0.5
         src = np.array([[a, a], [b, a], [b, b], [a, b]], dtype=np.float32)
-        drawn.append((tex, cv2.getPerspectiveTransform(src, uv[k]), boxes[k].tolist()))
+        drawn.append((tex, cv2.getPerspectiveTransform(src, uv[k].astype(np.float32)), boxes[k].tolist()))
     # one unit noise field for the frame: a random crop of the cached bank, random sign
-    dy, dx = rng.integers(0, _NOISE_PAD, 2)
-    gain = np.float32(noise_gray if rng.random() < 0.5 else -noise_gray)
+    dy, dx, gain = 0, 0, np.float32(0.0)
+    if noise_gray > 0:
+        dy, dx = rng.integers(0, _NOISE_PAD, 2)
+        gain = np.float32(noise_gray if rng.random() < 0.5 else -noise_gray)
     bank = _noise_bank(W, H)
     # away from the markers: the noisy background (for the default wall, a cached frame)
     if background is None:
         bg = _background(W, H)
         walls = _noisy_walls(W, H, float(noise_gray))
-        img = walls[rng.integers(len(walls))].copy()
+        img = walls[(dy * _NOISE_PAD + dx) % len(walls)].copy()  # picked by the crop: no extra draw
     else:
         bg = background
         img = _to_u8(bg + gain * bank[dy : dy + H, dx : dx + W])
