@@ -82,3 +82,35 @@ def test_an_unwritable_out_fails_before_any_run(tmp_path, capsys, verb):
     assert captured.out == ""                          # nothing was run
     folder = out if verb[0] == "simulate" else out / "line"
     assert captured.err == f"posekit: error: --out {folder}: cannot create the output folder (Not a directory)\n"
+
+
+def test_a_failed_run_keeps_its_row_in_the_written_tables(tmp_path, capsys, monkeypatch):
+    """Batch contract: run 1 fails, run 2 succeeds; both have a row, the mean is the good run's."""
+    from posekit.errors import EstimationError
+    from posekit.localcal import experiments
+
+    real = experiments.run_episode
+    calls = []
+
+    def flaky(method, seed, **kw):
+        calls.append(seed)
+        if len(calls) == 1:
+            raise EstimationError("the tool marker (id 0) not seen by the camera after update 1")
+        return real(method, seed, **kw)
+
+    monkeypatch.setattr(experiments, "run_episode", flaky)
+    out = tmp_path / "traj"
+    rc = main(["localcal", "simulate", "--method", "trajectory", "--runs", "2", "--plot-hz", "0", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == 1
+    assert len(calls) == 2
+    assert "1/2 runs ok" in captured.out
+    reason = "EstimationError: the tool marker (id 0) not seen by the camera after update 1"
+    assert f"run 1 failed: {reason}" in captured.out
+    for name, col in (("table3.csv", "max_z_mm"), ("table4.csv", "ey_2_mm")):
+        rows = list(csv.DictReader((out / name).open()))
+        assert [r["run"] for r in rows] == ["run 1", "run 2", "mean"]
+        assert [r["status"] for r in rows] == ["error", "ok", "ok"]
+        assert rows[0]["error"] == reason
+        assert float(rows[2][col]) == pytest.approx(float(rows[1][col]))
+        assert float(rows[1][col]) > 0.0
