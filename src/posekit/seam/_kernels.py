@@ -95,6 +95,21 @@ def _rotvec(r00, r01, r02, r10, r11, r12, r20, r21, r22):
     return (r21 - r12) * s, (r02 - r20) * s, (r10 - r01) * s
 
 
+@nb.njit(cache=True, inline="always")
+def _plateau_maha(x, y, z, d, Sinv):
+    """``δᵀ Sinv δ`` with ``δ = (1 - d/‖Δ‖)₊ Δ`` for ``Δ = (x, y, z)``: 0 inside the plateau of radius d."""
+    r = math.sqrt(x * x + y * y + z * z)
+    if not r > d:
+        return 0.0
+    k = 1.0 - d / r
+    x *= k
+    y *= k
+    z *= k
+    return (x * (Sinv[0, 0] * x + Sinv[0, 1] * y + Sinv[0, 2] * z)
+            + y * (Sinv[1, 0] * x + Sinv[1, 1] * y + Sinv[1, 2] * z)
+            + z * (Sinv[2, 0] * x + Sinv[2, 1] * y + Sinv[2, 2] * z))
+
+
 @nb.njit(cache=True, boundscheck=False)
 def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, d_t, d_r, logD, out):
     """Eq. (8) in two 3-D blocks: ``Δt = p_i - p_μ``, ``Δr = log(R_i R_μᵀ)`` (base frame).
@@ -104,35 +119,13 @@ def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, d_t, d_r, logD, out):
     n = T.shape[0]
     q = np.empty(9)
     for i in range(n):
-        dx = T[i, 0, 3] - mu[0, 3]
-        dy = T[i, 1, 3] - mu[1, 3]
-        dz = T[i, 2, 3] - mu[2, 3]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        mt = 0.0
-        if r > d_t:
-            k = 1.0 - d_t / r
-            dx *= k
-            dy *= k
-            dz *= k
-            mt = (dx * (Sinv_t[0, 0] * dx + Sinv_t[0, 1] * dy + Sinv_t[0, 2] * dz)
-                  + dy * (Sinv_t[1, 0] * dx + Sinv_t[1, 1] * dy + Sinv_t[1, 2] * dz)
-                  + dz * (Sinv_t[2, 0] * dx + Sinv_t[2, 1] * dy + Sinv_t[2, 2] * dz))
+        mt = _plateau_maha(T[i, 0, 3] - mu[0, 3], T[i, 1, 3] - mu[1, 3], T[i, 2, 3] - mu[2, 3], d_t, Sinv_t)
         # R_i R_mu^T
         for a in range(3):
             for b in range(3):
                 q[3 * a + b] = T[i, a, 0] * mu[b, 0] + T[i, a, 1] * mu[b, 1] + T[i, a, 2] * mu[b, 2]
         ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
-        r = math.sqrt(ex * ex + ey * ey + ez * ez)
-        mr = 0.0
-        if r > d_r:
-            k = 1.0 - d_r / r
-            ex *= k
-            ey *= k
-            ez *= k
-            mr = (ex * (Sinv_r[0, 0] * ex + Sinv_r[0, 1] * ey + Sinv_r[0, 2] * ez)
-                  + ey * (Sinv_r[1, 0] * ex + Sinv_r[1, 1] * ey + Sinv_r[1, 2] * ez)
-                  + ez * (Sinv_r[2, 0] * ex + Sinv_r[2, 1] * ey + Sinv_r[2, 2] * ez))
-        out[i] += logD - 0.5 * (mt + mr)
+        out[i] += logD - 0.5 * (mt + _plateau_maha(ex, ey, ez, d_r, Sinv_r))
 
 
 @nb.njit(cache=True, boundscheck=False)

@@ -51,6 +51,15 @@ def _save(fig, path) -> Path:
     return path
 
 
+def _six_panels(t_s):
+    """A 3×2 figure over time: the axes in state order (x, y, z left; rx, ry, rz right), the
+    bottom row labelled with the time (s) or the step index."""
+    fig, axes = _plt().subplots(3, 2, figsize=(11, 8), sharex=True)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]" if t_s is not None else "time step")
+    return fig, axes.T.ravel()
+
+
 def positions_in_frame(T_W_tool: np.ndarray, T_W_ref: np.ndarray | None = None) -> np.ndarray:
     """Tool positions expressed in a reference frame.
 
@@ -128,9 +137,8 @@ def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s
                           f"got {particles.shape} and {truth.shape}")
     n_steps = particles.shape[0]
     x = np.arange(n_steps) if t_s is None else np.asarray(t_s, dtype=float)
-    plt = _plt()
-    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for d, ax in enumerate(axes.T.ravel()):
+    fig, panels = _six_panels(t_s)
+    for d, ax in enumerate(panels):
         # range: the bulk of the particles (0.5-99.5 %) and all of the truth
         vals = particles[:, :, d][np.isfinite(particles[:, :, d])]
         tr = truth[np.isfinite(truth[:, d]), d]
@@ -146,9 +154,7 @@ def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s
                   vmax=1.0, extent=(x[0], x[-1] if n_steps > 1 else x[0] + 1, edges[0], edges[-1]))
         ax.plot(x, truth[:, d], color="c", lw=1.2, label="truth")
         ax.set_ylabel(AXIS_LABELS[d])
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]" if t_s is not None else "time step")
-    axes[0, 0].legend(loc="upper right", fontsize=8)
+    panels[0].legend(loc="upper right", fontsize=8)
     fig.suptitle(title or "Particle density per state dimension (heatmap, each step scaled to its peak) and the truth (cyan)")
     return _save(fig, path)
 
@@ -262,18 +268,15 @@ def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, 
     if e.ndim != 3 or e.shape[2] != 6 or k.shape != e.shape:
         raise ConfigError(f"error plot: expected two (R, T, 6) error arrays, got {e.shape} and {k.shape}")
     x = np.arange(e.shape[1]) if t_s is None else np.asarray(t_s, dtype=float)
-    plt = _plt()
-    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for d, ax in enumerate(axes.T.ravel()):
+    fig, panels = _six_panels(t_s)
+    for d, ax in enumerate(panels):
         for r in range(e.shape[0]):
             ax.plot(x, k[r, :, d], color="C1", lw=0.7, alpha=0.5, label="kinematics only" if r == 0 else None)
             ax.plot(x, e[r, :, d], color="C0", lw=0.8, alpha=0.7, label="particle filter" if r == 0 else None)
         ax.axhline(0.0, color="0.4", lw=0.6)
         ax.set_ylabel(f"error {AXIS_LABELS[d]}")
         ax.grid(True, alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]" if t_s is not None else "time step")
-    axes[0, 0].legend(fontsize=8)
+    panels[0].legend(fontsize=8)
     fig.suptitle(title or "Tool-pose error in the seam frame")
     return _save(fig, path)
 
