@@ -300,9 +300,21 @@ def angle_loglik(Ts: np.ndarray, angle_rad: float, surface_normal: np.ndarray, s
     The predicted angle is the workpiece rotation about the laser-plane normal (y of the
     tool/sensor): ``atan2(ν·x, ν·z)`` for the surface normal ``ν`` (base frame, unit).
 
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle tool poses ``T_base_tool``, mm (only the rotations are used).
+    angle_rad : float
+        Measured angle about the laser-plane normal, rad.
+    surface_normal : ndarray, shape (3,)
+        Unit normal ``ν`` of the workpiece surface in the base frame.
+    sigma_rad : float
+        Standard deviation of the angle measurement, rad (> 0).
+
     Returns
     -------
     loglik : ndarray, shape (N,)
+        Gaussian log-density of the wrapped error ``angle_rad - pred`` in (-π, π].
     """
     R = Ts[:, :3, :3]
     pred = np.arctan2(R[:, :, 0] @ surface_normal, R[:, :, 2] @ surface_normal)

@@ -119,8 +119,19 @@ def systematic_resample(w, rng=None, *, offset: float | None = None) -> np.ndarr
 def stratified_resample(w, rng=None, *, uniforms=None) -> np.ndarray:
     """Stratified resampling: one uniform per stratum, positions ``(u_i + i) / N``.
 
-    ``uniforms (N,)`` in [0, 1) replaces the draws (for cross-checks). Returns sorted
-    ancestor indices, shape (N,).
+    Parameters
+    ----------
+    w : array_like, shape (N,)
+        Normalised weights.
+    rng : numpy.random.Generator or int or None
+        Source of the N uniforms.
+    uniforms : array_like, shape (N,), optional
+        Uniforms in [0, 1) that replace the draws (for cross-checks).
+
+    Returns
+    -------
+    indices : ndarray of int, shape (N,)
+        Ancestor indices in [0, N), sorted.
     """
     w = np.asarray(w, dtype=np.float64)
     n = w.shape[0]
@@ -130,9 +141,19 @@ def stratified_resample(w, rng=None, *, uniforms=None) -> np.ndarray:
 
 def residual_resample(w, rng=None) -> np.ndarray:
     """Residual resampling: ``floor(N w_i)`` copies of each particle, the rest drawn
-    (multinomially, by sorted uniforms) from the residual weights.
+    (multinomially, by sorted uniforms) from the residual weights ``N w_i - floor(N w_i)``.
 
-    Returns ancestor indices, shape (N,), the deterministic copies first.
+    Parameters
+    ----------
+    w : array_like, shape (N,)
+        Normalised weights.
+    rng : numpy.random.Generator or int or None
+        Source of the draws for the residual part.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (N,)
+        Ancestor indices in [0, N), the deterministic copies first.
     """
     w = np.asarray(w, dtype=np.float64)
     n = w.shape[0]

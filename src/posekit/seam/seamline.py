@@ -9,6 +9,8 @@ the search to the few segments near an expected intersection (§II-E: the point 
 piecewise-affine approximation is to search tens of segments, not the whole trajectory).
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from posekit.errors import GeometryError
@@ -16,8 +18,6 @@ from posekit.errors import GeometryError
 from ._kernels import window_kernel as _window_kernel
 
 __all__ = ["Intersection", "SeamLine"]
-
-from typing import NamedTuple
 
 
 class Intersection(NamedTuple):
@@ -99,7 +99,19 @@ class SeamLine:
     def window(self, point, normal, window_mm: float, reach_mm: float | None = None) -> tuple[int, int]:
         """Knot range ``(lo, hi)`` spanning :meth:`candidates` (compiled; hot path).
 
-        Returns ``(-1, -1)`` when no segment is near the plane.
+        Parameters
+        ----------
+        point : array_like, shape (3,)
+            A point of the expected plane, mm, in the polyline's frame.
+        normal : array_like, shape (3,)
+            Unit normal of the expected plane.
+        window_mm, reach_mm : float
+            As in :meth:`candidates`.
+
+        Returns
+        -------
+        (int, int)
+            First and last knot index of the near segments; ``(-1, -1)`` when none is near.
         """
         reach = 10.0 * window_mm + 50.0 if reach_mm is None else reach_mm
         return _window_kernel(self.points, float(point[0]), float(point[1]), float(point[2]),

@@ -142,16 +142,39 @@ class EpisodeResult:
 
 
 def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
-    """Errors ``[R_nomᵀ (p_est - p_true) mm, rotvec(R_trueᵀ R_est) deg]``, shape (T, 6),
-    for poses of shape (T, 4, 4)."""
+    """Tool-pose errors in the nominal seam frame (the metrics of DESIGN.md / SEAM.md).
+
+    Parameters
+    ----------
+    T_est, T_true, T_nom : ndarray, shape (T, 4, 4)
+        Estimated, true and nominal tool poses ``T_base_tool`` per step, mm.
+
+    Returns
+    -------
+    ndarray, shape (T, 6)
+        ``[x, y, z]`` = ``R_nomᵀ (p_est - p_true)`` in mm (x across, y along the seam, z along the
+        tool axis), then ``[rx, ry, rz]`` = rotation vector of ``R_trueᵀ R_est`` in degrees.
+    """
     dp = np.matmul(np.swapaxes(T_nom[:, :3, :3], 1, 2), (T_est[:, :3, 3] - T_true[:, :3, 3])[..., None])[..., 0]
     dr = rotvec_from_matrix_fast(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]))
     return np.concatenate([dp, np.degrees(dr)], axis=-1)
 
 
 def pose_coords(Ts: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
-    """Offsets of poses ``Ts (..., 4, 4)`` from nominal poses ``T_nom`` (broadcastable):
-    ``[R_nomᵀ (p - p_nom) mm, rotvec(R_nomᵀ R) deg]``, shape (..., 6)."""
+    """Offsets of poses from nominal poses, in the nominal frame (Fig. 5 coordinates).
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (..., 4, 4)
+        Tool poses ``T_base_tool`` (particles, truth or estimate), mm.
+    T_nom : ndarray, shape (..., 4, 4)
+        Nominal tool poses, broadcastable against ``Ts``, mm.
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        ``R_nomᵀ (p - p_nom)`` in mm, then the rotation vector of ``R_nomᵀ R`` in degrees.
+    """
     Rn_t = np.swapaxes(T_nom[..., :3, :3], -1, -2)
     dp = np.matmul(Rn_t, (Ts[..., :3, 3] - T_nom[..., :3, 3])[..., None])[..., 0]
     dr = rotvec_from_matrix_fast(np.matmul(Rn_t, Ts[..., :3, :3]))

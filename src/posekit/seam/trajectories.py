@@ -150,8 +150,27 @@ def resolved_rate_ik_step(chain: DHChain, q: np.ndarray, T_target: np.ndarray, d
     ``q+ = clamp(q + Jᵀ (J Jᵀ + λ² I)⁻¹ e)`` with ``e = [p_d - p (mm), log(R_d Rᵀ) (rad)]``
     in the base frame: the update of :func:`posekit.robots.resolved_rate_step` for
     ``gains = (1/dt, 1/dt)`` (whose quaternion error ``2 δr`` equals ``log(R_d Rᵀ)`` to second
-    order), on the compiled forward kinematics and Jacobian. Returns ``(q+ (n,), e (6,))``,
-    ``e`` at the input ``q``.
+    order), on the compiled forward kinematics and Jacobian: 5x faster than the validated
+    :func:`~posekit.robots.resolved_rate_step` (0.35 vs 1.9 ms a call), and the nominal program
+    calls it once or more per sample of every new trajectory configuration.
+
+    Parameters
+    ----------
+    chain : DHChain
+        The robot with its tool.
+    q : ndarray, shape (n,)
+        Current joints, rad.
+    T_target : ndarray, shape (4, 4)
+        Target tool pose ``T_base_tool``, mm.
+    damping : float
+        Damped-least-squares ``λ`` (mm/rad rows: it mostly damps the orientation).
+
+    Returns
+    -------
+    q_next : ndarray, shape (n,)
+        Updated joints clamped to the limits, rad.
+    error : ndarray, shape (6,)
+        ``[p_d - p (mm), log(R_d Rᵀ) (rad)]`` at the input ``q``, base frame.
     """
     from .densities import fk_and_jacobian
     from .particles import rotvec_from_matrix_fast
