@@ -158,8 +158,8 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     status=error and the reason; the other runs, the models and the files go on; the CLI exits 1."""
     import yaml
 
-    import posekit.seam.simulate as simulate
     from posekit.cli.main import main
+    from posekit.seam import simulate
 
     real = simulate.run_episode
     calls = []

@@ -32,7 +32,12 @@ from .densities import (
     robot_measurement,
     transition,
 )
-from .particles import RESAMPLERS, effective_sample_size, normalize_log_weights, weighted_mean_se3
+from .particles import (
+    RESAMPLERS,
+    effective_sample_size,
+    normalize_log_weights,
+    weighted_mean_se3,
+)
 from .seamline import SeamLine
 from .trajectories import tool_chain
 
