@@ -114,7 +114,8 @@ def _read(path):
 
 def test_study_same_table_serial_and_cluster(tmp_path, capsys):
     """A tiny study: from the CLI in one process, and through a 2-worker Dask cluster (in-process
-    workers, so the test does not pay for spawning interpreters), gives identical CSVs."""
+    workers, so the test does not pay for spawning interpreters) given as a Client and, from the
+    CLI, as a tcp:// scheduler address, gives identical CSVs."""
     import yaml
     from distributed import Client, LocalCluster
 
@@ -131,13 +132,20 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
     out = capsys.readouterr().out
     factors = make_factors(config_from_dict(TINY).model_dump(mode="json"), ["filter.sigma_t_mm"],
                            ranges={"filter.laser_sigma_mm": (0.05, 0.5)})
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster, \
-            Client(cluster, set_as_default=False) as client:
+    address = tmp_path / "address"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                      dashboard_address=":0") as cluster, Client(cluster, set_as_default=False) as client:
         study = seam_study(config_from_dict(TINY), runs=6, factors=factors, seed=11, scheduler=client)
+        # and from the CLI, on the scheduler's address (what a user gives for a cluster)
+        assert cluster.scheduler_address.startswith("tcp://")
+        assert main(["seam", "study", "--config", str(cfg), "--runs", "6", "--seed", "11",
+                     "--scheduler", cluster.scheduler_address,
+                     "--parameters", "filter.sigma_t_mm,filter.laser_sigma_mm=0.05:0.5", "--out", str(address)]) == 0
     dask = tmp_path / "dask"
     write_study(study, dask)
     for f in ("runs.csv", "parameters_ranked.csv"):
         assert _read(serial / f) == _read(dask / f), f
+        assert _read(serial / f) == _read(address / f), f
     runs = _read(serial / "runs.csv")
     assert runs[0] == ["run", "status", *ERROR_NAMES, "error", "filter.sigma_t_mm", "filter.laser_sigma_mm"]
     assert len(runs) == 7 and all(r[1] == "ok" for r in runs[1:])
