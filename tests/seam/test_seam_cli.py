@@ -203,6 +203,9 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     numbers = [t for l in out.splitlines() if l.startswith(("xy,", "yz,")) for t in l[24:].split()]
     assert len(numbers) == 42 and all(len(t.split(".")[1]) == 3 for t in numbers)
     assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
+    step = [l for l in out.splitlines() if l.startswith("filter step median: ")]
+    assert len(step) == 1 and step[0].endswith(" ms (xy, 2 sensors, 30 particles; the paper's sensor period is 10 ms)")
+    assert float(step[0].split()[3]) > 0
     # the FK-only row is the 0-sensor run's kinematic error: the same for every sensor count
     assert rows["xy, FK only"] != rows["xy, 0 sensors"]
 

@@ -167,8 +167,10 @@ def run_demo(args) -> int:
     # the kinematics-only pose does not depend on the sensors: one row, from the first set
     rows.append((f"{sets[0].trajectory}, FK only", _rmse_values(sets[0].metrics, "kinematic_")))
     print(rmse_table(rows))
+    main = next(s for s in sets if s.trajectory == "xy" and s.sensors == 2)
+    print(f"filter step median: {main.metrics['step_ms_median']:.3f} ms ({main.label}, {args.particles} particles; "
+          f"the paper's sensor period is 10 ms)")
     if args.out:
-        main = next(s for s in sets if s.trajectory == "xy" and s.sensors == 2)
         paths = write_simulation(args.out, main.results, main.metrics, dump_config(main.config), comparison=sets,
                                  title="Seam tracking demo")
         print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
