@@ -42,6 +42,15 @@ def test_simulate_bad_flags(capsys, tmp_path, argv, message):
     assert "Traceback" not in err
 
 
+@pytest.mark.parametrize("verb", [["simulate"], ["demo"], ["study", "--scheduler", "serial"]])
+def test_unwritable_out_is_an_error_before_any_run(capsys, tmp_path, verb):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    rc, out, err = _run(capsys, "seam", *verb, "--out", str(a_file))
+    assert rc == 1 and out == ""
+    assert err == f"posekit: error: --out {a_file}: cannot create the output folder (File exists)\n"
+
+
 def test_simulate_usage_errors_exit_2(capsys, tmp_path):
     rc, _, err = _run(capsys, "seam", "simulate", "--sensors", "3", "--out", str(tmp_path))
     assert rc == 2 and "invalid choice: 3" in err

@@ -8,7 +8,7 @@ import time
 
 from ..errors import ConfigError
 
-__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
+__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "out_folder", "rmse_table"]
 
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
@@ -104,6 +104,21 @@ def build_config(args):
     return cfg
 
 
+def out_folder(out):
+    """Create the output folder before the (long) runs; a one-line ConfigError if it cannot be written."""
+    import os
+    from pathlib import Path
+
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {folder}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out {folder}: the output folder is not writable")
+    return folder
+
+
 def _check_runs(runs):
     if runs < 1:
         raise ConfigError(f"--runs: expected an integer >= 1, got {runs}")
@@ -121,6 +136,7 @@ def run_simulate(args) -> int:
     _check_runs(args.runs)
     if args.record_particles < 0:
         raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
+    out_folder(args.out)
     from ..seam.compare import compare_configurations, run_episodes
     from ..seam.report import write_simulation
     from ..seam.simulate import metrics
@@ -156,6 +172,8 @@ def run_demo(args) -> int:
                              ("--seed", args.seed, 0)):
         if value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
+    if args.out:
+        out_folder(args.out)
     cfg = apply_overrides(config_from_dict({}, "defaults"),
                           {"trajectory.steps": args.steps, "filter.particles": args.particles, "seed": args.seed})
     t0 = time.perf_counter()

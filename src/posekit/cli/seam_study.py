@@ -58,7 +58,7 @@ def parse_factors(text: str | None):
 def run_study(args) -> int:
     from ..seam.report import ERROR_AXES
     from ..seam.study import make_factors, seam_study, write_study
-    from .seam_simulate import build_config
+    from .seam_simulate import build_config, out_folder
 
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
@@ -68,6 +68,7 @@ def run_study(args) -> int:
     cfg = build_config(args)
     names, ranges = parse_factors(args.parameters)
     factors = make_factors(cfg.model_dump(mode="json"), names, spread=args.spread, ranges=ranges)
+    out_folder(args.out)
     study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
                        scheduler=args.scheduler, n_workers=args.workers)
     report = write_study(study, args.out)
