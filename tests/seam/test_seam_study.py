@@ -194,3 +194,16 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     assert runs[2][head.index("rmse_x_mm")] == "nan" and runs[1][head.index("rmse_x_mm")] != "nan"
     ranked = _read(tmp_path / "out" / "parameters_ranked.csv")
     assert [r[1] for r in ranked[1:]] == ["filter.sigma_t_mm"]      # the OLS used the 4 good runs
+
+
+def test_integer_parameters_take_whole_values():
+    """A factor on an integer key (the particle count) draws whole numbers, so its runs are valid."""
+    from posekit.seam.config import config_from_dict
+    from posekit.seam.study import seam_study
+
+    study = seam_study(config_from_dict(TINY), runs=3, factors=[Factor("filter.particles", 20.0, 40.0)], seed=1,
+                       scheduler="serial")
+    assert study.status == ["ok", "ok", "ok"]
+    values = study.X[:, 0]
+    np.testing.assert_array_equal(values, np.round(values))
+    assert np.all((values >= 20) & (values <= 40))

@@ -83,7 +83,9 @@ def run_study(args) -> int:
         for r in study.ranked:
             print(f"{r['rank']:>4}  {r['parameter']:<28}{r['min_log10_p']:>12.2f}  {r['most_affected']:<14}  "
                   + "".join(f"{r['log10_p_' + a]:>9.2f}" for a in ERROR_AXES))
-    print(f"wrote {report.parent}: fig6_pvalues.png, parameters_ranked.csv, runs.csv, report.html")
+    written = [n for n in ("fig6_pvalues.png", "parameters_ranked.csv", "runs.csv", "report.html")
+               if (report.parent / n).exists()]
+    print(f"wrote {report.parent}: {', '.join(written)}")
     sys.stdout.flush()
     if failed:  # a batch with failed items: every row is written, the exit code says so
         print(f"posekit: error: {failed} of {len(study.X)} study runs failed; their rows in runs.csv say why",

@@ -4,7 +4,8 @@ Each *run* of the study draws a random perturbation of the chosen filter paramet
 *factors*), simulates ``episodes`` episodes with them and records the RMSE of the six
 tool-pose errors ``x, y, z`` (mm) and ``rx, ry, rz`` (deg). A linear model (statsmodels OLS,
 with an intercept) of each RMSE on the factor values then gives one p-value per factor and
-error; :func:`rank_parameters` orders the factors by their smallest p-value.
+error; :func:`rank_parameters` orders the factors by their smallest p-value. An integer
+parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
 
 Reproducibility: run ``i`` draws its factor values from ``task_seed(seed, i, 0)`` and the
 seed of its episode ``j`` from ``task_seed(seed, i, 1, j)``; the draws are made before the
@@ -370,20 +371,23 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     factors = tuple(factors) if factors is not None else make_factors(base)
     lows = np.array([f.low for f in factors])
     highs = np.array([f.high for f in factors])
+    # integer parameters (particle count, stages, steps) take the drawn value rounded
+    integer = np.array([type(get_dotted(base, f.name)) is int for f in factors], dtype=bool)
     X = np.empty((int(runs), len(factors)))
     tasks = []
     for i in range(int(runs)):
         rng = np.random.default_rng(task_seed(seed, i, 0))
         X[i] = lows + (highs - lows) * rng.random(len(factors))
+        X[i, integer] = np.round(X[i, integer])
         cfg = copy.deepcopy(base)
-        for f, v in zip(factors, X[i]):
-            set_dotted(cfg, f.name, float(v))
+        for f, v, is_int in zip(factors, X[i], integer):
+            set_dotted(cfg, f.name, int(v) if is_int else float(v))
         tasks.append({"run": i, "config": cfg, "seeds": [_episode_seed(seed, i, j) for j in range(int(episodes))]})
     # A bad range (e.g. a noise pushed below 0) is the user's error: say so before any work starts.
     for f in factors:
         for v in (f.low, f.high):
             cfg = copy.deepcopy(base)
-            set_dotted(cfg, f.name, float(v))
+            set_dotted(cfg, f.name, v)
             try:
                 config_from_dict(cfg, "study")
             except PosekitError as exc:
