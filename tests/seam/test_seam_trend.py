@@ -62,3 +62,22 @@ def test_straight_line_has_only_its_ends():
 def test_bad_input(y, kw, message):
     with pytest.raises(EstimationError, match=message):
         trend_filter(y, **kw)
+
+
+def test_a_solver_that_stops_early_is_an_error_not_a_result(monkeypatch):
+    """The status is checked: Clarabel cut to one iteration ('user_limit') raises, it does not return knots."""
+    import warnings
+
+    import cvxpy as cp
+
+    solve = cp.Problem.solve
+
+    def one_iteration(self, *args, **kwargs):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)       # cvxpy: "Solution may be inaccurate"
+            return solve(self, *args, **{**kwargs, "max_iter": 1})
+
+    monkeypatch.setattr(cp.Problem, "solve", one_iteration)
+    with pytest.raises(EstimationError, match=r"^trend filter: solver status 'user_limit', expected 'optimal' "
+                                              r"\(N = 100, lam = 100, eps = 0\.02 mm\)$"):
+        trend_filter(_piecewise_linear(), lam=100.0, eps_mm=0.02)
