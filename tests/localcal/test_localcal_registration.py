@@ -106,6 +106,32 @@ def test_time_offset_is_estimated_across_rates():
     assert rotation_error_deg(reg.R, T[:3, :3]) < 0.5
 
 
+def test_a_clock_offset_undetermined_by_the_path_is_an_error():
+    """A circle at constant speed maps onto itself under any time shift (a rotation about its axis):
+    with the offset unknown, offsets 0.6 s apart fit equally well and turn R by 36 deg."""
+    rng = np.random.default_rng(0)
+    T_B_W = random_transform(rng)
+
+    def circle(t):
+        a = 2 * np.pi * t / 6.0                   # one turn in 6 s, radius 300 mm
+        T = np.broadcast_to(np.eye(4), (len(t), 4, 4)).copy()
+        T[:, :3, 3] = np.c_[300 * np.cos(a), 300 * np.sin(a), 0 * a] + rng.normal(0, 1.0, (len(t), 3))
+        return T
+
+    t_dst, t_src = np.arange(0, 12, 0.01), np.arange(0.05, 11.9, 1 / 30)
+    dst = Trajectory(t_dst, circle(t_dst))
+    src = Trajectory(t_src - 0.2, np.linalg.inv(T_B_W) @ circle(t_src))      # t_dst = t_src + 0.2
+    with pytest.raises(TrajectoryError, match=r"^the clock offset between cam and kin is ambiguous: offsets "
+                                              r"[-+]\d\.\d{3} s and [-+]\d\.\d{3} s fit equally well \(median "
+                                              r"residuals \d\.\d and \d\.\d mm\) but give rotations \d+\.\d deg "
+                                              r"apart, as on a circle or helix run at constant speed; give the "
+                                              r"offset \(time_offset_s, --time-offset\)$"):
+        match_trajectories(src, dst, names=("cam", "kin"))
+    reg = match_trajectories(src, dst, time_offset_s=0.2)
+    assert rotation_error_deg(reg.R, T_B_W[:3, :3]) < 0.5
+    assert np.linalg.norm(reg.t_mm - T_B_W[:3, 3]) < 5.0
+
+
 # ------------------------------------------------------------------ real TUM RGB-D pairs
 @pytest.fixture(scope="module")
 def fr1():

@@ -8,13 +8,24 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from posekit.errors import TrajectoryError
+from posekit.geometry import rotation_angle_between
 
-from .alignment import MIN_POSES, umeyama
+from .alignment import MIN_POSES, robust_principal_axes, umeyama
 
 __all__ = ["associate", "estimate_time_offset", "interpolate_positions"]
 
 #: Largest number of src samples the offset search evaluates (evenly thinned beyond).
 _OFFSET_SAMPLES = 600
+#: Offsets whose cost is within this factor of the best one fit as well as it (the noise level).
+_OFFSET_TIE_FACTOR = 1.5
+#: Two such offsets whose rotations differ by more than this make the offset ambiguous, deg.
+#: On the test data (real TUM pairs, synthetic and simulated paths) tied offsets differ by at most
+#: 0.6 deg (neighbouring grid points); a circle or helix at constant speed by 6-108 deg.
+_OFFSET_AMBIGUOUS_DEG = 2.0
+#: The ambiguity check applies only when the best offset fits, i.e. its median residual is below
+#: this fraction of the dst path's extent (std along its main axis). When nothing fits (e.g. a
+#: mirror image) every offset ties and the residuals already tell the user.
+_OFFSET_FIT_FRACTION = 0.05
 
 
 def associate(t_src, t_dst, *, max_dt_s: float = 0.02, offset_s: float = 0.0):
@@ -90,11 +101,11 @@ def interpolate_positions(t_dst, p_dst, t_query, *, max_gap_s: float):
     return p, valid
 
 
-def _alignment_cost(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale):
-    """Median residual of a trimmed Umeyama fit of src to dst interpolated at t_src + offset."""
+def _alignment_fit(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale):
+    """Trimmed Umeyama fit of src to dst interpolated at t_src + offset: (median residual mm, R)."""
     q, valid = interpolate_positions(t_dst, p_dst, t_src + offset, max_gap_s=max_gap_s)
     if valid.sum() < MIN_POSES:
-        return np.inf
+        return np.inf, None
     a, b = p_src[valid], q[valid]
     R, t, s = umeyama(a, b, with_scale=with_scale)
     res = np.linalg.norm(b - (s * a @ R.T + t), axis=1)
@@ -102,7 +113,12 @@ def _alignment_cost(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale):
     if keep.sum() >= 3:
         R, t, s = umeyama(a[keep], b[keep], with_scale=with_scale)
         res = np.linalg.norm(b - (s * a @ R.T + t), axis=1)
-    return float(np.median(res))
+    return float(np.median(res)), R
+
+
+def _alignment_cost(offset, *args):
+    """Median residual of :func:`_alignment_fit`, mm."""
+    return _alignment_fit(offset, *args)[0]
 
 
 def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.0,
@@ -139,8 +155,12 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     Raises
     ------
     TrajectoryError
-        If no offset in the range gives at least ``MIN_POSES`` overlapping samples, or the best
-        offset is at the edge of the range (the true one may lie beyond).
+        If no offset in the range gives at least ``MIN_POSES`` overlapping samples, the best
+        offset is at the edge of the range (the true one may lie beyond), or the best offset
+        fits (``_OFFSET_FIT_FRACTION``) and offsets that fit equally well (within
+        ``_OFFSET_TIE_FACTOR`` of its cost) give rotations more than ``_OFFSET_AMBIGUOUS_DEG``
+        apart: the path maps onto itself under a time shift (a circle or helix at constant
+        speed), so the offset, and with it the rotation, is undetermined.
     """
     if t_src.size > _OFFSET_SAMPLES:
         k = np.linspace(0, t_src.size - 1, _OFFSET_SAMPLES).round().astype(int)
@@ -154,7 +174,8 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     n = int(np.ceil(max_offset_s / step)) if max_offset_s > 0 else 0
     grid = np.linspace(-n * step, n * step, 2 * n + 1)
     args = (t_src, p_src, t_dst, p_dst, max_gap_s, with_scale)
-    cost = np.array([_alignment_cost(o, *args) for o in grid])
+    fits = [_alignment_fit(o, *args) for o in grid]
+    cost = np.array([c for c, _ in fits])
     if not np.isfinite(cost).any():
         raise TrajectoryError(
             f"no overlapping timestamps: {names[0]} spans {t_src[0]:.3f}-{t_src[-1]:.3f} s and "
@@ -168,6 +189,16 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
             f"the clock offset between {names[0]} and {names[1]} fits best at the edge of the search "
             f"({grid[best]:+.3f} s): it may lie beyond ±{max_offset_s:g} s; widen the search "
             f"(max_offset_s, --max-offset) or give the offset (time_offset_s, --time-offset)")
+    tied = np.flatnonzero(cost <= _OFFSET_TIE_FACTOR * cost[best])
+    angles = np.rad2deg(rotation_angle_between(fits[best][1], np.array([fits[k][1] for k in tied]), check=False))
+    fits_well = cost[best] <= _OFFSET_FIT_FRACTION * robust_principal_axes(p_dst)[2][0]
+    if fits_well and angles.max() > _OFFSET_AMBIGUOUS_DEG:
+        k = int(tied[np.argmax(angles)])
+        raise TrajectoryError(
+            f"the clock offset between {names[0]} and {names[1]} is ambiguous: offsets {grid[best]:+.3f} s and "
+            f"{grid[k]:+.3f} s fit equally well (median residuals {cost[best]:.1f} and {cost[k]:.1f} mm) but "
+            f"give rotations {angles.max():.1f} deg apart, as on a circle or helix run at constant speed; "
+            f"give the offset (time_offset_s, --time-offset)")
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
     opt = minimize_scalar(_alignment_cost, bounds=(lo, hi), args=args, method="bounded",
                           options={"xatol": 1e-4})
