@@ -240,3 +240,9 @@ def test_rmse_table_fixed_decimals():
         "xy, 2 sensors                        0.767     2.236     0.000    10.000     0.001   123.457",
         "a label longer than twenty-four      1.000     2.000     3.000     4.000     5.000     6.000",
     ]
+
+
+def test_cli_trajectory_choices_are_the_config_kinds():
+    from posekit.cli.seam_simulate import TRAJECTORIES
+    from posekit.seam.config import TRAJECTORY_KINDS
+    assert TRAJECTORIES == TRAJECTORY_KINDS

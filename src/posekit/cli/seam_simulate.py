@@ -10,6 +10,7 @@ from ..errors import ConfigError
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "out_folder", "rmse_table"]
 
+#: The trajectory kinds (``posekit.seam.config.TRAJECTORY_KINDS``, not imported here: the parser stays light).
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
 DEMO_STEPS = 300

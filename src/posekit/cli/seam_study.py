@@ -12,7 +12,9 @@ def add_study_parser(verbs):
     p = verbs.add_parser("study", help="randomly perturbed filter parameters on Dask, OLS of each error RMSE, "
                                        "Fig. 6 p-value heatmap, ranked parameters (CSV, PNG, report.html)")
     p.add_argument("--config", default=None, help="base YAML configuration (default: the paper's setup)")
-    p.add_argument("--trajectory", choices=("xy", "yz", "line", "bend"), default=None,
+    from .seam_simulate import TRAJECTORIES
+
+    p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="overrides trajectory.kind")
     p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None, help="overrides sensors.count")
     p.add_argument("--particles", type=int, default=None, help="overrides filter.particles")
