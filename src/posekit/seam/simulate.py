@@ -24,7 +24,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from posekit.geometry import matrix_from_rotation_vector, transform_from
+from posekit.geometry import (
+    invert_transform,
+    matrix_from_rotation_vector,
+    transform_from,
+)
 from posekit.robots import DHChain
 
 from .config import RobotConfig, SeamConfig, TrajectoryConfig
@@ -304,7 +308,7 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
     eye = np.eye(4)
     has_lasers = data.laser_mm.shape[1] > 0
     for k in range(n):
-        inc = eye if k == 0 else Tn[k] @ np.linalg.inv(Tn[k - 1])
+        inc = eye if k == 0 else Tn[k] @ invert_transform(Tn[k - 1], check=False)
         inputs = StepInputs(inc, Tn[k], data.q_meas[k], data.force_meas_n[k],
                             data.laser_mm[k] if has_lasers else None,
                             data.angle_rad[k] if cfg.sensors.angle and has_lasers else None)
