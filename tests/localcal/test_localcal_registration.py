@@ -288,6 +288,27 @@ def test_orientations_resolve_a_symmetric_path(seed):
     assert np.linalg.det(blind.R) == pytest.approx(1.0, abs=1e-9)
 
 
+def test_a_symmetric_path_with_constant_orientation_is_an_error_without_timestamps():
+    """An ellipse run with a constant orientation: the positions fit two rotations 180 deg apart and
+    nothing tells them apart (the varying-orientation case above is resolved)."""
+    rng = np.random.default_rng(3)
+    T_B_W = random_transform(rng)
+    t = np.arange(0, 12, 0.01)
+    a = 2 * np.pi * t / 6.0
+    T = np.broadcast_to(np.eye(4), (len(t), 4, 4)).copy()
+    T[:, :3, 3] = np.c_[400 * np.cos(a), 200 * np.sin(a), 0 * a] + rng.normal(0, 1.0, (len(t), 3))
+    src, dst = Trajectory(t[::3], np.linalg.inv(T_B_W) @ T[::3]), Trajectory(t, T)
+    with pytest.raises(TrajectoryError, match=r"^cam and kin: the path is symmetric: rotations 180 deg apart fit the "
+                                              r"positions equally well, and the orientations \(constant along the "
+                                              r"path\) cannot tell them apart; match with timestamps, or record a "
+                                              r"path without symmetry \(e.g. the asymmetric planar path of eq. 17-19\)$"):
+        match_trajectories(src, dst, use_timestamps=False, names=("cam", "kin"))
+    reg = match_trajectories(src, dst)                       # the timestamps resolve it
+    assert rotation_error_deg(reg.R, T_B_W[:3, :3]) < 0.5
+    blind = match_trajectories(src, dst, use_timestamps=False, use_orientations=False)  # opted out: best score
+    assert np.linalg.det(blind.R) == pytest.approx(1.0, abs=1e-9)
+
+
 def test_cpd_orientation_term_recovers_the_transform():
     rng = np.random.default_rng(8)
     pose = smooth_path(rng)

@@ -13,6 +13,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
+from posekit.geometry import rotation_angle_between
+
 from .alignment import body_rotation_spread, robust_principal_axes, thin_indices
 from .cpd import rigid_cpd
 
@@ -36,6 +38,10 @@ class CoarseAlignment(NamedTuple):
     sigma2: float            #: mixture variance reached by the best candidate's CPD run, mm^2
     scores: np.ndarray       #: (K,) mean negative log-likelihood of each candidate (lower is better)
     best: int
+    #: Largest angle between ``R`` and a tied candidate's rotation when no orientations broke the
+    #: tie, rad (0 when nothing tied or orientations chose): > 0 means positions alone cannot
+    #: tell these rotations apart (a symmetric path).
+    unresolved_rad: float = 0.0
 
 
 def _swap(i, j):
@@ -166,6 +172,8 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
     Returns
     -------
     CoarseAlignment
+        With ``unresolved_rad`` > 0 when candidates tie on the positions, rotate apart, and no
+        orientations were given to choose.
     """
     ks = thin_indices(len(p_src), max_points)
     kd = thin_indices(len(p_dst), max_points)
@@ -180,8 +188,13 @@ def coarse_align(p_src, p_dst, *, w: float = 0.05, with_scale: bool = False, R_s
     scores = np.array(scores)
     best = int(np.argmin(scores))
     tied = np.flatnonzero(scores <= scores[best] + TIE_NATS)
+    unresolved = 0.0
     if R_src is not None and R_dst is not None and tied.size > 1:
         spread = [orientation_spread(fits[k].R, fits[k].t, fits[k].s, Y, R_src[ks], X, R_dst[kd])
                   for k in tied]
         best = int(tied[int(np.argmin(spread))])
-    return CoarseAlignment(fits[best].R, fits[best].t, fits[best].s, fits[best].sigma2, scores, best)
+    elif tied.size > 1:
+        unresolved = float(rotation_angle_between(fits[best].R, np.array([fits[k].R for k in tied]),
+                                                  check=False).max())
+    return CoarseAlignment(fits[best].R, fits[best].t, fits[best].s, fits[best].sigma2, scores, best,
+                           unresolved)

@@ -53,6 +53,10 @@ CPD_MAX_POINTS = 400
 ORIENTATION_STILL_DEG = 2.0
 #: Nearest-neighbour re-fits after the CPD, at most.
 POLISH_ITERS = 30
+#: Coarse candidates that tie on the positions but rotate further apart than this make a match
+#: without timestamps ambiguous, deg (tied candidates on asymmetric paths: < 0.03 deg; on a circle
+#: or an ellipse: 180 deg).
+SYMMETRY_DEG = 2.0
 
 
 @dataclass(frozen=True)
@@ -177,8 +181,10 @@ def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool
     Raises
     ------
     TrajectoryError
-        Too few poses, a path that does not move or is a straight line, or no overlapping
-        timestamps.
+        Too few poses, a path that does not move or is a straight line, no overlapping
+        timestamps, an ambiguous clock offset (a path that maps onto itself under a time
+        shift), or without timestamps a symmetric path whose orientations do not vary (unless
+        ``use_orientations=False``, which keeps the best-scoring candidate).
     ConfigError
         An option out of range.
     """
@@ -195,7 +201,7 @@ def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool
     if use_timestamps:
         return _match_timed(src, dst, max_dt_s, time_offset_s, max_offset_s, with_scale,
                             outlier_fraction, names)
-    return _match_free(src, dst, with_scale, outlier_fraction, use_orientations)
+    return _match_free(src, dst, with_scale, outlier_fraction, use_orientations, names)
 
 
 def _match_timed(src, dst, max_dt_s, offset, max_offset_s, with_scale, outlier_fraction, names):
@@ -247,13 +253,19 @@ def _polish(ps, tree, pd, R, t, s, with_scale, max_iter=POLISH_ITERS):
     return R, t, s, inl, j
 
 
-def _match_free(src, dst, with_scale, outlier_fraction, use_orientations):
+def _match_free(src, dst, with_scale, outlier_fraction, use_orientations, names):
     ps, pd = src.positions, dst.positions
     turns = use_orientations and (_turns(src.rotations) or _turns(dst.rotations))
     Rsrc = src.rotations if turns else None
     Rdst = dst.rotations if turns else None
     w = max(outlier_fraction, 1e-3)
     coarse = coarse_align(ps, pd, w=w, with_scale=with_scale, R_src=Rsrc, R_dst=Rdst)
+    if use_orientations and np.rad2deg(coarse.unresolved_rad) > SYMMETRY_DEG:
+        raise TrajectoryError(
+            f"{names[0]} and {names[1]}: the path is symmetric: rotations {np.rad2deg(coarse.unresolved_rad):.0f} deg "
+            f"apart fit the positions equally well, and the orientations (constant along the path) cannot tell them "
+            f"apart; match with timestamps, or record a path without symmetry (e.g. the asymmetric planar path "
+            f"of eq. 17-19)")
     ks, kd = thin_indices(len(ps), CPD_MAX_POINTS), thin_indices(len(pd), CPD_MAX_POINTS)
     fine = rigid_cpd(pd[kd], ps[ks], R0=coarse.R, t0=coarse.t, s0=coarse.s, w=w, with_scale=with_scale,
                      sigma2=coarse.sigma2)
