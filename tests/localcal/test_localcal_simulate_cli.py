@@ -41,6 +41,15 @@ def test_demo_runs_one_episode_of_each_method(tmp_path, capsys):
     assert "Table 2:" in captured.out and "Table 4:" in captured.out
     assert (tmp_path / "line" / "fig6_circle_path.png").is_file()
     assert (tmp_path / "trajectory" / "report.html").is_file()
+    # the printed tables are the written ones, with the paper's outcome: the trajectory method
+    # ends sub-centimetre in x and y, the line method leaves the depth untouched (~0.5 m)
+    traj = next(csv.DictReader((tmp_path / "trajectory" / "table4.csv").open()))
+    line = next(csv.DictReader((tmp_path / "line" / "table2.csv").open()))
+    assert traj["status"] == "ok" and line["status"] == "ok"
+    assert float(traj["ex_2_mm"]) < 10.0 and float(traj["ey_2_mm"]) < 10.0
+    assert float(line["ez_2_mm"]) > 300.0
+    assert max(float(line[c]) for c in ("rot_x_deg", "rot_y_deg", "rot_z_deg")) < 5.0
+    assert f"{float(traj['ex_2_mm']):.1f}" in captured.out and f"{float(line['ez_2_mm']):.1f}" in captured.out
 
 
 def test_simulate_with_the_ooi_never_seen_is_a_one_line_error(tmp_path, capsys):
