@@ -116,3 +116,16 @@ def test_a_failed_run_keeps_its_row():
     assert row["error"] == ("EstimationError: the OOI (markers 1, 2, 3) not seen by the camera at the start pose")
     assert np.isnan(row["ex_1_mm"])
     assert res.tables["table4"][1]["status"] == "error"
+
+
+def test_line_method_spreads_more_than_trajectory_matching():
+    """Issue 5, deliverable 5: over the same runs the trajectory method stays sub-centimetre in x, y after two
+    updates while the line method, dictated by the direction it measured once, scatters (paper Tables 2 and 4)."""
+    xy = {}
+    for method in ("line", "trajectory"):
+        res = run_experiment(method, runs=4, seed=1, updates=2, config=FAST)
+        assert [r["status"] for r in res.tables["table2" if method == "line" else "table4"]] == ["ok"] * 5
+        xy[method] = np.array([np.hypot(*ep.true_errors_mm[-1, :2]) for ep in res.episodes])
+    assert xy["trajectory"].max() < 10.0
+    assert xy["line"].max() > 3.0 * xy["trajectory"].max()
+    assert np.std(xy["line"]) > 3.0 * np.std(xy["trajectory"])
