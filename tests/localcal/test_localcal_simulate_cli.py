@@ -59,6 +59,9 @@ def test_simulate_with_the_ooi_never_seen_is_a_one_line_error(tmp_path, capsys):
     assert rc == 1
     assert err == ("posekit: error: trajectory method: all 1 run(s) failed; run 1: EstimationError: the OOI "
                    "(markers 1, 2, 3) not seen by the camera at the start pose\n")
+    rows = list(csv.DictReader((tmp_path / "x" / "table4.csv").open()))   # the failed run keeps its row
+    assert [(r["run"], r["status"]) for r in rows] == [("run 1", "error"), ("mean", "error")]
+    assert rows[0]["error"] == "EstimationError: the OOI (markers 1, 2, 3) not seen by the camera at the start pose"
 
 
 @pytest.mark.parametrize("argv, message", [
