@@ -88,6 +88,8 @@ def test_bad_options_are_config_errors():
         run_episode("circle", 0)
     with pytest.raises(ConfigError, match=r"^updates must be an integer >= 1, got 0$"):
         run_episode("line", 0, updates=0)
+    with pytest.raises(ConfigError, match=r"^seed: expected an integer >= 0 or a numpy SeedSequence, got -1$"):
+        run_episode("line", -1)
     with pytest.raises(ConfigError, match="occlude_ooi"):
         EpisodeConfig(occlude_ooi="sometimes")
     with pytest.raises(ConfigError, match=r"^runs must be an integer >= 1, got 0$"):

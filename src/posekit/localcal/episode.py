@@ -282,7 +282,7 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
     Raises
     ------
     ConfigError
-        Unknown method or ``updates < 1``.
+        Unknown method, ``updates < 1`` or a negative seed.
     EstimationError
         The OOI or the tool marker is not seen when it must be (at a look, or never along
         the circular path).
@@ -295,6 +295,8 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
         raise ConfigError(f"method: expected one of {' | '.join(METHODS)}, got {method!r}")
     if int(updates) != updates or updates < 1:
         raise ConfigError(f"updates must be an integer >= 1, got {updates!r}")
+    if not (isinstance(seed, np.random.SeedSequence) or (isinstance(seed, (int, np.integer)) and seed >= 0)):
+        raise ConfigError(f"seed: expected an integer >= 0 or a numpy SeedSequence, got {seed!r}")
     config = config or EpisodeConfig()
     arm, cell, camera, vo_seed = _setup(seed, config)
 
