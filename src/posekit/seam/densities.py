@@ -146,7 +146,7 @@ def fk_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """
     T = np.empty((4, 4))
     J = np.empty((6, chain.n_joints))
-    _k.fk_jacobian_kernel(chain.a, chain.alpha, chain.d, chain.theta, chain._revolute,
+    _k.fk_jacobian_kernel(chain.a, chain.alpha, chain.d, chain.theta, chain.is_revolute,
                           np.asarray(q, dtype=np.float64), chain.T_flange_tool, T, J)
     return T, J
 

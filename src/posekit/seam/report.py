@@ -27,7 +27,6 @@ __all__ = [
     "html_figure",
     "html_table",
     "read_estimates_csv",
-    "rmse_table_text",
     "write_csv",
     "write_estimates_csv",
     "write_html",
@@ -126,26 +125,6 @@ def _rmse_rows(metrics: Mapping) -> list[dict]:
         rows.append({"axis": f"{a} [{unit}]", "filter": float(metrics[key][a]),
                      "kinematics only": float(metrics.get(f"kinematic_{key}", {}).get(a, float("nan")))})
     return rows
-
-
-def rmse_table_text(sets: Sequence[tuple[str, Mapping]], *, kinematics: bool = True) -> str:
-    """A plain-text table of the RMSE per axis (mm, deg), one line per (label, metrics) pair,
-    followed by a kinematics-only line per label when ``kinematics``; labels in a column of at
-    least 24 characters."""
-    width = max([24, *(len(label) + (11 if kinematics else 1) for label, _ in sets)])
-    head = f"{'configuration':<{width}}" + "".join(f"{a + (' mm' if i < 3 else ' deg'):>10}"
-                                                   for i, a in enumerate(ERROR_AXES))
-    lines = [head]
-    for label, m in sets:
-        vals = [m["rmse_mm"][a] for a in ERROR_AXES[:3]] + [m["rmse_deg"][a] for a in ERROR_AXES[3:]]
-        lines.append(f"{label:<{width}}" + "".join(f"{v:>10.4g}" for v in vals))
-    if kinematics:
-        for label, m in sets:
-            if "kinematic_rmse_mm" in m:
-                vals = ([m["kinematic_rmse_mm"][a] for a in ERROR_AXES[:3]]
-                        + [m["kinematic_rmse_deg"][a] for a in ERROR_AXES[3:]])
-                lines.append(f"{label + ' (FK only)':<{width}}" + "".join(f"{v:>10.4g}" for v in vals))
-    return "\n".join(lines)
 
 
 def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str = "", *,
