@@ -7,7 +7,7 @@ import pytest
 from pycpd import RigidRegistration
 from scipy.spatial.transform import Rotation
 
-from posekit.errors import TrajectoryError
+from posekit.errors import GeometryError, TrajectoryError
 from posekit.localcal.alignment import check_path_shape, robust_umeyama, umeyama
 from posekit.localcal.association import associate, estimate_time_offset
 from posekit.localcal.coarse import coarse_align, pca_candidates
@@ -64,6 +64,19 @@ def test_umeyama_never_returns_a_reflection():
     assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
     R2, _ = horn(p, mirrored)
     np.testing.assert_allclose(R, R2, atol=1e-9)
+
+
+def test_umeyama_rejects_malformed_input():
+    p = np.random.default_rng(0).normal(0, 100, (5, 3))
+    with pytest.raises(GeometryError, match=r"^umeyama: expected src and dst of one shape \(N, 3\) with N >= 3, "
+                                            r"got \(5, 3\) and \(4, 3\)$"):
+        umeyama(p, p[:4])
+    with pytest.raises(GeometryError, match=r"got \(2, 3\) and \(2, 3\)$"):
+        umeyama(p[:2], p[:2])
+    with pytest.raises(GeometryError, match=r"^umeyama: expected finite points, found NaN or infinity$"):
+        umeyama(p, np.where(p > 50, np.nan, p))
+    with pytest.raises(GeometryError, match=r"^umeyama: expected 5 finite weights >= 0 with a positive sum$"):
+        umeyama(p, p, weights=np.zeros(5))
 
 
 def test_robust_umeyama_rejects_gross_outliers():

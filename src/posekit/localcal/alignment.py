@@ -7,7 +7,7 @@ re-fit that rejects gross outliers by a median-based threshold.
 
 import numpy as np
 
-from posekit.errors import TrajectoryError
+from posekit.errors import GeometryError, TrajectoryError
 from posekit.geometry import nearest_rotation, rotation_angle_between
 
 __all__ = [
@@ -55,10 +55,23 @@ def umeyama(src, dst, *, weights=None, with_scale: bool = False):
         Translation ``t_dst_src``, mm.
     s : float
         Scale (1.0 unless ``with_scale``).
+
+    Raises
+    ------
+    GeometryError
+        ``src`` and ``dst`` not of one shape (N, 3) with N >= 3, a value not finite, or weights
+        that are not N finite values >= 0 with a positive sum.
     """
     src = np.asarray(src, dtype=np.float64)
     dst = np.asarray(dst, dtype=np.float64)
+    if src.ndim != 2 or src.shape[1] != 3 or dst.shape != src.shape or len(src) < 3:
+        raise GeometryError(f"umeyama: expected src and dst of one shape (N, 3) with N >= 3, "
+                            f"got {src.shape} and {dst.shape}")
+    if not (np.isfinite(src).all() and np.isfinite(dst).all()):
+        raise GeometryError("umeyama: expected finite points, found NaN or infinity")
     w = np.ones(len(src)) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != (len(src),) or not np.isfinite(w).all() or (w < 0).any() or not w.sum() > 0:
+        raise GeometryError(f"umeyama: expected {len(src)} finite weights >= 0 with a positive sum")
     w = w / w.sum()
     mu_s = w @ src
     mu_d = w @ dst
