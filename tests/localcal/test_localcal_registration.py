@@ -398,6 +398,8 @@ def test_degenerate_paths_are_rejected_with_the_cause():
                                               r"kin spans 0.000-4.900 s"):
         match_trajectories(_traj(good.positions, 100 + np.arange(50) * 0.1), good, names=("cam", "kin"))
     check_path_shape(good.positions, "ok")       # a 3D cloud passes
+    with pytest.raises(TrajectoryError, match=r"^kin: expected a Trajectory, got ndarray$"):
+        match_trajectories(good, good.T, names=("cam", "kin"))
 
 
 def test_registration_json_keys_in_contract_order():

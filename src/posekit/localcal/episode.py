@@ -145,6 +145,8 @@ class EpisodeResult:
         ``events``: list of (t_s, label).
     logs : dict
         Paths for the figures (base-frame positions, mm; see :mod:`posekit.localcal.plots`).
+    images : list of (str, ndarray of shape (720, 1280), uint8)
+        The label and camera image of every labelled look (only with ``config.keep_images``).
     """
 
     method: str

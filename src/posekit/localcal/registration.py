@@ -91,6 +91,8 @@ class Registration:
     orientation_spread_deg : float
         Median angle between each inlier pair's body-to-body rotation and their mean, deg: small
         when the orientations agree with ``R`` (a check, not used in the fit with timestamps).
+    mode : {'timestamps', 'no-timestamps'}
+        How the poses were paired.
     """
 
     R: np.ndarray
@@ -188,6 +190,9 @@ def match_trajectories(src: Trajectory, dst: Trajectory, *, use_timestamps: bool
     ConfigError
         An option out of range.
     """
+    for traj, name in ((src, names[0]), (dst, names[1])):
+        if not isinstance(traj, Trajectory):
+            raise TrajectoryError(f"{name}: expected a Trajectory, got {type(traj).__name__}")
     if not (np.isfinite(max_dt_s) and max_dt_s > 0):
         raise ConfigError(f"max_dt_s must be a number > 0, got {max_dt_s:g}")
     if not (np.isfinite(max_offset_s) and max_offset_s >= 0):
