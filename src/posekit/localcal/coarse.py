@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from posekit.geometry import rotation_angle_between
 
 from .alignment import body_rotation_spread, robust_principal_axes, thin_indices
-from .cpd import rigid_cpd
+from .cpd import box_volume, rigid_cpd
 
 __all__ = ["TIE_NATS", "CoarseAlignment", "coarse_align", "orientation_spread", "pca_candidates"]
 
@@ -101,8 +101,7 @@ def _score(X, Y, res, w):
     """
     TY = res.s * Y @ res.R.T + res.t
     d2 = ((X[None, :, :] - TY[:, None, :]) ** 2).sum(-1)
-    side = np.ptp(X, axis=0)
-    volume = float(np.prod(np.maximum(side, max(1.0, 0.1 * side.max()))))
+    volume = box_volume(X)
     logg = -d2 / (2 * res.sigma2) - 1.5 * np.log(2 * np.pi * res.sigma2)
     m = logg.max(0)
     inl = np.log(np.exp(logg - m).mean(0)) + m + np.log(1.0 - w)

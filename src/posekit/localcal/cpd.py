@@ -25,7 +25,7 @@ import numpy as np
 
 from posekit.geometry import nearest_rotation
 
-__all__ = ["CPDResult", "initial_sigma2", "rigid_cpd"]
+__all__ = ["CPDResult", "box_volume", "initial_sigma2", "rigid_cpd"]
 
 #: Floor of the mixture variance, mm^2 (exact data would otherwise drive it to 0).
 SIGMA2_FLOOR = 1e-8
@@ -48,6 +48,25 @@ class CPDResult(NamedTuple):
     X_body: np.ndarray      #: (3, 3) rotation between the bodies (identity without orientations)
     P: np.ndarray           #: (M, N) final posterior of centroid m for point n
     iterations: int
+
+
+def box_volume(X) -> float:
+    """Volume of the bounding box of a point set, each side at least a tenth of the longest.
+
+    The support of CPD's uniform outlier component: a planar path's outliers also leave its plane.
+
+    Parameters
+    ----------
+    X : ndarray, shape (N, 3)
+        Points, mm.
+
+    Returns
+    -------
+    float
+        Volume, mm^3 (each side at least 1 mm).
+    """
+    side = np.ptp(X, axis=0)
+    return float(np.prod(np.maximum(side, max(1.0, 0.1 * side.max()))))
 
 
 def initial_sigma2(X, Y) -> float:
@@ -141,8 +160,7 @@ def rigid_cpd(X, Y, *, R0=None, t0=None, s0: float = 1.0, w: float = 0.05, with_
         Rx = Rx_flat.reshape(N, 3, 3)
         Ry = np.asarray(Ry, dtype=np.float64)
     if uniform_density is None:
-        side = np.ptp(X, axis=0)
-        uniform_density = 1.0 / float(np.prod(np.maximum(side, max(1.0, 0.1 * side.max()))))
+        uniform_density = 1.0 / box_volume(X)
     xx = (X ** 2).sum(1)
     P = np.zeros((M, N))
     it = 0
