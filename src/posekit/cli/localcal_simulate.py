@@ -5,6 +5,7 @@ import shlex
 import sys
 
 from ..errors import ConfigError
+from ._common import out_folder
 
 __all__ = ["add_demo_parser", "add_simulate_parser", "run_demo", "run_simulate"]
 
@@ -67,21 +68,6 @@ def _config(args, **extra):
     return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
 
 
-def _out_folder(out):
-    """Create the output folder before the (long) runs; a one-line ConfigError if it cannot be written."""
-    import os
-    from pathlib import Path
-
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"--out {folder}: cannot create the output folder ({exc.strerror or exc})") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ConfigError(f"--out {folder}: the output folder is not writable")
-    return folder
-
-
 def _write(result, out, command):
     """``write_experiment`` with a write failure as a one-line ConfigError."""
     from ..localcal.plots import write_experiment
@@ -124,7 +110,7 @@ def run_simulate(args) -> int:
     if args.occlude_ooi not in OCCLUSIONS:
         raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
     config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi)
-    _out_folder(args.out)
+    out_folder(args.out)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
                             scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())
     command = "posekit localcal simulate " + " ".join(
@@ -150,7 +136,7 @@ def run_demo(args) -> int:
     config = _config(args)
     if args.out:
         for method in ("line", "trajectory"):
-            _out_folder(Path(args.out) / method)
+            out_folder(Path(args.out) / method)
     for method in ("line", "trajectory"):
         result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
                                 progress=sys.stderr.isatty())

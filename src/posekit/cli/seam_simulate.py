@@ -3,12 +3,15 @@
 Precedence of settings: defaults < ``--config`` file < flags.
 """
 
+import functools
 import sys
 import time
 
 from ..errors import ConfigError
+from ._common import out_folder
+from ._common import progress as _progress
 
-__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "out_folder", "rmse_table"]
+__all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
 
 #: The trajectory kinds (``posekit.seam.config.TRAJECTORY_KINDS``, not imported here: the parser stays light).
 TRAJECTORIES = ("xy", "yz", "line", "bend")
@@ -17,13 +20,8 @@ DEMO_STEPS = 300
 DEMO_PARTICLES = 300
 
 
-def progress(iterable, total=None, desc=None):
-    """A tqdm bar over episodes on a terminal (stderr), the bare iterable otherwise."""
-    if not sys.stderr.isatty():
-        return iterable
-    from tqdm import tqdm
-    return tqdm(iterable, total=total, desc=desc, unit="episode", leave=False)
-
+#: Progress over episodes: a tqdm bar on a terminal, silent otherwise.
+progress = functools.partial(_progress, unit="episode")
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -103,21 +101,6 @@ def build_config(args):
     if args.sensors is not None:
         cfg = with_sensors(cfg, args.sensors)
     return cfg
-
-
-def out_folder(out):
-    """Create the output folder before the (long) runs; a one-line ConfigError if it cannot be written."""
-    import os
-    from pathlib import Path
-
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"--out {folder}: cannot create the output folder ({exc.strerror or exc})") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ConfigError(f"--out {folder}: the output folder is not writable")
-    return folder
 
 
 def _check_runs(runs):

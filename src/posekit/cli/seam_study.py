@@ -60,7 +60,8 @@ def parse_factors(text: str | None):
 def run_study(args) -> int:
     from ..seam.report import ERROR_AXES
     from ..seam.study import make_factors, seam_study, write_study
-    from .seam_simulate import build_config, out_folder
+    from ._common import out_folder
+    from .seam_simulate import build_config
 
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
