@@ -135,9 +135,14 @@ class UserStepFilter:
         R_mu = self.Rotation.from_matrix(T_mu[:3, :3])
         dt = self.p - T_mu[:3, 3]
         dr = (self.R * R_mu.inv()).as_rotvec()
+        d_r = (f.d0_deg + f.kd_deg_per_n * fn) * deg
+        A = np.eye(3)  # rotation plateau shape: radius d0 about the force, d_r across it (bending)
+        if f.bending_plateau and fn > 0 and d_r > 0:
+            u = np.asarray(inputs.force_n, dtype=float) / fn
+            A += (d_r / max(f.d0_deg * deg, 1e-3 * d_r) - 1.0) * np.outer(u, u)
         logw = (self._plateau(dt, f.d0_mm + f.kd_mm_per_n * fn, S[:3, :3] + f.robot_floor_t_mm ** 2 * np.eye(3))
-                + self._plateau(dr, (f.d0_deg + f.kd_deg_per_n * fn) * deg,
-                                S[3:, 3:] + (f.robot_floor_r_deg * deg) ** 2 * np.eye(3)))
+                + self._plateau(dr @ A.T, d_r, A @ (S[3:, 3:] + (f.robot_floor_r_deg * deg) ** 2 * np.eye(3)) @ A.T)
+                + math.log(abs(np.linalg.det(A))))
         if inputs.laser_mm is None:
             return logw
         Rm = self.R.as_matrix()

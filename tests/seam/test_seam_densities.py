@@ -110,6 +110,34 @@ def test_robot_density_matches_numpy_reference():
     assert np.linalg.norm(meas2.T_mean[:3, 3] - meas.T_mean[:3, 3]) > 0.1
 
 
+def test_bending_plateau_is_narrow_about_the_force():
+    """bending=True: the force-dependent part of the rotation plateau lies across the force. A
+    rotation of 0.5 deg about the force leaves the plateau (d0 = 0.2 deg), the same rotation
+    across the force stays on it; the density equals eq. 8 evaluated on A Δr (NumPy reference)."""
+    chain = puma560().with_tool(np.diag([1.0, 1.0, 1.0, 1.0]))
+    q = np.deg2rad([10.0, 70.0, -200.0, 5.0, -50.0, 20.0])
+    f = np.array([0.0, 0.0, -5000.0])
+    kw = dict(joint_sigma_rad=1e-5, floor_t_mm=0.1, floor_r_rad=1e-4, d0_mm=1.0, kd_mm_per_n=0.0,
+              d0_rad=np.deg2rad(0.2), kd_rad_per_n=np.deg2rad(2e-4))
+    ball = robot_measurement(chain, q, f, **kw)
+    bend = robot_measurement(chain, q, f, bending=True, **kw)
+    assert ball.A_r is None and bend.d_r_rad == ball.d_r_rad == pytest.approx(np.deg2rad(1.2))
+    T0 = bend.T_mean
+    Ts = np.stack([T0, T0, T0])  # turned about the tool centre point, in the base frame:
+    Ts[1, :3, :3] = se3_exp(np.r_[0, 0, 0, np.deg2rad([0.0, 0.0, 0.5])])[:3, :3] @ T0[:3, :3]  # about f
+    Ts[2, :3, :3] = se3_exp(np.r_[0, 0, 0, np.deg2rad([0.5, 0.0, 0.0])])[:3, :3] @ T0[:3, :3]  # across f
+    ll_bend, ll_ball = robot_loglik(Ts, bend), robot_loglik(Ts, ball)
+    assert ll_bend[2] == pytest.approx(ll_bend[0]) and ll_ball[1] == pytest.approx(ll_ball[0])
+    assert ll_bend[0] - ll_bend[1] > 50.0  # 0.3 deg beyond the plateau, tails of 1e-4 rad
+    # the same numbers from eq. 8 on A Δr, A = I + (d/d0 - 1) u uᵀ, with the |det A| Jacobian
+    u = f / np.linalg.norm(f)
+    A = np.eye(3) + (1.2 / 0.2 - 1.0) * np.outer(u, u)
+    dr = rotation_vector_from_matrix(Ts[:, :3, :3] @ T0[:3, :3].T)
+    ref = (plateau_logpdf(Ts[:, :3, 3] - T0[:3, 3], bend.d_t_mm, bend.Sigma_t)
+           + plateau_logpdf(dr @ A.T, bend.d_r_rad, A @ bend.Sigma_r @ A.T) + np.log(np.linalg.det(A)))
+    np.testing.assert_allclose(ll_bend, ref, rtol=1e-10, atol=1e-9)
+
+
 def _straight_seam():
     """A seam along base y at x = 5, z = 0 mm, with a kink at y = 60 (x grows after it)."""
     y = np.array([-50.0, 0.0, 30.0, 60.0, 100.0, 150.0])

@@ -109,3 +109,37 @@ def test_same_seed_same_particles():
     np.testing.assert_array_equal(a.T, b.T)
     np.testing.assert_array_equal(ea[-1].T, eb[-1].T)
     assert not np.array_equal(a.T, c.T)
+
+
+def test_regularised_resampling_keeps_the_mean_and_the_covariance():
+    """The kernel of the regularised resampling: the offsets and the Cholesky factor of their
+    weighted covariance match NumPy, and the resampled cloud keeps the weighted mean and the
+    6-D covariance (correlations included), to sampling error."""
+    cfg = _cfg(particles=4000)
+    pf = SeamParticleFilter(cfg, nominal_trajectory(cfg.trajectory, cfg.robot).seam, 1)
+    rng = np.random.default_rng(4)
+    C = np.diag([1.0, 2.0, 0.5, 3e-3, 2e-3, 4e-3]) ** 2
+    C[0, 5] = C[5, 0] = 0.8 * 1.0 * 4e-3  # an across-position / yaw correlation
+    xi0 = rng.multivariate_normal(np.zeros(6), C, size=4000)
+    T = se3_exp(xi0)
+    w = np.exp(-0.5 * (xi0[:, 1] / 1.5) ** 2)
+    w /= w.sum()
+    T_mean, spread, xi, mu, L = pf._cloud(T, w)
+    # offsets in the mean's frame: R̄ᵀ (p - p̄) and log(R̄ᵀ R)
+    np.testing.assert_allclose(xi[:50, :3], (T[:50, :3, 3] - T_mean[:3, 3]) @ T_mean[:3, :3], atol=1e-12)
+    np.testing.assert_allclose(xi[:50, 3:], rotation_vector_from_matrix(T_mean[:3, :3].T @ T[:50, :3, :3]),
+                               atol=1e-12)
+    np.testing.assert_allclose(mu, w @ xi, atol=1e-15)
+    cov = ((xi - mu) * w[:, None]).T @ (xi - mu)
+    np.testing.assert_allclose(L @ L.T, cov, rtol=1e-6, atol=1e-15)
+    np.testing.assert_allclose(spread, np.sqrt(np.diag(cov)), rtol=1e-9)
+    out = pf._kernel_resample(T, w, 0.5, shrink=True)
+    u = np.full(4000, 1 / 4000)
+    T2, _, _, _, L2 = pf._cloud(out, u)
+    off = _offset_error(T2, T_mean)
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(off) < 0.08 * sd)
+    cov2 = L2 @ L2.T
+    np.testing.assert_allclose(np.sqrt(np.diag(cov2)), sd, rtol=0.08)
+    corr = cov[0, 5] / (sd[0] * sd[5])
+    assert cov2[0, 5] / np.sqrt(cov2[0, 0] * cov2[5, 5]) == pytest.approx(corr, abs=0.05)

@@ -59,9 +59,9 @@ def test_b_one_sensor_confuses_translation_and_rotation_two_do_not(xy):
 def test_c_along_seam_direction_needs_a_feature(seed):
     line = run_episode(_cfg("line", 2), seed)
     bend = run_episode(_cfg("bend", 2), seed)
-    # featureless seam: the y spread does not shrink (it grows), while x is pinned
-    early, late = slice(10, 50), slice(STEPS - 50, STEPS)
-    assert np.median(line.spread[late, 1]) >= np.median(line.spread[early, 1])
+    # featureless seam: y keeps the width the robot plateau leaves it, while x is pinned by the lasers
+    # (the y spread narrows only as successive plateaus overlap less; it does not collapse)
+    late = slice(STEPS - 50, STEPS)
     assert np.median(line.spread[late, 1]) > 3.0 * np.median(line.spread[late, 0])
     # the bend (at 100 mm, step 100) passes the sensors 40 and 20 mm ahead at steps 60..80:
     # the y spread collapses there and the y error stays small afterwards
@@ -70,3 +70,23 @@ def test_c_along_seam_direction_needs_a_feature(seed):
     y_line = np.sqrt((line.error[after, 1] ** 2).mean())
     y_bend = np.sqrt((bend.error[after, 1] ** 2).mean())
     assert y_bend < 0.5 * y_line
+
+
+def test_d_two_sensors_beat_one_on_the_steep_yz_seam():
+    """yz: the seam climbs at up to 72° to the travel direction. Two sensors must beat one in the
+    directions they measure (x, z, the pitch rx) and keep the yaw rz at the kinematic level. This
+    failed when the first update collapsed the cloud onto a handful of particles (ESS ~ 4) and the
+    copies, jittered axis by axis, lost the free directions too: the cloud locked 0.3-0.9 deg off
+    in yaw with a spread of 0.02 deg and took hundreds of steps to come back (two sensors no
+    better than one in x, z, rx; yaw 4x the kinematic error)."""
+    seeds = (1, 2, 3, 4)
+    cfg = {s: config_from_dict({"trajectory": {"kind": "yz", "steps": 150}, "sensors": {"count": s},
+                                "filter": {"particles": 200}}) for s in (1, 2)}
+    runs = {s: [run_episode(cfg[s], seed) for seed in seeds] for s in (1, 2)}
+    one, two, kin = _rmse(runs[1]), _rmse(runs[2]), _rmse(runs[2], "kinematic_error")
+    assert two["x"] < 0.5 * one["x"]
+    assert two["z"] < 0.6 * one["z"]
+    assert two["rx"] < 0.5 * one["rx"]
+    # the yaw is the rotation about the steep seam (barely measured): the robot density holds it
+    assert two["rz"] < 2.5 * kin["rz"]
+    assert max(_rmse([r])["rz"] for r in runs[2]) < 0.25

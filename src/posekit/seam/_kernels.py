@@ -14,8 +14,10 @@ import numba as nb
 import numpy as np
 
 __all__ = [
+    "cloud_kernel",
     "fk_jacobian_kernel",
     "inv_det3",
+    "kernel_move",
     "laser_loglik_kernel",
     "mean_spread_kernel",
     "propagate",
@@ -111,10 +113,11 @@ def _plateau_maha(x, y, z, d, Sinv):
 
 
 @nb.njit(cache=True, boundscheck=False)
-def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, d_t, d_r, logD, out):
+def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, A_r, d_t, d_r, logD, out):
     """Eq. (8) in two 3-D blocks: ``Δt = p_i - p_μ``, ``Δr = log(R_i R_μᵀ)`` (base frame).
 
-    ``out_i += logD - ½ (δtᵀ Sinv_t δt + δrᵀ Sinv_r δr)`` with ``δ = (1 - d/‖Δ‖)₊ Δ``.
+    ``out_i += logD - ½ (δtᵀ Sinv_t δt + δrᵀ Sinv_r δr)`` with ``δ = (1 - d/‖Δ‖)₊ Δ``; the
+    rotation error enters as ``A_r Δr`` (an ellipsoidal plateau; ``Sinv_r`` is for ``A_r Δr``).
     """
     n = T.shape[0]
     q = np.empty(9)
@@ -125,7 +128,10 @@ def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, d_t, d_r, logD, out):
             for b in range(3):
                 q[3 * a + b] = T[i, a, 0] * mu[b, 0] + T[i, a, 1] * mu[b, 1] + T[i, a, 2] * mu[b, 2]
         ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
-        out[i] += logD - 0.5 * (mt + _plateau_maha(ex, ey, ez, d_r, Sinv_r))
+        ax = A_r[0, 0] * ex + A_r[0, 1] * ey + A_r[0, 2] * ez
+        ay = A_r[1, 0] * ex + A_r[1, 1] * ey + A_r[1, 2] * ez
+        az = A_r[2, 0] * ex + A_r[2, 1] * ey + A_r[2, 2] * ez
+        out[i] += logD - 0.5 * (mt + _plateau_maha(ax, ay, az, d_r, Sinv_r))
 
 
 @nb.njit(cache=True, boundscheck=False)
@@ -273,13 +279,8 @@ def inv_det3(S):
 
 
 @nb.njit(cache=True, boundscheck=False)
-def mean_spread_kernel(T, w):
-    """Chordal weighted mean ``(T_mean (4, 4), spread (6,))`` of particles ``T (N, 4, 4)``.
-
-    ``p̄ = Σ w p``, ``R̄`` = the rotation nearest ``Σ w R`` (its polar factor; the cloud must be
-    narrower than 90°); the spread is the weighted
-    standard deviation of ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad).
-    """
+def _chordal_mean(T, w):
+    """``T_mean (4, 4)``: ``p̄ = Σ w p``, ``R̄`` = the polar factor of ``Σ w R``."""
     n = T.shape[0]
     S = np.zeros((4, 4))
     for i in range(n):
@@ -305,6 +306,19 @@ def mean_spread_kernel(T, w):
         for b in range(3):
             Tm[a, b] = R[a, b]
         Tm[a, 3] = S[a, 3]
+    return Tm
+
+
+@nb.njit(cache=True, boundscheck=False)
+def mean_spread_kernel(T, w):
+    """Chordal weighted mean ``(T_mean (4, 4), spread (6,))`` of particles ``T (N, 4, 4)``.
+
+    ``p̄ = Σ w p``, ``R̄`` = the rotation nearest ``Σ w R`` (its polar factor; the cloud must be
+    narrower than 90°); the spread is the weighted
+    standard deviation of ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad).
+    """
+    n = T.shape[0]
+    Tm = _chordal_mean(T, w)
     m1 = np.zeros(6)
     m2 = np.zeros(6)
     q = np.empty(9)
@@ -326,3 +340,96 @@ def mean_spread_kernel(T, w):
     for j in range(6):
         spread[j] = math.sqrt(max(m2[j] - m1[j] * m1[j], 0.0))
     return Tm, spread
+
+
+
+@nb.njit(cache=True, boundscheck=False)
+def cloud_kernel(T, w, xi, L):
+    """:func:`mean_spread_kernel` plus the offsets and the factor of their covariance.
+
+    Returns ``(T_mean (4, 4), spread (6,), mu (6,))`` for particles ``T (N, 4, 4)`` and weights
+    ``w (N,)``: the chordal mean, the weighted standard deviations and the weighted mean of the
+    offsets; writes ``xi (N, 6)``, the offsets ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad; the
+    inverse of :func:`kernel_move`), and ``L (6, 6)`` lower triangular with ``L Lᵀ`` = their
+    weighted covariance (Cholesky, ridge 1e-9 of each variance).
+    """
+    n = T.shape[0]
+    Tm = _chordal_mean(T, w)
+    q = np.empty(9)
+    mu = np.zeros(6)
+    for i in range(n):
+        dx = T[i, 0, 3] - Tm[0, 3]
+        dy = T[i, 1, 3] - Tm[1, 3]
+        dz = T[i, 2, 3] - Tm[2, 3]
+        for a in range(3):
+            xi[i, a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
+            for b in range(3):
+                q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
+        xi[i, 3], xi[i, 4], xi[i, 5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        for j in range(6):
+            mu[j] += w[i] * xi[i, j]
+    C = np.zeros((6, 6))
+    for i in range(n):
+        for j in range(6):
+            dj = w[i] * (xi[i, j] - mu[j])
+            for k in range(j + 1):
+                C[j, k] += dj * (xi[i, k] - mu[k])
+    spread = np.empty(6)
+    for j in range(6):
+        spread[j] = math.sqrt(max(C[j, j], 0.0))
+        C[j, j] = C[j, j] * (1.0 + 1e-9) + 1e-30
+    for j in range(6):  # Cholesky, lower triangle of C
+        for k in range(j + 1):
+            v = C[j, k]
+            for m in range(k):
+                v -= L[j, m] * L[k, m]
+            if j == k:
+                L[j, j] = math.sqrt(max(v, 1e-30))
+            else:
+                L[j, k] = v / L[k, k]
+        for k in range(j + 1, 6):
+            L[j, k] = 0.0
+    return Tm, spread, mu
+
+
+@nb.njit(cache=True, boundscheck=False)
+def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
+    """Regularised resampling in the tangent space at ``Tm (4, 4)``:
+    ``out_i = Tm exp(ξ'_i)`` with ``ξ'_i = a xi[idx_i] + (1 - a) mu + B z_i`` (translation part
+    ``Tm`` rotation times ``ξ'[:3]``, the convention of :func:`cloud_kernel`).
+
+    xi (N, 6), idx (N,) ancestors, mu (6,), B (6, 6), z_ (N, 6) standard normal, out (N, 4, 4).
+    """
+    n = out.shape[0]
+    v = np.empty(6)
+    for i in range(n):
+        r = idx[i]
+        for j in range(6):
+            s = a * xi[r, j] + (1.0 - a) * mu[j]
+            for k in range(6):
+                s += B[j, k] * z_[i, k]
+            v[j] = s
+        x, y, z = v[3], v[4], v[5]
+        th2 = x * x + y * y + z * z
+        if th2 < 1e-4:
+            c1 = 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0)
+            c2 = 0.5 - th2 / 24.0 * (1.0 - th2 / 30.0)
+        else:
+            th = math.sqrt(th2)
+            c1 = math.sin(th) / th
+            c2 = (1.0 - math.cos(th)) / th2
+        e00 = 1.0 - c2 * (y * y + z * z)
+        e11 = 1.0 - c2 * (x * x + z * z)
+        e22 = 1.0 - c2 * (x * x + y * y)
+        e01, e10 = c2 * x * y - c1 * z, c2 * x * y + c1 * z
+        e02, e20 = c2 * x * z + c1 * y, c2 * x * z - c1 * y
+        e12, e21 = c2 * y * z - c1 * x, c2 * y * z + c1 * x
+        for rr in range(3):
+            out[i, rr, 0] = Tm[rr, 0] * e00 + Tm[rr, 1] * e10 + Tm[rr, 2] * e20
+            out[i, rr, 1] = Tm[rr, 0] * e01 + Tm[rr, 1] * e11 + Tm[rr, 2] * e21
+            out[i, rr, 2] = Tm[rr, 0] * e02 + Tm[rr, 1] * e12 + Tm[rr, 2] * e22
+            out[i, rr, 3] = Tm[rr, 3] + Tm[rr, 0] * v[0] + Tm[rr, 1] * v[1] + Tm[rr, 2] * v[2]
+        out[i, 3, 0] = 0.0
+        out[i, 3, 1] = 0.0
+        out[i, 3, 2] = 0.0
+        out[i, 3, 3] = 1.0

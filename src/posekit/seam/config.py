@@ -184,20 +184,26 @@ class FilterConfig(_Section):
     (k_force_r in deg/N). Robot measurement (eq. 7/8): uniform plateau of radius
     ``d0_mm + kd_mm_per_n ‖f‖`` (translation) and ``d0_deg + kd_deg_per_n ‖f‖`` (rotation),
     Gaussian tails of covariance ``J Σq Jᵀ`` (``joint_sigma_deg``) plus a floor
-    (``robot_floor_t_mm``, ``robot_floor_r_deg``); ``compliance_rad_per_nm`` is the filter's
+    (``robot_floor_t_mm``, ``robot_floor_r_deg``). With ``bending_plateau`` the rotation
+    plateau is an ellipsoid: radius ``d0_deg`` about the force direction and
+    ``d0_deg + kd_deg_per_n ‖f‖`` about the axes across it (a force at the tool centre point
+    bends the tool about axes across it; False: a ball). ``compliance_rad_per_nm`` is the filter's
     joint compliance model Cj(τ) (0: none). Laser (eq. 9): Gaussian ``laser_sigma_mm`` on the
     in-plane error, the seam searched within ``search_window_mm`` of the nominal intersection
     on the trend-filtered knot polyline (eq. 10: ``trend_lambda``, ``trend_eps_mm``). An update
     leaving fewer than ``anneal_ess · N`` effective particles is tempered in up to
-    ``anneal_stages`` stages with kernel jitter ``anneal_jitter`` (see :mod:`posekit.seam.filter`).
+    ``anneal_stages`` stages with kernel jitter ``anneal_jitter`` (times the cloud's covariance);
+    resampling draws from a kernel density of bandwidth ``regularize_h`` that keeps the cloud's
+    mean and covariance (0: plain resampling; see :mod:`posekit.seam.filter`).
     """
 
     particles: int = Field(500, ge=1)
     resampler: Literal["systematic", "stratified", "residual"] = "systematic"
     ess_threshold: float = Field(0.5, gt=0.0, le=1.0)  # fraction of the particle count
     anneal_ess: float = Field(0.05, ge=0.0, le=1.0)  # temper an update leaving fewer (fraction of N)
-    anneal_stages: int = Field(4, ge=0)
-    anneal_jitter: float = Field(0.5, ge=0.0)  # kernel bandwidth, times the spread
+    anneal_stages: int = Field(20, ge=0)
+    anneal_jitter: float = Field(0.5, ge=0.0)  # kernel bandwidth, times the cloud's covariance
+    regularize_h: float = Field(0.1, ge=0.0, lt=1.0)  # kernel bandwidth of the resampling (0: plain)
     sigma_t_mm: float = Field(0.02, ge=0.0)
     sigma_r_deg: float = Field(0.005, ge=0.0)
     k_force_t: float = Field(4e-6, ge=0.0)  # mm/N
@@ -206,6 +212,7 @@ class FilterConfig(_Section):
     kd_mm_per_n: float = Field(4e-4, ge=0.0)
     d0_deg: float = Field(0.2, ge=0.0)
     kd_deg_per_n: float = Field(2e-4, ge=0.0)
+    bending_plateau: bool = True  # rotation plateau: kd_deg_per_n ‖f‖ only across the force
     joint_sigma_deg: float = Field(0.005, ge=0.0)
     robot_floor_t_mm: float = Field(0.3, gt=0.0)
     robot_floor_r_deg: float = Field(0.05, gt=0.0)

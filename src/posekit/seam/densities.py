@@ -45,6 +45,7 @@ __all__ = [
 
 
 _TWO_PI_1P5 = (2.0 * math.pi) ** 1.5
+_EYE3 = np.eye(3)
 
 
 def ball_volume(d: float, k: int) -> float:
@@ -175,22 +176,25 @@ class RobotMeasurement:
     Sigma_r : ndarray, shape (3, 3)
         Rotation covariance (rad²), ``[J Σq Jᵀ]_rr + floor²``.
     d_t_mm, d_r_rad : float
-        Plateau radii ``d(f)``.
+        Plateau radii ``d(f)``; the rotation plateau is the ellipsoid ``‖A_r Δr‖ <= d_r_rad``.
+    A_r : ndarray, shape (3, 3) or None
+        Shape of the rotation plateau (None: a ball of radius ``d_r_rad``).
     """
 
-    __slots__ = ("Sigma_r", "Sigma_t", "T_mean", "d_r_rad", "d_t_mm")
+    __slots__ = ("A_r", "Sigma_r", "Sigma_t", "T_mean", "d_r_rad", "d_t_mm")
 
-    def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad):
+    def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad, A_r=None):
         self.T_mean = T_mean
         self.Sigma_t = Sigma_t
         self.Sigma_r = Sigma_r
         self.d_t_mm = d_t_mm
         self.d_r_rad = d_r_rad
+        self.A_r = A_r
 
 
 def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *, joint_sigma_rad: float,
                       floor_t_mm: float, floor_r_rad: float, d0_mm: float, kd_mm_per_n: float,
-                      d0_rad: float, kd_rad_per_n: float,
+                      d0_rad: float, kd_rad_per_n: float, bending: bool = False,
                       compliance: Callable | None = None) -> RobotMeasurement:
     """Build the robot measurement density from joint readings and the measured force.
 
@@ -208,6 +212,12 @@ def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *
         Standard deviations added to the Gaussian tails (keep Σ well conditioned).
     d0_mm, kd_mm_per_n, d0_rad, kd_rad_per_n : float
         Plateau radii ``d(f) = d0 + kd ‖f‖`` for translation and rotation.
+    bending : bool
+        The force-dependent part of the rotation plateau lies perpendicular to the force: an
+        ellipsoid with semi-axis ``d0_rad`` along ``f`` and ``d0_rad + kd_rad_per_n ‖f‖``
+        across it. A force at the tool centre point has no moment about its own line of
+        action, so the tool bends about axes across the force, not about the force. False:
+        a ball of radius ``d0_rad + kd_rad_per_n ‖f‖`` (eq. 8 as printed).
     compliance : callable ``Cj(q (n,), τ (n,) in N·mm) -> Δq (n,)``, optional
         The compliance model hook of eq. (5); None: no deflection model.
 
@@ -221,12 +231,19 @@ def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *
         T, J = fk_and_jacobian(chain, q_meas + compliance(q_meas, tau))
     S = (joint_sigma_rad ** 2) * (J @ J.T)
     fn = float(np.linalg.norm(force_n))
+    d_r = d0_rad + kd_rad_per_n * fn
+    A_r = None
+    if bending and fn > 0.0 and d_r > 0.0:
+        # ‖A Δ‖ <= d_r: Δ across f within d_r, along f within d0 (ratio capped for d0 = 0)
+        u = np.asarray(force_n, dtype=np.float64) / fn
+        A_r = np.eye(3) + (d_r / max(d0_rad, 1e-3 * d_r) - 1.0) * np.outer(u, u)
     return RobotMeasurement(
         T,
         S[:3, :3] + floor_t_mm ** 2 * np.eye(3),
         S[3:, 3:] + floor_r_rad ** 2 * np.eye(3),
         d0_mm + kd_mm_per_n * fn,
-        d0_rad + kd_rad_per_n * fn,
+        d_r,
+        A_r,
     )
 
 
@@ -244,11 +261,17 @@ def robot_loglik(Ts: np.ndarray, meas: RobotMeasurement) -> np.ndarray:
     loglik : ndarray, shape (N,)
     """
     out = np.zeros(Ts.shape[0])
+    A = meas.A_r
     Sinv_t, det_t = _k.inv_det3(meas.Sigma_t)
-    Sinv_r, det_r = _k.inv_det3(meas.Sigma_r)
+    if A is None:
+        A, log_det_A = _EYE3, 0.0
+        Sinv_r, det_r = _k.inv_det3(meas.Sigma_r)
+    else:  # the covariance of A Δr; eq. 8's normaliser in those coordinates, times |det A|
+        Sinv_r, det_r = _k.inv_det3(A @ meas.Sigma_r @ A.T)
+        log_det_A = math.log(abs(_k.inv_det3(A)[1]))
     logD = -math.log(_TWO_PI_1P5 * math.sqrt(det_t) + ball_volume(meas.d_t_mm, 3)) - math.log(
-        _TWO_PI_1P5 * math.sqrt(det_r) + ball_volume(meas.d_r_rad, 3))
-    _k.robot_loglik_kernel(Ts, meas.T_mean, Sinv_t, Sinv_r, meas.d_t_mm, meas.d_r_rad, logD, out)
+        _TWO_PI_1P5 * math.sqrt(det_r) + ball_volume(meas.d_r_rad, 3)) + log_det_A
+    _k.robot_loglik_kernel(Ts, meas.T_mean, Sinv_t, Sinv_r, A, meas.d_t_mm, meas.d_r_rad, logD, out)
     return out
 
 

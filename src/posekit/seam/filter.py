@@ -9,9 +9,16 @@ falls below ``ess_threshold · N``.
 When one update would leave fewer than ``anneal_ess · N`` effective particles (the laser
 likelihood is far narrower than the cloud: at start-up, at a seam feature), the likelihood
 is applied in tempered stages ``ℓ^β₁ ℓ^β₂ ...`` (β chosen for an ESS of N/2), each followed by
-a kernel resampling step that jitters the copies by ``anneal_jitter`` times the spread; at
-most ``anneal_stages`` stages. Without it the cloud collapses onto the one particle nearest
-the truth and the small transition noise cannot move it for hundreds of steps.
+a kernel resampling step that moves the copies by Gaussian noise of ``anneal_jitter²`` times
+the cloud's 6-D covariance (with its correlations); at most ``anneal_stages`` stages. Without
+it the cloud collapses onto the one particle nearest the truth and the small transition noise
+cannot move it for hundreds of steps.
+
+Resampling is regularised (``regularize_h``, Liu & West's kernel with shrinkage): the copies
+are drawn from a Gaussian kernel density of the weighted cloud that keeps its mean and
+covariance. The lasers leave directions free (along the seam, the rotation about it; on the
+steep yz seam that rotation is mostly the yaw); plain resampling lets copies of a few
+ancestors take over there, and the cloud shrinks and wanders inside the robot plateau.
 """
 
 import math
@@ -163,7 +170,7 @@ class SeamParticleFilter:
         self._robot_kw = {
             "joint_sigma_rad": f.joint_sigma_deg * deg, "floor_t_mm": f.robot_floor_t_mm,
             "floor_r_rad": f.robot_floor_r_deg * deg, "d0_mm": f.d0_mm, "kd_mm_per_n": f.kd_mm_per_n,
-            "d0_rad": f.d0_deg * deg, "kd_rad_per_n": f.kd_deg_per_n * deg,
+            "d0_rad": f.d0_deg * deg, "kd_rad_per_n": f.kd_deg_per_n * deg, "bending": f.bending_plateau,
         }
         self._angle_sigma = cfg.sensors.angle and f.angle_sigma_deg * deg
         self.n = f.particles
@@ -223,16 +230,35 @@ class SeamParticleFilter:
                 hi = mid
         return max(lo, 1e-6 * remaining)
 
-    def _jitter(self, T: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """Resample by ``w`` and move each copy by Gaussian noise of ``anneal_jitter`` times the
-        weighted spread (tool frame): a kernel (regularised) resampling step."""
-        _, spread = weighted_mean_se3(T, w)
-        T = T[self._resample(w, self.rng)]
+    def _cloud(self, T: np.ndarray, w: np.ndarray):
+        """Weighted mean ``T_mean (4, 4)`` and ``spread (6,)`` (as :func:`weighted_mean_se3`),
+        the tangent offsets ``xi (N, 6)`` of the particles from the mean
+        (``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]``, mm, rad), their weighted mean ``mu (6,)`` and the
+        Cholesky factor ``L (6, 6)`` of their weighted covariance (with the correlations)."""
+        xi = np.empty((T.shape[0], 6))
+        L = np.empty((6, 6))
+        T_mean, spread, mu = _k.cloud_kernel(T, w, xi, L)
+        return T_mean, spread, xi, mu, L
+
+    def _kernel_resample(self, T: np.ndarray, w: np.ndarray, h: float, shrink: bool, cloud=None) -> np.ndarray:
+        """Resample by ``w`` from a Gaussian kernel density of the cloud, in the tangent space at
+        its weighted mean: ``ξ' = a ξ_i + (1 - a) μ + h L z``, ``L Lᵀ = Σ`` the weighted
+        covariance of the offsets ``ξ`` (6-D, with the correlations), ``z`` standard normal.
+
+        ``shrink`` (Liu & West): ``a = √(1 - h²)``, the mean and covariance are kept; else
+        ``a = 1``, the covariance grows by ``1 + h²`` (the moves between tempering stages).
+        The correlations matter: a seam measurement pins combinations (across position with
+        yaw, height with pitch) and leaves others free (along the seam, the rotation about
+        it); noise axis by axis would break the pinned combinations, the next update would
+        discard those copies and the cloud would collapse in the free directions as well.
+        ``cloud``: :meth:`_cloud` of ``(T, w)`` when already computed.
+        """
+        T_mean, _, xi, mu, L = self._cloud(T, w) if cloud is None else cloud
+        idx = self._resample(w, self.rng)
         z = self._noise
         self.rng.standard_normal(out=z, dtype=np.float32)
-        z *= (self.cfg.filter.anneal_jitter * spread).astype(np.float32)
         out = np.empty_like(T)
-        _k.propagate(T, np.eye(4), z, 1.0, 1.0, out)
+        _k.kernel_move(T_mean, xi, idx, mu, math.sqrt(1.0 - h * h) if shrink else 1.0, h * L, z, out)
         return out
 
     def step(self, inputs: StepInputs) -> StepEstimate:
@@ -255,7 +281,8 @@ class SeamParticleFilter:
         remaining = 1.0
         while (not norm.recovered and ess < f.anneal_ess * self.n and stages < f.anneal_stages):
             beta = self._temper(ll, remaining, 0.5 * self.n)
-            self.T = self._jitter(self.T, normalize_log_weights(self.logw + beta * ll).w)
+            self.T = self._kernel_resample(self.T, normalize_log_weights(self.logw + beta * ll).w,
+                                           f.anneal_jitter, shrink=False)
             self.logw = np.full(self.n, -math.log(self.n))
             remaining -= beta
             ll, used = self._loglik(self.T, inputs, meas)
@@ -266,12 +293,14 @@ class SeamParticleFilter:
         # 3. normalise (recover from vanishing weights), estimate
         self.recoveries += norm.recovered
         w = norm.w
-        T_mean, spread = weighted_mean_se3(self.T, w)
-        # 4. resample
         resampled = ess < f.ess_threshold * self.n
+        h = f.regularize_h if resampled else 0.0
+        cloud = self._cloud(self.T, w) if h > 0.0 else None  # the mean pass also gives the kernel
+        T_mean, spread = weighted_mean_se3(self.T, w) if cloud is None else cloud[:2]
+        # 4. resample (regularised: see _kernel_resample)
         if resampled:
-            idx = self._resample(w, self.rng)
-            self.T = self.T[idx]
+            self.T = (self._kernel_resample(self.T, w, h, shrink=True, cloud=cloud) if h > 0.0
+                      else self.T[self._resample(w, self.rng)])
             self.logw = np.full(self.n, -math.log(self.n))
             self.resamplings += 1
         else:
