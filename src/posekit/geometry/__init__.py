@@ -94,3 +94,8 @@ __all__ += [
     "check_correspondences",
     "normalize_homography",
 ]
+
+# --- small dense solves for numba kernels (_linalg) -------------------------------------------
+from ._linalg import cholesky_solve  # noqa: E402
+
+__all__ += ["cholesky_solve"]

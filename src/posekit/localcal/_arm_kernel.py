@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
+from posekit.geometry import cholesky_solve
+
 __all__ = ["simulate_moves"]
 
 
@@ -68,7 +70,6 @@ def simulate_moves(a, alpha, d, theta0, revolute, q_min, q_max, T_tool,
     M = np.empty((6, 6))
     L = np.empty((6, 6))
     tw = np.empty(6)
-    y = np.empty(6)
     x6 = np.empty(6)
     ca = np.cos(alpha)
     sa = np.sin(alpha)
@@ -144,26 +145,7 @@ def simulate_moves(a, alpha, d, theta0, revolute, q_min, q_max, T_tool,
                     acc += J[r, i] * J[c, i]
                 M[r, c] = acc
             M[r, r] += damping * damping
-        for j in range(6):
-            acc = M[j, j]
-            for m in range(j):
-                acc -= L[j, m] * L[j, m]
-            L[j, j] = math.sqrt(acc)
-            for i in range(j + 1, 6):
-                acc = M[i, j]
-                for m in range(j):
-                    acc -= L[i, m] * L[j, m]
-                L[i, j] = acc / L[j, j]
-        for i in range(6):
-            acc = tw[i]
-            for m in range(i):
-                acc -= L[i, m] * y[m]
-            y[i] = acc / L[i, i]
-        for i in range(5, -1, -1):
-            acc = y[i]
-            for m in range(i + 1, 6):
-                acc -= L[m, i] * x6[m]
-            x6[i] = acc / L[i, i]
+        cholesky_solve(M, tw, x6, L)
         # ... then 2.-5.: clamp, P servo, PT-1 joint, backlash, encoder
         for i in range(n):
             acc = 0.0

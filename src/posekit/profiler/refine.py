@@ -13,6 +13,8 @@ Compiled with numba, allocation- and BLAS-free in the inner loops.
 import numpy as np
 from numba import njit
 
+from ..geometry import cholesky_solve
+
 __all__ = ["normal_equations", "spd_inverse", "refine_kernel", "pose_covariance_and_reprojection"]
 
 
@@ -120,33 +122,6 @@ def spd_inverse(C):
 
 
 @njit(cache=True, nogil=True)
-def _cholesky_solve(H, lam, g, x, L):
-    """Solve (H + lam·diag(H)) x = g by Cholesky; returns False if not positive definite."""
-    for i in range(6):
-        for j in range(i + 1):
-            acc = H[i, j] + (lam * max(H[i, i], 1e-30) if i == j else 0.0)
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                if acc <= 0.0:
-                    return False
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
-    for i in range(6):
-        acc = g[i]
-        for k in range(i):
-            acc -= L[i, k] * x[k]
-        x[i] = acc / L[i, i]
-    for i in range(5, -1, -1):
-        acc = x[i]
-        for k in range(i + 1, 6):
-            acc -= L[k, i] * x[k]
-        x[i] = acc / L[i, i]
-    return True
-
-
-@njit(cache=True, nogil=True)
 def _exp_left(R, t, d, R_out, t_out):
     """(R_out, t_out) = exp(d^) (R, t) for a twist d = [ρ, φ] (Rodrigues, no allocation)."""
     p0 = d[3]
@@ -224,7 +199,7 @@ def refine_kernel(R, t, corners, W, q, s, max_iter):
         accepted = False
         cost2 = cost
         for _ in range(12):
-            if _cholesky_solve(H, lam, g, d, L):
+            if cholesky_solve(H, g, d, L, lam):
                 _exp_left(R, t, d, R2, t2)
                 ok2, cost2 = normal_equations(R2, t2, corners, W, q, s, H2, g2)
                 if ok2 and cost2 <= cost * (1.0 + 1e-12):
