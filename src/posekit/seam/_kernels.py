@@ -310,6 +310,20 @@ def _chordal_mean(T, w):
 
 
 @nb.njit(cache=True, boundscheck=False)
+def _offset(T, i, Tm, q, out):
+    """Offset of particle ``i`` from the mean ``Tm`` in its frame: ``out (6,)`` =
+    ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad); ``q (9,)`` is work space."""
+    dx = T[i, 0, 3] - Tm[0, 3]
+    dy = T[i, 1, 3] - Tm[1, 3]
+    dz = T[i, 2, 3] - Tm[2, 3]
+    for a in range(3):
+        out[a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
+        for b in range(3):
+            q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
+    out[3], out[4], out[5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+
+
+@nb.njit(cache=True, boundscheck=False)
 def mean_spread_kernel(T, w):
     """Chordal weighted mean ``(T_mean (4, 4), spread (6,))`` of particles ``T (N, 4, 4)``.
 
@@ -324,14 +338,7 @@ def mean_spread_kernel(T, w):
     q = np.empty(9)
     d = np.empty(6)
     for i in range(n):
-        dx = T[i, 0, 3] - Tm[0, 3]
-        dy = T[i, 1, 3] - Tm[1, 3]
-        dz = T[i, 2, 3] - Tm[2, 3]
-        for a in range(3):
-            d[a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
-            for b in range(3):
-                q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
-        d[3], d[4], d[5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        _offset(T, i, Tm, q, d)
         wi = w[i]
         for j in range(6):
             m1[j] += wi * d[j]
@@ -358,14 +365,7 @@ def cloud_kernel(T, w, xi, L):
     q = np.empty(9)
     mu = np.zeros(6)
     for i in range(n):
-        dx = T[i, 0, 3] - Tm[0, 3]
-        dy = T[i, 1, 3] - Tm[1, 3]
-        dz = T[i, 2, 3] - Tm[2, 3]
-        for a in range(3):
-            xi[i, a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
-            for b in range(3):
-                q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
-        xi[i, 3], xi[i, 4], xi[i, 5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        _offset(T, i, Tm, q, xi[i])
         for j in range(6):
             mu[j] += w[i] * xi[i, j]
     C = np.zeros((6, 6))
