@@ -30,7 +30,7 @@ def test_compiled_rate_step_equals_robots_resolved_rate_step():
     ref = resolved_rate_step(m, q, T_target, (7.0, 3.0), 0.01, 1e-3, twist_target=twist)
     ones = np.ones(6)
     _, _, q_cmd = simulate_moves(
-        m.a, m.alpha, m.d, m.theta, m.is_revolute, m.q_min, m.q_max, m.T_flange_tool,
+        *m.kinematic_pack, m.q_min, m.q_max,
         T_target[None, :3, 3].copy(), T_target[None, :3, :3].copy(), twist[None],
         np.array([7.0, 7.0, 7.0, 3.0, 3.0, 3.0]), 1e-3, 0.01,
         ones, 0.5 * ones, ones, 0.0 * ones, np.zeros((1, 6)),
@@ -186,7 +186,7 @@ def test_bad_input_messages():
         arm.move_to(arm.nominal_pose(), duration_s=-1.0)
     with pytest.raises(ConfigError, match=r"^backlash_rad: expected 6 finite values >= 0, got \[-0.001, 0.0"):
         NonKinematicErrors(np.zeros(6), [-1e-3, 0, 0, 0, 0, 0], [0.0, 0.0])
-    with pytest.raises(ConfigError, match=r"^hiab033: q0 must have shape \(6,\) or \(N, 6\), got shape \(5,\)$"):
+    with pytest.raises(ConfigError, match=r"^hiab033: q0 must have shape \(6,\) or \(\.\.\., 6\), got shape \(5,\)$"):
         LongReachArm(q0=np.zeros(5))
     with pytest.raises(ConfigError, match=r"^rate_gains: expected 0 < gain <= 1/dt_s = 100 1/s, got \[500.0, 10.0\]$"):
         LongReachArm(rate_gains=(500.0, 10.0))

@@ -24,7 +24,7 @@ from posekit.profiler import LJ_X8400, NoiseModel, bundled_gauge, estimate_pose,
 from posekit.profiler.evaluate import pose_errors
 from posekit.profiler.protocol import MAGIC, MAX_POINTS, encode_frame
 from posekit.profiler.sensor import sample_poses, visible_mask
-from posekit.profiler.server import PoseServer, check_address, parse_address, quaternion_wxyz
+from posekit.profiler.server import PoseServer, check_address, parse_address
 from posekit.profiler.stream_client import RobotInterfaceStub, SensorClient
 from tests.strategies import FAST, rotation_matrices
 
@@ -528,15 +528,6 @@ def test_server_bad_configuration(gauge):
             PoseServer(gauge, listen=(host, port)).start()
     finally:
         taken.stop()
-
-
-@FAST
-@given(R=rotation_matrices())
-def test_quaternion_wxyz_matches_geometry(R):
-    q = np.asarray(quaternion_wxyz(R))
-    ref = quaternion_from_matrix(R)
-    assert np.isclose(np.linalg.norm(q), 1.0) and q[0] >= 0
-    assert np.allclose(q, ref, atol=1e-9) or (abs(q[0]) < 1e-6 and np.allclose(q, -ref, atol=1e-9))
 
 
 # --- CLI ----------------------------------------------------------------------------------------

@@ -81,7 +81,7 @@ def test_joint_limits_clamp():
 @pytest.mark.parametrize(
     ("override", "match"),
     [
-        ({"q": np.zeros(5)}, r"q must have shape \(6,\) or \(N, 6\), got shape \(5,\)"),
+        ({"q": np.zeros(5)}, r"q must have shape \(6,\) or \(\.\.\., 6\), got shape \(5,\)"),
         (
             {"q": [0.0, np.nan, 0, 0, 0, 0]},
             "q must be finite, found NaN or inf at index",

@@ -110,14 +110,20 @@ def test_batch_fk_equals_stacked_single(name):
     np.testing.assert_array_equal(
         Ts, np.stack([chain.forward_kinematics(q) for q in qs])
     )
-    Ts2, frames = chain.forward_kinematics(qs, all_frames=True)
-    assert frames.shape == (50, chain.n_joints + 1, 4, 4)
-    np.testing.assert_array_equal(Ts2, Ts)
-    np.testing.assert_array_equal(frames[:, 0], np.broadcast_to(np.eye(4), (50, 4, 4)))
-    np.testing.assert_allclose(frames[:, -1] @ chain.T_flange_tool, Ts, atol=1e-12)
-    np.testing.assert_array_equal(
-        chain.forward_kinematics(qs, tool=False), frames[:, -1]
-    )
+    flange = chain.forward_kinematics(qs, tool=False)
+    np.testing.assert_allclose(flange @ chain.T_flange_tool, Ts, atol=1e-9)
+    np.testing.assert_array_equal(flange, np.stack([chain.forward_kinematics(q, tool=False) for q in qs]))
+    # joint i turns about z of DH frame i (frame 0 = base): the naive product of rows 0..i-1
+    axes, points = chain.joint_axes(qs)
+    assert axes.shape == points.shape == (50, chain.n_joints, 3)
+    for k in range(0, 50, 10):
+        for i in range(chain.n_joints):
+            sub = DHChain(chain.a[:i + 1], chain.alpha[:i + 1], chain.d[:i + 1], chain.theta[:i + 1],
+                          chain.joint_types[:i + 1])
+            F = naive_fk(sub, qs[k, :i + 1]) @ np.linalg.inv(naive_fk(sub.__class__(
+                sub.a[i:], sub.alpha[i:], sub.d[i:], sub.theta[i:], sub.joint_types[i:]), qs[k, i:i + 1]))
+            np.testing.assert_allclose(axes[k, i], F[:3, 2], atol=1e-12)
+            np.testing.assert_allclose(points[k, i], F[:3, 3], atol=1e-9)
 
 
 @settings(max_examples=30, deadline=None)

@@ -10,7 +10,6 @@ from posekit.robots import puma560
 from posekit.seam.densities import (
     angle_loglik,
     ball_volume,
-    fk_and_jacobian,
     joint_compliance,
     laser_loglik,
     plateau_logpdf,
@@ -71,16 +70,6 @@ def test_transition_mean_and_noise():
     np.testing.assert_allclose(dr.std(axis=0), 0.003, rtol=0.05)
     np.testing.assert_allclose(dp.mean(axis=0), 0.0, atol=0.01)
     np.testing.assert_allclose(np.linalg.det(out[:, :3, :3]), 1.0, atol=1e-12)
-
-
-def test_fast_fk_and_jacobian_match_the_chain():
-    tool = np.eye(4)
-    tool[2, 3] = 150.0
-    chain = puma560().with_tool(tool)
-    q = np.deg2rad([10.0, 70.0, -200.0, 5.0, -50.0, 20.0])
-    T, J = fk_and_jacobian(chain, q)
-    np.testing.assert_allclose(T, chain.forward_kinematics(q), atol=1e-10)
-    np.testing.assert_allclose(J, chain.geometric_jacobian(q), atol=1e-10)
 
 
 def test_robot_density_matches_numpy_reference():

@@ -17,7 +17,6 @@ from posekit.seam.particles import (
     normalize_log_weights,
     resample,
     residual_resample,
-    rotvec_from_matrix_fast,
     stratified_resample,
     systematic_resample,
     weighted_mean_se3,
@@ -103,15 +102,6 @@ def test_resamplers_unbiased_and_in_range(name):
 def test_unknown_resampler():
     with pytest.raises(ConfigError, match=r"unknown resampler 'best', expected one of \['residual', 'stratified', 'systematic'\]"):
         resample("best", np.ones(3) / 3)
-
-
-def test_rotvec_fast_matches_geometry():
-    rng = np.random.default_rng(0)
-    xi = rng.normal(size=(200, 6)) * [1, 1, 1, 0.5, 0.5, 0.5]
-    xi[:5, 3:] *= 1e-9  # near zero
-    ref = se3_exp(xi)
-    np.testing.assert_allclose(rotvec_from_matrix_fast(ref[:, :3, :3]), rotation_vector_from_matrix(ref[:, :3, :3]),
-                               atol=1e-12)
 
 
 def test_weighted_mean_se3():

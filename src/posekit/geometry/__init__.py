@@ -13,6 +13,7 @@ from ._rotations import (
     matrix_from_rotation_vector,
     nearest_rotation,
     quaternion_from_matrix,
+    quaternion_product,
     quaternion_wxyz_from_xyzw,
     quaternion_xyzw_from_wxyz,
     rotation_angle_between,
@@ -31,6 +32,7 @@ from ._transforms import (
 __all__ = [
     # rotations
     "quaternion_from_matrix",
+    "quaternion_product",
     "matrix_from_quaternion",
     "quaternion_xyzw_from_wxyz",
     "quaternion_wxyz_from_xyzw",
@@ -99,3 +101,8 @@ __all__ += [
 from ._linalg import cholesky_solve  # noqa: E402
 
 __all__ += ["cholesky_solve"]
+
+# --- compiled rotation conversions for other numba kernels (_rotation_kernels) ----------------
+from ._rotation_kernels import quaternion_from_entries, rotvec_from_entries  # noqa: E402
+
+__all__ += ["quaternion_from_entries", "rotvec_from_entries"]

@@ -12,9 +12,16 @@ from scipy.spatial.transform import Rotation
 
 from posekit.errors import GeometryError
 
+from ._rotation_kernels import (
+    _flat,
+    quaternion_from_matrix_kernel,
+    rotvec_from_matrix_kernel,
+)
+
 __all__ = [
     "quaternion_from_matrix",
     "matrix_from_quaternion",
+    "quaternion_product",
     "quaternion_xyzw_from_wxyz",
     "quaternion_wxyz_from_xyzw",
     "matrix_from_rotation_vector",
@@ -232,6 +239,41 @@ def matrix_from_quaternion(q_wxyz) -> np.ndarray:
     return Rotation.from_quat(q / scale, scalar_first=True).as_matrix()
 
 
+def quaternion_product(q1_wxyz, q2_wxyz) -> np.ndarray:
+    """Hamilton product ``q1 ⊗ q2`` (the rotation ``R(q1) R(q2)``), batched.
+
+    Parameters
+    ----------
+    q1_wxyz, q2_wxyz : array_like, shape (..., 4)
+        Quaternions ``[w, x, y, z]`` (broadcast against each other); not normalised.
+
+    Returns
+    -------
+    q_wxyz : ndarray, shape (..., 4)
+        The product, e.g. ``q_a_c = q_a_b ⊗ q_b_c``.
+
+    Raises
+    ------
+    GeometryError
+        If a shape is wrong.
+
+    Examples
+    --------
+    >>> quaternion_product([0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0])  # i j = k
+    array([0., 0., 0., 1.])
+    """
+    a = _as_float_array(q1_wxyz, "q1_wxyz", (4,))
+    b = _as_float_array(q2_wxyz, "q2_wxyz", (4,))
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=-1)
+
+
 def quaternion_from_matrix(R, *, check: bool = True) -> np.ndarray:
     """Hamilton quaternions from rotation matrices, with canonical sign ``w >= 0``.
 
@@ -240,8 +282,10 @@ def quaternion_from_matrix(R, *, check: bool = True) -> np.ndarray:
     R : array_like, shape (..., 3, 3)
         Rotation matrices ``R_a_b``.
     check : bool
-        Validate ``R`` with :func:`check_rotation_matrix`. Without the check a matrix that
-        is not quite a rotation gives the quaternion of scipy's orthogonalisation of it.
+        Validate ``R`` with :func:`check_rotation_matrix`; ``False`` is the unchecked hot path
+        (a matrix that is not quite a rotation then gives the normalised quaternion of
+        Shepperd's formulas: project it with :func:`nearest_rotation` first if it may be far
+        from one).
 
     Returns
     -------
@@ -260,7 +304,9 @@ def quaternion_from_matrix(R, *, check: bool = True) -> np.ndarray:
     array([0., 1., 0., 0.])
     """
     R = check_rotation_matrix(R) if check else _as_float_array(R, "R", (3, 3))
-    return Rotation.from_matrix(R).as_quat(canonical=True, scalar_first=True)
+    out = np.empty(R.shape[:-2] + (4,))
+    quaternion_from_matrix_kernel(_flat(R), out.reshape(-1, 4))  # compiled Shepperd
+    return out
 
 
 # --------------------------------------------------------------------------- rotation vectors
@@ -301,7 +347,7 @@ def rotation_vector_from_matrix(R, *, check: bool = True) -> np.ndarray:
     R : array_like, shape (..., 3, 3)
         Rotation matrices.
     check : bool
-        Validate ``R`` with :func:`check_rotation_matrix`.
+        Validate ``R`` with :func:`check_rotation_matrix`; ``False`` is the unchecked hot path.
 
     Returns
     -------
@@ -320,7 +366,9 @@ def rotation_vector_from_matrix(R, *, check: bool = True) -> np.ndarray:
     array([3.14159265, 0.        , 0.        ])
     """
     R = check_rotation_matrix(R) if check else _as_float_array(R, "R", (3, 3))
-    return Rotation.from_matrix(R).as_rotvec()
+    out = np.empty(R.shape[:-2] + (3,))
+    rotvec_from_matrix_kernel(_flat(R), out.reshape(-1, 3))  # compiled, via the quaternion
+    return out
 
 
 # --------------------------------------------------------------------------- projections, metrics

@@ -38,7 +38,7 @@ import numpy as np
 
 from posekit.errors import ConfigError, GeometryError
 from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix
-from posekit.robots import DHChain, hiab033, quintic_trajectory
+from posekit.robots import KinematicChain, hiab033, quintic_trajectory
 
 from ._arm_kernel import simulate_moves
 from ._checks import rigid_transform as _rigid
@@ -198,8 +198,9 @@ class LongReachArm:
 
     Parameters
     ----------
-    model : DHChain, optional
-        The nominal model the controller knows; ``hiab033()`` by default.
+    model : KinematicChain, optional
+        The nominal model the controller knows (a DH table or a URDF chain, e.g. from
+        :func:`posekit.robots.load_urdf`); ``hiab033()`` by default.
     errors : NonKinematicErrors, optional
         The true arm's deviations; ``sample_nonkinematic_errors(seed)`` by default.
     dt_s : float
@@ -231,7 +232,7 @@ class LongReachArm:
     True
     """
 
-    model: DHChain | None = None
+    model: KinematicChain | None = None
     errors: NonKinematicErrors | None = None
     _: KW_ONLY
     dt_s: float = 0.01
@@ -247,8 +248,8 @@ class LongReachArm:
     def __post_init__(self):
         if self.model is None:
             self.model = hiab033()
-        if not isinstance(self.model, DHChain):
-            raise ConfigError(f"model: expected a DHChain, got {type(self.model).__name__}")
+        if not isinstance(self.model, KinematicChain):
+            raise ConfigError(f"model: expected a KinematicChain (DH or URDF), got {type(self.model).__name__}")
         n = self.model.n_joints
         rng = np.random.default_rng(self.seed)
         err_rng, state_rng, self._rng = rng.spawn(3)
@@ -290,9 +291,7 @@ class LongReachArm:
                 raise ConfigError(f"q0: expected shape ({n},), got shape {q0.shape}")
         half = 0.5 * self.errors.backlash_rad
         m = self.model
-        self._kernel_model = (
-            m.a, m.alpha, m.d, m.theta, m.is_revolute, m.q_min, m.q_max, m.T_flange_tool
-        )
+        self._kernel_model = (*m.kinematic_pack, m.q_min, m.q_max)
         self._params = {
             "gains": np.repeat(gains, 3),
             "kv": kv,
@@ -363,11 +362,11 @@ class LongReachArm:
         e = self.errors
         q = np.asarray(q_link, dtype=np.float64) + e.joint_offsets_rad
         if np.any(e.bending_rad_per_m):
-            T, frames = self.model.forward_kinematics(q, all_frames=True, check=False)
+            T = self.model.forward_kinematics(q, check=False)
+            axes, points = self.model.joint_axes(q, check=False)
             p = T[..., None, :3, 3]
             idx = list(e.bending_joints)
-            F = np.take(frames, idx, axis=-3)  # frames i-1 whose z axes are joints idx
-            z, o = F[..., :3, 2], F[..., :3, 3]
+            z, o = np.take(axes, idx, axis=-2), np.take(points, idx, axis=-2)  # joints idx
             torque_mm = np.einsum("...k,...k->...", z, np.cross(p - o, -_UP))
             q = q.copy()
             q[..., idx] += e.bending_rad_per_m * torque_mm / 1000.0

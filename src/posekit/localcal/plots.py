@@ -16,7 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report import html_figure, html_table, pyplot, save_figure, write_csv, write_html, write_json
+from ..report import (
+    html_figure,
+    html_table,
+    pyplot,
+    save_figure,
+    write_csv,
+    write_html,
+    write_json,
+)
 from .experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,

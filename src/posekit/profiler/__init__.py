@@ -9,7 +9,15 @@ from .corners import CornerParams, Corners, detect_corners
 from .estimate import estimate_batch, estimate_pose
 from .evaluate import Evaluation, evaluate, pose_errors
 from .gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
-from .sensor import LJ_X8400, NoiseModel, ProfilerModel, Workspace, nominal_pose, render_profiles, sample_poses
+from .sensor import (
+    LJ_X8400,
+    NoiseModel,
+    ProfilerModel,
+    Workspace,
+    nominal_pose,
+    render_profiles,
+    sample_poses,
+)
 from .solve import PoseEstimate, closed_form, solve_pose
 
 __all__ = [

@@ -9,7 +9,14 @@ from ..errors import PosekitError
 from ..geometry import rotation_vector_from_matrix
 from .corners import CornerParams, detect_corners
 from .gauge import Gauge
-from .sensor import LJ_X8400, NoiseModel, ProfilerModel, Workspace, render_profiles, sample_poses
+from .sensor import (
+    LJ_X8400,
+    NoiseModel,
+    ProfilerModel,
+    Workspace,
+    render_profiles,
+    sample_poses,
+)
 from .solve import solve_pose
 
 __all__ = ["Evaluation", "pose_errors", "evaluate"]

@@ -53,11 +53,12 @@ from collections import Counter, deque
 import numpy as np
 
 from ..errors import ConfigError, ProfileError
+from ..geometry import quaternion_from_matrix
 from .corners import CornerParams, detect_corners_unchecked, raise_for_status
 from .gauge import Gauge
 from .protocol import MAX_FRAME_BYTES, Frame, FrameDecoder, encode_command
 from .refine import pose_covariance_and_reprojection
-from .server_support import Counts, LogLimiter, RobotLink, check_address, parse_address, quaternion_wxyz
+from .server_support import Counts, LogLimiter, RobotLink, check_address, parse_address
 from .solve import (
     METHODS,
     MOUNTINGS,
@@ -67,7 +68,7 @@ from .solve import (
     warm_start_buffers,
 )
 
-__all__ = ["PoseServer", "parse_address", "check_address", "NAN_STORM", "quaternion_wxyz"]
+__all__ = ["PoseServer", "parse_address", "check_address", "NAN_STORM"]
 
 #: Rejection reason of a frame whose points are (almost) all NaN.
 NAN_STORM = "nan_storm"
@@ -251,7 +252,7 @@ class PoseServer:
                                                        self._mounting_code, T_init=T_init)
             if st == 0:
                 pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
-                quaternion_wxyz(R)
+                quaternion_from_matrix(R, check=False)
 
     def stop(self, timeout_s: float = 1.0) -> None:
         """Stop both threads, close every socket; returns within about ``timeout_s``.
@@ -501,7 +502,7 @@ class PoseServer:
                 self._last_rev = bool(rev)
                 var = cov.diagonal().tolist()
                 finite = all(map(math.isfinite, var))
-                rec.update(status="ok", t_mm=t.tolist(), q_wxyz=quaternion_wxyz(R),
+                rec.update(status="ok", t_mm=t.tolist(), q_wxyz=quaternion_from_matrix(R, check=False).tolist(),
                            std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
                            std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
                            reprojection_um=float(reproj_mm) * 1e3, reversed=bool(rev))

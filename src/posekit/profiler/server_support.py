@@ -2,7 +2,6 @@
 
 import ipaddress
 import logging
-import math
 import select
 import socket
 import threading
@@ -12,7 +11,7 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ["parse_address", "check_address", "quaternion_wxyz", "LogLimiter", "Counts", "RobotLink"]
+__all__ = ["parse_address", "check_address", "LogLimiter", "Counts", "RobotLink"]
 
 _LOG_INTERVAL_S = 1.0          # at most one log line per kind of event per interval
 
@@ -83,32 +82,6 @@ def check_address(address, what: str = "address", allow_remote: bool = False):
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def quaternion_wxyz(R) -> list:
-    """Unit quaternion ``[w, x, y, z]`` (``w >= 0``) of a rotation matrix, as floats.
-
-    Shepperd's method on 9 Python floats, about 3 µs (scipy's ``Rotation`` takes 100× longer
-    per call, too much for the real-time path). Agrees with
-    :func:`posekit.geometry.quaternion_from_matrix` for ``w > 0``.
-    """
-    (a, b, c), (d, e, f), (g, h, i) = R.tolist() if hasattr(R, "tolist") else R
-    tr = a + e + i
-    if tr >= a and tr >= e and tr >= i:
-        s = 2.0 * math.sqrt(max(1.0 + tr, 0.0))
-        q = [0.25 * s, (h - f) / s, (c - g) / s, (d - b) / s]
-    elif a >= e and a >= i:
-        s = 2.0 * math.sqrt(max(1.0 + a - e - i, 0.0))
-        q = [(h - f) / s, 0.25 * s, (b + d) / s, (c + g) / s]
-    elif e >= i:
-        s = 2.0 * math.sqrt(max(1.0 - a + e - i, 0.0))
-        q = [(c - g) / s, (b + d) / s, 0.25 * s, (f + h) / s]
-    else:
-        s = 2.0 * math.sqrt(max(1.0 - a - e + i, 0.0))
-        q = [(d - b) / s, (c + g) / s, (f + h) / s, 0.25 * s]
-    n = math.sqrt(sum(v * v for v in q))
-    sign = -1.0 if q[0] < 0.0 else 1.0
-    return [sign * v / n for v in q]
 
 
 class LogLimiter:

@@ -38,7 +38,12 @@ from ..errors import EstimationError
 from ..geometry import point_line_distance, quaternion_from_matrix
 from .closed_form import cf4_start, cf_kernel, closed_form
 from .corners import Corners
-from .refine import normal_equations, pose_covariance_and_reprojection, refine_kernel, spd_inverse
+from .refine import (
+    normal_equations,
+    pose_covariance_and_reprojection,
+    refine_kernel,
+    spd_inverse,
+)
 
 __all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "solve_pose_warm", "warm_start_buffers",
            "status_message", "reprojection_residuals",

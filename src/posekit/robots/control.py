@@ -12,19 +12,95 @@ sign chosen so that its scalar part is ≥ 0); it is scaled by 2 so that ``2 δr
 small errors and ``K_θ`` is a decay rate in 1/s like ``K_p``. The joint servo of eq. (6),
 ``u = K_v (q_d - q)``, is the caller's: :func:`resolved_rate_step` returns ``q_d``, clamped
 to the joint limits.
+
+:func:`resolved_rate_update` is the compiled step itself (numba): the validated
+:func:`resolved_rate_step` calls it, and so do loops that run it thousands of times (the
+long-reach arm simulator, the seam program's inverse kinematics) — one implementation.
 """
 
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from posekit.errors import ConfigError
-from posekit.geometry import quaternion_from_matrix
+from posekit.geometry import (
+    cholesky_solve,
+    quaternion_from_entries,
+    quaternion_from_matrix,
+)
 
-from .dh import DHChain
+from ._kernels import fk_jacobian_into
+from .chain import KinematicChain
 
-__all__ = ["RateGains", "RateStep", "pose_error", "resolved_rate_step"]
+__all__ = ["RateGains", "RateStep", "pose_error", "resolved_rate_step", "resolved_rate_update"]
+
+
+@njit(cache=True, nogil=True)
+def resolved_rate_update(q, M, A, q_min, q_max, p_d, R_d, twist_ff, gains, dt, damping, q_out, err_out):
+    """One compiled resolved-rate step (eq. 4–5), damped least squares, clamped.
+
+    ``q_out = clamp(q + Jᵀ (J Jᵀ + λ² I)⁻¹ (ff + K e) dt)`` with the pose error
+    ``e = [p_d - p; 2 δr]`` at ``q`` written to ``err_out`` (see :func:`pose_error`).
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        Joints, rad / mm.
+    M, A : ndarray, shapes (n + 1, 4, 4), (n, 4)
+        The chain's kinematic pack with its tool (``chain.kinematic_pack``).
+    q_min, q_max : ndarray, shape (n,)
+        Joint limits.
+    p_d : ndarray, shape (3,)
+        Target position, base frame, mm.
+    R_d : ndarray, shape (3, 3)
+        Target orientation ``R_base_target``.
+    twist_ff : ndarray, shape (6,)
+        Feed-forward ``[ṗ_d (mm/s); ω_d (rad/s)]``, base frame.
+    gains : ndarray, shape (6,)
+        ``K_p`` (3) then ``K_θ`` (3), 1/s.
+    dt, damping : float
+        Control period (s) and DLS damping ``λ``.
+    q_out : ndarray, shape (n,)
+        Output joints (may alias ``q``).
+    err_out : ndarray, shape (6,)
+        Output pose error at the input ``q``, ``[mm; rad]``.
+    """
+    n = q.shape[0]
+    T = np.empty((4, 4))
+    J = np.empty((6, n))
+    W = np.empty((n, 6))
+    fk_jacobian_into(q, M, A, T, J, W)
+    # E = R_d Rᵀ and its quaternion (w >= 0)
+    e = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            e[r, c] = R_d[r, 0] * T[c, 0] + R_d[r, 1] * T[c, 1] + R_d[r, 2] * T[c, 2]
+    _, qx, qy, qz = quaternion_from_entries(e[0, 0], e[0, 1], e[0, 2], e[1, 0], e[1, 1], e[1, 2],
+                                            e[2, 0], e[2, 1], e[2, 2])
+    for m in range(3):
+        err_out[m] = p_d[m] - T[m, 3]
+    err_out[3], err_out[4], err_out[5] = 2.0 * qx, 2.0 * qy, 2.0 * qz
+    tw = np.empty(6)
+    for m in range(6):
+        tw[m] = twist_ff[m] + gains[m] * err_out[m]
+    JJ = np.empty((6, 6))
+    for r in range(6):
+        for c in range(6):
+            acc = 0.0
+            for i in range(n):
+                acc += J[r, i] * J[c, i]
+            JJ[r, c] = acc
+        JJ[r, r] += damping * damping
+    x6 = np.empty(6)
+    L = np.empty((6, 6))
+    cholesky_solve(JJ, tw, x6, L)
+    for i in range(n):
+        acc = 0.0
+        for m in range(6):
+            acc += J[m, i] * x6[m]
+        q_out[i] = min(max(q[i] + acc * dt, q_min[i]), q_max[i])
 
 
 @dataclass(frozen=True)
@@ -98,7 +174,7 @@ def _gain(value, name: str) -> np.ndarray:
 
 
 def resolved_rate_step(
-    chain: DHChain,
+    chain: KinematicChain,
     q,
     T_target,
     gains: RateGains | tuple = RateGains(),
@@ -106,13 +182,14 @@ def resolved_rate_step(
     damping: float = 1e-3,
     *,
     twist_target=None,
+    check: bool = True,
 ) -> RateStep:
     """One resolved-rate control step (eq. 4–5) with a damped least-squares inverse.
 
     Parameters
     ----------
-    chain : DHChain
-        The manipulator.
+    chain : KinematicChain
+        The manipulator (a DH chain or a URDF chain).
     q : array_like, shape (n,)
         Current joint vector (rad / mm).
     T_target : array_like, shape (4, 4)
@@ -127,6 +204,9 @@ def resolved_rate_step(
         linear rows are in mm/rad, so a small λ mostly damps the orientation near singularities).
     twist_target : array_like, shape (6,), optional
         Feed-forward ``[ṗ_d (mm/s); ω_d (rad/s)]`` in the base frame; zero by default.
+    check : bool
+        Validate every input; ``False`` is the unchecked hot path (``q`` a float64 (n,)
+        array, ``T_target`` a rigid (4, 4) array, ``gains`` a :class:`RateGains`).
 
     Returns
     -------
@@ -140,6 +220,17 @@ def resolved_rate_step(
         Wrong ``q`` length, NaN/inf in ``q`` or ``T_target``, ``dt <= 0``, ``damping < 0``,
         negative gains.
     """
+    if not check:
+        M, A = chain.kinematic_pack
+        q = np.asarray(q, dtype=np.float64)
+        Td = np.asarray(T_target, dtype=np.float64)
+        k = np.empty(6)
+        k[:3], k[3:] = gains.k_p, gains.k_theta
+        ff = np.zeros(6) if twist_target is None else np.asarray(twist_target, dtype=np.float64)
+        q_out, error = np.empty_like(q), np.empty(6)
+        resolved_rate_update(q, M, A, chain.q_min, chain.q_max, np.ascontiguousarray(Td[:3, 3]),
+                             np.ascontiguousarray(Td[:3, :3]), ff, k, float(dt), float(damping), q_out, error)
+        return RateStep(q_out, error)
     q = chain.check_q(q)
     if q.ndim != 1:
         raise ConfigError(
@@ -184,10 +275,5 @@ def resolved_rate_step(
             f"twist_target must be 6 finite numbers, got shape {ff.shape}"
         )
 
-    T = chain.forward_kinematics(q, check=False)
-    J = chain.geometric_jacobian(q, check=False)
-    error = pose_error(T, Td)
-    twist = ff + np.concatenate([k_p, k_theta]) * error
-    # Damped least squares: q̇ = Jᵀ (J Jᵀ + λ² I)⁻¹ twist (solve, never an explicit inverse).
-    qdot = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(6), twist)
-    return RateStep(chain.clamp(q + qdot * dt), error)
+    return resolved_rate_step(chain, q, Td, RateGains(k_p, k_theta), float(dt), float(damping),
+                              twist_target=ff, check=False)

@@ -31,7 +31,6 @@ from .config import (
 from .densities import (
     RobotMeasurement,
     angle_loglik,
-    fk_and_jacobian,
     joint_compliance,
     laser_loglik,
     plateau_logpdf,
@@ -66,7 +65,6 @@ from .simulate import (
 from .trajectories import (
     NominalTrajectory,
     nominal_trajectory,
-    resolved_rate_ik_step,
     seam_points_T0,
 )
 from .trend import TrendResult, trend_filter
@@ -101,7 +99,6 @@ __all__ = [
     "config_from_dict",
     "dump_config",
     "effective_sample_size",
-    "fk_and_jacobian",
     "joint_compliance",
     "laser_loglik",
     "load_config",
@@ -114,7 +111,6 @@ __all__ = [
     "pose_errors",
     "resample",
     "residual_resample",
-    "resolved_rate_ik_step",
     "robot_loglik",
     "robot_measurement",
     "run_episode",

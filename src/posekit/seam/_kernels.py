@@ -13,9 +13,10 @@ import math
 import numba as nb
 import numpy as np
 
+from posekit.geometry import rotvec_from_entries
+
 __all__ = [
     "cloud_kernel",
-    "fk_jacobian_kernel",
     "inv_det3",
     "kernel_move",
     "laser_loglik_kernel",
@@ -77,27 +78,6 @@ def propagate(T, A, z_, sigma_t, sigma_r, out):
 
 
 @nb.njit(cache=True, inline="always")
-def _rotvec(r00, r01, r02, r10, r11, r12, r20, r21, r22):
-    """Rotation vector (rad) of a rotation matrix given by its entries (angle < ~179°)."""
-    vx, vy, vz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)  # sin(theta) * axis
-    s2 = vx * vx + vy * vy + vz * vz
-    if s2 < 1e-6 and r00 + r11 + r22 > 0.0:  # theta/sin(theta) by series in sin^2: error < 1e-16
-        k = 1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0 + s2 * (5.0 / 112.0)))
-        return vx * k, vy * k, vz * k
-    c = 0.5 * (r00 + r11 + r22 - 1.0)
-    if c > 1.0:
-        c = 1.0
-    elif c < -1.0:
-        c = -1.0
-    th = math.acos(c)
-    if th < 1e-6:
-        s = 0.5 + th * th / 12.0
-    else:
-        s = 0.5 * th / math.sqrt(max(1.0 - c * c, 1e-300))
-    return (r21 - r12) * s, (r02 - r20) * s, (r10 - r01) * s
-
-
-@nb.njit(cache=True, inline="always")
 def _plateau_maha(x, y, z, d, Sinv):
     """``δᵀ Sinv δ`` with ``δ = (1 - d/‖Δ‖)₊ Δ`` for ``Δ = (x, y, z)``: 0 inside the plateau of radius d."""
     r = math.sqrt(x * x + y * y + z * z)
@@ -127,7 +107,7 @@ def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, A_r, d_t, d_r, logD, out):
         for a in range(3):
             for b in range(3):
                 q[3 * a + b] = T[i, a, 0] * mu[b, 0] + T[i, a, 1] * mu[b, 1] + T[i, a, 2] * mu[b, 2]
-        ex, ey, ez = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+        ex, ey, ez = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
         ax = A_r[0, 0] * ex + A_r[0, 1] * ey + A_r[0, 2] * ez
         ay = A_r[1, 0] * ex + A_r[1, 1] * ey + A_r[1, 2] * ez
         az = A_r[2, 0] * ex + A_r[2, 1] * ey + A_r[2, 2] * ez
@@ -196,49 +176,6 @@ def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
             out[i] += const - inv * (bx * bx + bz * bz)
         else:
             out[i] += const - inv * miss * miss
-
-
-@nb.njit(cache=True, boundscheck=False)
-def fk_jacobian_kernel(a, alpha, d, theta, revolute, q, T_tool, T_out, J_out):
-    """Standard-DH forward kinematics ``T_base_tool`` and geometric Jacobian at one ``q``.
-
-    a, alpha, d, theta, q (n,); revolute (n,) bool; T_tool, T_out (4, 4); J_out (6, n):
-    rows ``[v (mm/rad); ω]`` in the base frame (as :meth:`DHChain.geometric_jacobian`).
-    """
-    n = q.shape[0]
-    T = np.eye(4)
-    A = np.zeros((4, 4))
-    Z = np.empty((n, 3))
-    O = np.empty((n, 3))
-    for i in range(n):
-        for r in range(3):
-            Z[i, r] = T[r, 2]
-            O[i, r] = T[r, 3]
-        th = theta[i] + (q[i] if revolute[i] else 0.0)
-        dd = d[i] + (0.0 if revolute[i] else q[i])
-        ct, st = math.cos(th), math.sin(th)
-        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
-        A[0, 0], A[0, 1], A[0, 2], A[0, 3] = ct, -st * ca, st * sa, a[i] * ct
-        A[1, 0], A[1, 1], A[1, 2], A[1, 3] = st, ct * ca, -ct * sa, a[i] * st
-        A[2, 0], A[2, 1], A[2, 2], A[2, 3] = 0.0, sa, ca, dd
-        A[3, 3] = 1.0
-        T = T @ A
-    T = T @ T_tool
-    for r in range(4):
-        for c in range(4):
-            T_out[r, c] = T[r, c]
-    px, py, pz = T[0, 3], T[1, 3], T[2, 3]
-    for i in range(n):
-        zx, zy, zz = Z[i, 0], Z[i, 1], Z[i, 2]
-        if revolute[i]:
-            ux, uy, uz = px - O[i, 0], py - O[i, 1], pz - O[i, 2]
-            J_out[0, i] = zy * uz - zz * uy
-            J_out[1, i] = zz * ux - zx * uz
-            J_out[2, i] = zx * uy - zy * ux
-            J_out[3, i], J_out[4, i], J_out[5, i] = zx, zy, zz
-        else:
-            J_out[0, i], J_out[1, i], J_out[2, i] = zx, zy, zz
-            J_out[3, i], J_out[4, i], J_out[5, i] = 0.0, 0.0, 0.0
 
 
 @nb.njit(cache=True, boundscheck=False)
@@ -320,7 +257,7 @@ def _offset(T, i, Tm, q, out):
         out[a] = Tm[0, a] * dx + Tm[1, a] * dy + Tm[2, a] * dz
         for b in range(3):
             q[3 * a + b] = Tm[0, a] * T[i, 0, b] + Tm[1, a] * T[i, 1, b] + Tm[2, a] * T[i, 2, b]
-    out[3], out[4], out[5] = _rotvec(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+    out[3], out[4], out[5] = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
 
 
 @nb.njit(cache=True, boundscheck=False)

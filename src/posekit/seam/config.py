@@ -9,7 +9,8 @@ Sections
 --------
 ``seed``        the episode seed (int >= 0)
 ``trajectory``  the seam and the robot program along it (kind xy | yz | line | bend)
-``robot``       the arm (PUMA 560), its tool, joint noise and kinematic model error
+``robot``       the arm (a bundled model, PUMA 560 by default, or a URDF file), its tool, joint
+                noise and kinematic model error
 ``process``     the process force and the compliance that turns it into deflection
 ``sensors``     0..4 laser seam trackers ahead of the tool, their noise and range
 ``filter``      particle count, resampling, transition / robot / laser densities, trend filter
@@ -100,16 +101,55 @@ class TrajectoryConfig(_Section):
 class RobotConfig(_Section):
     """The arm: model, tool, joint measurement noise and the kinematic model error.
 
-    The simulated (true) robot has its DH lengths perturbed by ``kinematic_error_mm`` and its
-    DH angles by ``kinematic_error_deg`` (standard deviations, drawn once per episode); the
-    filter and the kinematics-only estimate use the nominal model.
+    The robot is a bundled model (``model``, one of ``posekit.robots.MODEL_NAMES``) or the
+    user's own URDF file (``urdf`` with optional ``base_link`` / ``tip_link``; a relative path is
+    taken relative to the config file). ``robot: NAME`` is short for ``robot: {model: NAME}``.
+    ``ik_seed_deg`` is the joint guess from which the program's first pose is solved (the
+    bundled models have one that reaches the default seam; a URDF robot starts from the
+    middle of its joint ranges, clipped to ±90°).
+
+    The simulated (true) robot has its kinematic lengths perturbed by ``kinematic_error_mm`` and
+    its angles by ``kinematic_error_deg`` (standard deviations, drawn once per episode: DH
+    parameters for a DH model, the joint origins for a URDF robot); the filter and the
+    kinematics-only estimate use the nominal model.
     """
 
-    model: Literal["puma560"] = "puma560"
+    model: str = "puma560"
+    urdf: str | None = None
+    base_link: str | None = None
+    tip_link: str | None = None
+    ik_seed_deg: tuple[float, ...] | None = None
     tool_length_mm: float = Field(150.0, gt=0.0)  # flange to TCP along the flange z axis
     joint_noise_deg: float = Field(0.005, ge=0.0)
     kinematic_error_mm: float = Field(0.3, ge=0.0)
     kinematic_error_deg: float = Field(0.05, ge=0.0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _name_shorthand(cls, data):
+        return {"model": data} if isinstance(data, str) else data
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, v: str) -> str:
+        from posekit.robots import MODEL_NAMES
+
+        if v not in MODEL_NAMES:
+            raise ValueError(f"expected one of {list(MODEL_NAMES)} (or urdf: PATH), got {v!r}")
+        return v
+
+    @model_validator(mode="after")
+    def _model_or_urdf(self):
+        if self.urdf is None and (self.base_link is not None or self.tip_link is not None):
+            raise ValueError("base_link and tip_link need urdf: PATH")
+        if self.urdf is not None and "model" in self.model_fields_set:
+            raise ValueError("give either model (a bundled robot) or urdf (a file), not both")
+        return self
+
+    @property
+    def label(self) -> str:
+        """The robot's name in messages: the bundled name or the URDF file name."""
+        return Path(self.urdf).name if self.urdf is not None else self.model
 
 
 class ProcessConfig(_Section):
@@ -338,7 +378,18 @@ def load_config(path) -> SeamConfig:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}" if mark is not None else ""
         raise ConfigError(f"{path}: not valid YAML{at}") from None
-    return config_from_dict(data, str(path))
+    return config_from_dict(_resolve_urdf(data, path.parent), str(path))
+
+
+def _resolve_urdf(data: Any, folder: Path) -> Any:
+    """``robot.urdf`` made absolute relative to the config file's folder (other data as is)."""
+    robot = data.get("robot") if isinstance(data, dict) else None
+    if isinstance(robot, dict) and isinstance(robot.get("urdf"), str):
+        urdf = Path(robot["urdf"]).expanduser()
+        if not urdf.is_absolute():
+            urdf = (folder / urdf).resolve()
+        data = {**data, "robot": {**robot, "urdf": str(urdf)}}
+    return data
 
 
 def apply_overrides(cfg: SeamConfig, overrides: dict[str, Any], source: str = "command line") -> SeamConfig:

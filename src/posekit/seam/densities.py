@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from posekit.robots import DHChain
+from posekit.robots import KinematicChain
 
 from . import _kernels as _k
 from .seamline import SeamLine
@@ -33,7 +33,6 @@ __all__ = [
     "RobotMeasurement",
     "angle_loglik",
     "ball_volume",
-    "fk_and_jacobian",
     "joint_compliance",
     "laser_loglik",
     "plateau_logpdf",
@@ -126,32 +125,6 @@ def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma
     return out
 
 
-def fk_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tool pose and geometric Jacobian at one joint vector, fast (no validation).
-
-    Same results as ``chain.forward_kinematics(q)`` and ``chain.geometric_jacobian(q)``
-    (revolute and prismatic joints), a few times faster for a single ``q``.
-
-    Parameters
-    ----------
-    chain : DHChain
-    q : ndarray, shape (n,)
-        Joint vector (rad / mm).
-
-    Returns
-    -------
-    T_base_tool : ndarray, shape (4, 4)
-        Translation in mm.
-    J : ndarray, shape (6, n)
-        ``[v (mm/rad); ω (rad/rad)]`` rows in the base frame.
-    """
-    T = np.empty((4, 4))
-    J = np.empty((6, chain.n_joints))
-    _k.fk_jacobian_kernel(chain.a, chain.alpha, chain.d, chain.theta, chain.is_revolute,
-                          np.asarray(q, dtype=np.float64), chain.T_flange_tool, T, J)
-    return T, J
-
-
 def joint_compliance(c_rad_per_nm: float) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """A diagonal joint compliance model ``Cj(q, τ) = c τ`` with ``c`` in rad/(N·m).
 
@@ -192,7 +165,7 @@ class RobotMeasurement:
         self.A_r = A_r
 
 
-def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *, joint_sigma_rad: float,
+def robot_measurement(chain: KinematicChain, q_meas: np.ndarray, force_n: np.ndarray, *, joint_sigma_rad: float,
                       floor_t_mm: float, floor_r_rad: float, d0_mm: float, kd_mm_per_n: float,
                       d0_rad: float, kd_rad_per_n: float, bending: bool = False,
                       compliance: Callable | None = None) -> RobotMeasurement:
@@ -200,8 +173,8 @@ def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *
 
     Parameters
     ----------
-    chain : DHChain
-        Nominal robot model with its tool.
+    chain : KinematicChain
+        Nominal robot model with its tool (DH or URDF).
     q_meas : ndarray, shape (n,)
         Measured joints (rad).
     force_n : ndarray, shape (3,)
@@ -225,10 +198,10 @@ def robot_measurement(chain: DHChain, q_meas: np.ndarray, force_n: np.ndarray, *
     -------
     RobotMeasurement
     """
-    T, J = fk_and_jacobian(chain, q_meas)
+    T, J = chain.forward_kinematics_and_jacobian(q_meas, check=False)
     if compliance is not None:
         tau = J[:3].T @ force_n  # N·mm: J_v is mm/rad
-        T, J = fk_and_jacobian(chain, q_meas + compliance(q_meas, tau))
+        T, J = chain.forward_kinematics_and_jacobian(q_meas + compliance(q_meas, tau), check=False)
     S = (joint_sigma_rad ** 2) * (J @ J.T)
     fn = float(np.linalg.norm(force_n))
     d_r = d0_rad + kd_rad_per_n * fn

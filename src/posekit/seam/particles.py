@@ -22,7 +22,6 @@ __all__ = [
     "normalize_log_weights",
     "resample",
     "residual_resample",
-    "rotvec_from_matrix_fast",
     "stratified_resample",
     "systematic_resample",
     "weighted_mean_se3",
@@ -191,25 +190,6 @@ def resample(name: str, w, rng=None) -> np.ndarray:
             f"unknown resampler {name!r}, expected one of {sorted(RESAMPLERS)}"
         ) from None
     return fn(w, rng)
-
-
-def rotvec_from_matrix_fast(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (rad) of rotation matrices ``R (..., 3, 3)`` with angles < ~179°.
-
-    No validation (hot path); accurate for small angles, where the filter works. Returns
-    shape ``(..., 3)``.
-    """
-    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    c = np.clip(0.5 * (tr - 1.0), -1.0, 1.0)
-    theta = np.arccos(c)
-    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
-    small = theta < 1e-6
-    scale = np.where(small, 0.5 + theta * theta / 12.0, 0.5 * theta / np.where(small, 1.0, s))
-    v = np.stack(
-        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
-        axis=-1,
-    )
-    return v * scale[..., None]
 
 
 def weighted_mean_se3(Ts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -27,13 +27,14 @@ import numpy as np
 from posekit.geometry import (
     invert_transform,
     matrix_from_rotation_vector,
+    rotation_vector_from_matrix,
     transform_from,
 )
-from posekit.robots import DHChain
+from posekit.robots import KinematicChain
 
 from .config import RobotConfig, SeamConfig, TrajectoryConfig
 from .filter import SeamParticleFilter, StepInputs
-from .particles import rotvec_from_matrix_fast, systematic_resample
+from .particles import systematic_resample
 from .seamline import SeamLine
 from .trajectories import NominalTrajectory, nominal_trajectory
 from .trend import TrendResult, trend_filter
@@ -72,7 +73,7 @@ class SimulatedData:
         Laser measurements (across, along the tool axis) in mm; NaN where missing.
     angle_rad : ndarray, shape (T, S)
         Angle measurements (rad); NaN where missing or not measured.
-    true_chain : DHChain
+    true_chain : KinematicChain
         The robot with kinematic errors.
     """
 
@@ -83,7 +84,7 @@ class SimulatedData:
     force_meas_n: np.ndarray
     laser_mm: np.ndarray
     angle_rad: np.ndarray
-    true_chain: DHChain
+    true_chain: KinematicChain
 
 
 @dataclass
@@ -160,7 +161,7 @@ def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.
         tool axis), then ``[rx, ry, rz]`` = rotation vector of ``R_trueᵀ R_est`` in degrees.
     """
     dp = np.matmul(np.swapaxes(T_nom[:, :3, :3], 1, 2), (T_est[:, :3, 3] - T_true[:, :3, 3])[..., None])[..., 0]
-    dr = rotvec_from_matrix_fast(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]))
+    dr = rotation_vector_from_matrix(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]), check=False)
     return np.concatenate([dp, np.degrees(dr)], axis=-1)
 
 
@@ -181,7 +182,7 @@ def pose_coords(Ts: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
     """
     Rn_t = np.swapaxes(T_nom[..., :3, :3], -1, -2)
     dp = np.matmul(Rn_t, (Ts[..., :3, 3] - T_nom[..., :3, 3])[..., None])[..., 0]
-    dr = rotvec_from_matrix_fast(np.matmul(Rn_t, Ts[..., :3, :3]))
+    dr = rotation_vector_from_matrix(np.matmul(Rn_t, Ts[..., :3, :3]), check=False)
     return np.concatenate([dp, np.degrees(dr)], axis=-1)
 
 
@@ -198,16 +199,6 @@ def seam_knots(cfg: SeamConfig) -> TrendResult:
     """The trend-filtered nominal seam of ``cfg`` (cached; arrays read-only)."""
     return _knots_cached(cfg.trajectory, cfg.robot, cfg.filter.trend_lambda, cfg.filter.trend_eps_mm,
                          cfg.trajectory.seam_extension_mm)
-
-
-def _true_chain(chain: DHChain, robot: RobotConfig, rng: np.random.Generator) -> DHChain:
-    n = chain.n_joints
-    s_mm, s_rad = robot.kinematic_error_mm, math.radians(robot.kinematic_error_deg)
-    return DHChain(
-        chain.a + s_mm * rng.standard_normal(n), chain.alpha + s_rad * rng.standard_normal(n),
-        chain.d + s_mm * rng.standard_normal(n), chain.theta + s_rad * rng.standard_normal(n),
-        chain.joint_types, None, None, chain.T_flange_tool, chain.name + " (true)",
-    )
 
 
 def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
@@ -227,7 +218,7 @@ def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
     n = nt.q.shape[0]
     chain = nt.chain
-    true_chain = _true_chain(chain, cfg.robot, rng)
+    true_chain = chain.perturbed(cfg.robot.kinematic_error_mm, math.radians(cfg.robot.kinematic_error_deg), rng)
     pr = cfg.process
     # process force in the tool frame: mean, slow drift, white noise; then base frame
     phase = rng.uniform(0.0, 2.0 * np.pi)

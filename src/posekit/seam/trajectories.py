@@ -10,10 +10,11 @@ z along the tool axis, x across), parametrised by its length parameter ``u`` in 
 
 The robot program (what a robot simulator would export) is the Cartesian path of the TCP
 along the seam with the tool orientation of ``T0`` held constant; it is turned into a joint
-stream by resolved-rate inverse kinematics (:func:`resolved_rate_ik_step`: the update of
-:func:`posekit.robots.resolved_rate_step` with ``k dt = 1``, i.e. a damped Gauss–Newton step,
-on the compiled FK/Jacobian; one step per sample, more after a long step) on the PUMA 560 with a tool of ``tool_length_mm`` along
-the flange z axis, and the nominal trajectory is the forward kinematics of that stream.
+stream by resolved-rate inverse kinematics (:func:`posekit.robots.resolved_rate_step` with
+``k dt = 1``, i.e. a damped Gauss–Newton step, unchecked on the core's compiled kinematics;
+one step per sample, more after a long step) on the configured robot (the PUMA 560 by
+default, or a URDF arm) with a tool of ``tool_length_mm`` along the flange z axis, and the
+nominal trajectory is the forward kinematics of that stream.
 The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sensors
 ahead of the tool keep seeing it.
 """
@@ -23,8 +24,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from posekit.errors import TrajectoryError
-from posekit.robots import DHChain, robot_model
+from posekit.errors import ConfigError, TrajectoryError
+from posekit.robots import (
+    KinematicChain,
+    RateGains,
+    load_urdf,
+    resolved_rate_step,
+    robot_model,
+)
 
 from .config import RobotConfig, TrajectoryConfig
 
@@ -32,14 +39,23 @@ __all__ = [
     "IK_SEED_DEG",
     "NominalTrajectory",
     "nominal_trajectory",
-    "resolved_rate_ik_step",
     "seam_points_T0",
+    "ik_seed",
     "start_pose",
     "tool_chain",
 ]
 
-#: Joint guess (deg) from which the first program pose is solved: elbow up, wrist down.
+#: Joint guess (deg) from which the first program pose is solved on the PUMA 560: elbow up,
+#: wrist down.
 IK_SEED_DEG = (0.0, 45.0, -160.0, 0.0, -60.0, 0.0)
+#: The same for the other bundled robots (tool axis down in front of the robot).
+_BUNDLED_SEEDS_DEG = {
+    "puma560": IK_SEED_DEG,
+    "abb_irb6640": (0.0, 10.0, 10.0, 0.0, 70.0, 0.0),
+    "ur10": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
+}
+#: Gauss–Newton gains of the program's inverse kinematics: k dt = 1 with dt = 1.
+_IK_GAINS = RateGains(1.0, 1.0)
 #: Spacing (mm of the parameter u) of the dense seam polyline.
 SEAM_SPACING_MM = 0.5
 
@@ -66,7 +82,7 @@ class NominalTrajectory:
         Workpiece surface normal in the base frame (the programmed tool z axis), unit.
     T_base_T0 : ndarray, shape (4, 4)
         The start frame T0 in which the seam is defined.
-    chain : DHChain
+    chain : KinematicChain
         The nominal robot model with its tool.
     ik_max_error_mm : float
         Largest TCP position error of the joint stream against the program, mm.
@@ -80,7 +96,7 @@ class NominalTrajectory:
     seam: np.ndarray
     seam_normal: np.ndarray
     T_base_T0: np.ndarray
-    chain: DHChain
+    chain: KinematicChain
     ik_max_error_mm: float
 
 
@@ -137,48 +153,31 @@ def start_pose(cfg: TrajectoryConfig) -> np.ndarray:
     return T
 
 
-def tool_chain(robot: RobotConfig) -> DHChain:
-    """The nominal robot model with its tool ``tool_length_mm`` along the flange z axis."""
+@lru_cache(maxsize=16)
+def tool_chain(robot: RobotConfig) -> KinematicChain:
+    """The nominal robot model (bundled or URDF) with its tool ``tool_length_mm`` along the
+    flange z axis (cached per configuration; chains are immutable)."""
     T_flange_tool = np.eye(4)
     T_flange_tool[2, 3] = robot.tool_length_mm
-    return robot_model(robot.model).with_tool(T_flange_tool)
+    if robot.urdf is not None:
+        chain = load_urdf(robot.urdf, robot.base_link, robot.tip_link)
+    else:
+        chain = robot_model(robot.model)
+    return chain.with_tool(T_flange_tool)
 
 
-def resolved_rate_ik_step(chain: DHChain, q: np.ndarray, T_target: np.ndarray, damping: float = 1e-3):
-    """One resolved-rate step towards ``T_target`` with gains ``k dt = 1`` (no validation).
-
-    ``q+ = clamp(q + Jᵀ (J Jᵀ + λ² I)⁻¹ e)`` with ``e = [p_d - p (mm), log(R_d Rᵀ) (rad)]``
-    in the base frame: the update of :func:`posekit.robots.resolved_rate_step` for
-    ``gains = (1/dt, 1/dt)`` (whose quaternion error ``2 δr`` equals ``log(R_d Rᵀ)`` to second
-    order), on the compiled forward kinematics and Jacobian: 5x faster than the validated
-    :func:`~posekit.robots.resolved_rate_step` (0.35 vs 1.9 ms a call), and the nominal program
-    calls it once or more per sample of every new trajectory configuration.
-
-    Parameters
-    ----------
-    chain : DHChain
-        The robot with its tool.
-    q : ndarray, shape (n,)
-        Current joints, rad.
-    T_target : ndarray, shape (4, 4)
-        Target tool pose ``T_base_tool``, mm.
-    damping : float
-        Damped-least-squares ``λ`` (mm/rad rows: it mostly damps the orientation).
-
-    Returns
-    -------
-    q_next : ndarray, shape (n,)
-        Updated joints clamped to the limits, rad.
-    error : ndarray, shape (6,)
-        ``[p_d - p (mm), log(R_d Rᵀ) (rad)]`` at the input ``q``, base frame.
-    """
-    from .densities import fk_and_jacobian
-    from .particles import rotvec_from_matrix_fast
-
-    T, J = fk_and_jacobian(chain, q)
-    err = np.concatenate([T_target[:3, 3] - T[:3, 3], rotvec_from_matrix_fast(T_target[:3, :3] @ T[:3, :3].T)])
-    qdot = J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(6), err)
-    return chain.clamp(q + qdot), err
+def ik_seed(robot: RobotConfig, chain: KinematicChain) -> np.ndarray:
+    """The joint guess (rad) for the program's first pose: ``robot.ik_seed_deg``, the bundled
+    model's seed, or the middle of the joint ranges clipped to ±90°."""
+    if robot.ik_seed_deg is not None:
+        if len(robot.ik_seed_deg) != chain.n_joints:
+            raise ConfigError(f"robot.ik_seed_deg: expected {chain.n_joints} values for {robot.label}, "
+                              f"got {len(robot.ik_seed_deg)}")
+        return np.deg2rad(robot.ik_seed_deg)
+    if robot.urdf is None and robot.model in _BUNDLED_SEEDS_DEG:
+        return np.deg2rad(_BUNDLED_SEEDS_DEG[robot.model])
+    mid = 0.5 * (np.clip(chain.q_min, -np.pi / 2, np.pi / 2) + np.clip(chain.q_max, -np.pi / 2, np.pi / 2))
+    return np.where(chain.is_revolute, mid, 0.5 * (np.clip(chain.q_min, -1e3, 1e3) + np.clip(chain.q_max, -1e3, 1e3)))
 
 
 def _readonly(*arrays):
@@ -197,15 +196,15 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
     T_program = np.repeat(T0[None], n, axis=0)
     T_program[:, :3, 3] = p_T0 @ T0[:3, :3].T + T0[:3, 3]
 
-    q = np.deg2rad(IK_SEED_DEG)
-    for _ in range(60):  # converge on the first pose
-        q, err = resolved_rate_ik_step(chain, q, T_program[0], damping=1e-2)
+    q = ik_seed(robot, chain)
+    for _ in range(200):  # converge on the first pose
+        q, err = resolved_rate_step(chain, q, T_program[0], _IK_GAINS, 1.0, 1e-2, check=False)
         if np.abs(err).max() < 1e-9:
             break
     qs = np.empty((n, chain.n_joints))
     for k in range(n):
         for _ in range(6):  # one step usually; long steps leave a second-order residual
-            q, err = resolved_rate_ik_step(chain, q, T_program[k])
+            q, err = resolved_rate_step(chain, q, T_program[k], _IK_GAINS, 1.0, 1e-3, check=False)
             if np.abs(err).max() < 1e-3:  # the step just taken was small: residual ~1e-9 mm
                 break
         qs[k] = q
@@ -215,7 +214,7 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
         raise TrajectoryError(
             f"trajectory '{traj.kind}' from start_mm {list(traj.start_mm)}: the inverse kinematics "
             f"misses the program by {ik_err:.3g} mm (expected < 0.001 mm); the path leaves the "
-            f"{robot.model} workspace or passes a singularity"
+            f"{robot.label} workspace or passes a singularity (set trajectory.start_mm or robot.ik_seed_deg)"
         )
     n_seam = int(np.ceil((traj.length_mm + extra_mm) / SEAM_SPACING_MM)) + 1
     u_seam = np.linspace(0.0, traj.length_mm + extra_mm, n_seam)
