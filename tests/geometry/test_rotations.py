@@ -283,3 +283,69 @@ def test_other_bad_input():
         nearest_rotation(np.full((1, 3, 3), np.nan))
     with pytest.raises(GeometryError, match=r"M: expected an array of shape \(\.\.\., 3, 3\)"):
         nearest_rotation(np.eye(2))
+
+
+# --------------------------------------------------------------------------- the compiled path
+# quaternion_from_matrix / rotation_vector_from_matrix run the numba kernels of
+# posekit.geometry._rotation_kernels; numba kernels elsewhere call the same functions inline.
+
+
+@FAST
+@given(rotation_matrices())
+def test_compiled_conversions_match_scipy(R):
+    from scipy.spatial.transform import Rotation
+
+    q = quaternion_from_matrix(R, check=False)
+    ref = Rotation.from_matrix(R).as_quat(canonical=True, scalar_first=True)
+    if abs(ref[0]) > 1e-12:  # at w = 0 both are canonical by the first non-zero component
+        np.testing.assert_allclose(q, ref, atol=2e-15)
+    np.testing.assert_allclose(matrix_from_quaternion(q), R, atol=1e-14)
+    rv = rotation_vector_from_matrix(R, check=False)
+    rv_ref = Rotation.from_matrix(R).as_rotvec()
+    if np.linalg.norm(rv_ref) < np.pi - 1e-6:  # at pi the axis sign is free
+        np.testing.assert_allclose(rv, rv_ref, atol=1e-12)
+
+
+def test_compiled_conversions_near_zero_and_pi():
+    from scipy.spatial.transform import Rotation
+
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    for angle in (0.0, 1e-12, 1e-9, 1e-6, 0.1, np.pi - 1e-6, np.pi - 1e-9):
+        R = Rotation.from_rotvec(axis * angle).as_matrix()
+        np.testing.assert_allclose(rotation_vector_from_matrix(R), axis * angle, atol=1e-12, rtol=1e-9)
+    R = Rotation.from_rotvec(axis * np.pi).as_matrix()
+    rv = rotation_vector_from_matrix(R)
+    assert np.isclose(np.linalg.norm(rv), np.pi) and np.isclose(abs(rv @ axis), np.pi)
+
+
+def test_inline_kernels_equal_the_public_converters():
+    from numba import njit
+
+    from posekit.geometry import quaternion_from_entries, rotvec_from_entries
+
+    @njit
+    def both(R):
+        q = quaternion_from_entries(R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2])
+        v = rotvec_from_entries(R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2])
+        return q, v
+
+    from scipy.spatial.transform import Rotation
+
+    for R in Rotation.random(50, random_state=1).as_matrix():
+        q, v = both(R)
+        np.testing.assert_array_equal(q, quaternion_from_matrix(R))
+        np.testing.assert_array_equal(v, rotation_vector_from_matrix(R))
+
+
+def test_quaternion_product_reference_and_composition():
+    from posekit.geometry import quaternion_product
+
+    np.testing.assert_array_equal(quaternion_product([0, 1, 0, 0], [0, 0, 1, 0]), [0, 0, 0, 1])  # i j = k
+    np.testing.assert_array_equal(quaternion_product([0, 0, 1, 0], [0, 1, 0, 0]), [0, 0, 0, -1])  # j i = -k
+    from scipy.spatial.transform import Rotation
+
+    a, b = Rotation.random(20, random_state=2), Rotation.random(20, random_state=3)
+    qa, qb = a.as_quat(scalar_first=True), b.as_quat(scalar_first=True)
+    np.testing.assert_allclose(matrix_from_quaternion(quaternion_product(qa, qb)), (a * b).as_matrix(), atol=1e-14)
+    with pytest.raises(GeometryError, match=r"q2_wxyz: expected an array of shape \(\.\.\., 4\), got shape \(3,\)"):
+        quaternion_product([1, 0, 0, 0], [1, 0, 0])

@@ -61,7 +61,7 @@ def _read_xml(path: Path) -> bytes:
     for i, el in enumerate(root.iter("link", "joint")):
         if not el.get("name"):
             raise ConfigError(f"{path}: <{el.tag}> number {i + 1} has no name attribute; expected name=\"...\"")
-    if any(el.tag.startswith("xacro:") for el in root.iter() if isinstance(el.tag, str)) or b"${" in data:
+    if any(el.prefix == "xacro" or "xacro" in str(el.tag).split("}")[0] for el in root.iter()) or b"${" in data:
         raise ConfigError(f"{path}: a xacro file; expected plain URDF (run xacro first)")
     return data
 
