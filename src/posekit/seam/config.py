@@ -54,6 +54,8 @@ __all__ = [
 
 TRAJECTORY_KINDS = ("xy", "yz", "line", "bend")
 RESAMPLER_NAMES = ("systematic", "stratified", "residual")
+#: The robot of the paper's setup, used when the config names none.
+DEFAULT_ROBOT = "puma560"
 #: Sensor distances used when ``sensors.distances_mm`` is not given: the first ``count``.
 DEFAULT_SENSOR_DISTANCES_MM = (20.0, 40.0, 60.0, 80.0)
 
@@ -114,7 +116,7 @@ class RobotConfig(_Section):
     kinematics-only estimate use the nominal model.
     """
 
-    model: str = "puma560"
+    model: str | None = None  # None with urdf; the default robot otherwise
     urdf: str | None = None
     base_link: str | None = None
     tip_link: str | None = None
@@ -127,14 +129,18 @@ class RobotConfig(_Section):
     @model_validator(mode="before")
     @classmethod
     def _name_shorthand(cls, data):
-        return {"model": data} if isinstance(data, str) else data
+        if isinstance(data, str):
+            return {"model": data}
+        if isinstance(data, dict) and data.get("urdf") is None and data.get("model") is None:
+            return {**data, "model": DEFAULT_ROBOT}
+        return data
 
     @field_validator("model")
     @classmethod
-    def _known_model(cls, v: str) -> str:
+    def _known_model(cls, v: str | None) -> str | None:
         from posekit.robots import MODEL_NAMES
 
-        if v not in MODEL_NAMES:
+        if v is not None and v not in MODEL_NAMES:
             raise ValueError(f"expected one of {list(MODEL_NAMES)} (or urdf: PATH), got {v!r}")
         return v
 
@@ -142,7 +148,7 @@ class RobotConfig(_Section):
     def _model_or_urdf(self):
         if self.urdf is None and (self.base_link is not None or self.tip_link is not None):
             raise ValueError("base_link and tip_link need urdf: PATH")
-        if self.urdf is not None and "model" in self.model_fields_set:
+        if self.urdf is not None and self.model is not None:
             raise ValueError("give either model (a bundled robot) or urdf (a file), not both")
         return self
 
