@@ -8,7 +8,7 @@ from ..errors import ConfigError
 
 __all__ = ["add_parser", "BENCHMARKS"]
 
-BENCHMARKS = ("profiler", "ceiling", "seam")
+BENCHMARKS = ("profiler", "ceiling", "seam", "robots")
 PLANNED = ()
 
 
