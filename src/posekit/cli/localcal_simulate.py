@@ -30,6 +30,15 @@ def add_simulate_parser(verbs):
                    help="hide the OOI from the camera: never (default), calibration (during the circle or "
                         "the calibration path) or always")
     _camera_options(s)
+    s.add_argument("--robot", default="hiab033",
+                   help="the long-reach arm: a bundled model (hiab033, the default HIAB033-like crane) or a "
+                        "URDF file of your own arm")
+    s.add_argument("--base-link", default=None, help="URDF robot: the chain's base link (default: the root)")
+    s.add_argument("--tip-link", default=None,
+                   help="URDF robot: the TCP link the camera is mounted on (default: the deepest leaf)")
+    s.add_argument("--start-q-deg", default=None,
+                   help="start joint values, comma-separated, deg (mm for prismatic joints); required "
+                        "for any robot but hiab033")
     s.add_argument("--truth", action="store_true", help="also print the simulator's true errors")
     s.add_argument("--out", required=True, help="output folder")
     s.set_defaults(func=run_simulate)
@@ -66,6 +75,35 @@ def _config(args, **extra):
     if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
         raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
     return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
+
+
+def _robot_options(args) -> dict:
+    """``robot``, ``base_link``, ``tip_link``, ``start_q`` of EpisodeConfig from the flags, with the
+    robot loaded once here so that a bad file or link is a one-line error before any run."""
+    import math
+
+    from ..robots import load_robot
+
+    start = None
+    if args.start_q_deg is not None:
+        try:
+            values = [float(v) for v in args.start_q_deg.split(",")]
+        except ValueError:
+            raise ConfigError(f"--start-q-deg: expected comma-separated numbers, got '{args.start_q_deg[:80]}'") from None
+        if not all(math.isfinite(v) and abs(v) <= 1e6 for v in values):
+            raise ConfigError(f"--start-q-deg: expected finite values, got '{args.start_q_deg[:80]}'")
+        start = values
+    options = {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}
+    model = load_robot(args.robot, args.base_link, args.tip_link)
+    if start is not None:
+        if len(start) != model.n_joints:
+            raise ConfigError(f"--start-q-deg: expected {model.n_joints} values for {model.name}, got {len(start)}")
+        rad = [math.radians(v) if r else v for v, r in zip(start, model.is_revolute)]
+        options["start_q"] = tuple(rad)
+    elif args.robot != "hiab033":
+        raise ConfigError(f"--start-q-deg: required for --robot {args.robot} (the crane's start pose fits only "
+                          "the crane); give the arm's start joint values in deg")
+    return options
 
 
 def _write(result, out, command):
@@ -109,7 +147,8 @@ def run_simulate(args) -> int:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
     if args.occlude_ooi not in OCCLUSIONS:
         raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
-    config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi)
+    config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi,
+                     **_robot_options(args))
     out_folder(args.out)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
                             scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())

@@ -89,6 +89,16 @@ class EpisodeConfig:
         path), or always (to exercise the errors of a marker that is never seen).
     keep_images : bool
         Keep the camera image of every 'look' (for inspection; large).
+    robot : str
+        The arm: a bundled model name (``posekit.robots.MODEL_NAMES``; the HIAB033-like crane
+        ``'hiab033'`` by default) or the path of the user's URDF file.
+    base_link, tip_link : str, optional
+        The URDF chain's ends (the tip is the TCP frame F the camera is mounted on).
+    start_q : tuple of float, optional
+        Start configuration (rad, mm for prismatic joints); :data:`START_Q` for the crane,
+        required for any other arm (its TCP must be able to move ~1 m along the camera's
+        viewing axis from there). The non-kinematic errors treat joints 1–3 as the slewing,
+        lift and tilt joints and 2 and 3 as the drooping booms.
     """
 
     radius_mm: float = CIRCLE_RADIUS_MM
@@ -109,6 +119,10 @@ class EpisodeConfig:
     ooi_distance_mm: float = 1000.0
     occlude_ooi: str = "never"
     keep_images: bool = False
+    robot: str = "hiab033"
+    base_link: str | None = None
+    tip_link: str | None = None
+    start_q: tuple | None = None
 
     def __post_init__(self):
         if not self.camera_hz > 0:
@@ -246,13 +260,28 @@ def _setup(seed, config):
 
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     s_err, s_arm, s_cell, s_cam, s_vo = ss.spawn(5)
-    errors = sample_nonkinematic_errors(np.random.default_rng(s_err), scale=config.error_scale)
-    arm = LongReachArm(errors=errors, q0=np.array(START_Q), seed=np.random.default_rng(s_arm))
+    model, q0 = _robot(config)
+    errors = sample_nonkinematic_errors(np.random.default_rng(s_err), scale=config.error_scale,
+                                        n_joints=model.n_joints)
+    arm = LongReachArm(model, errors, q0=q0, seed=np.random.default_rng(s_arm))
     cell = default_workcell(arm, np.random.default_rng(s_cell), distance_mm=config.ooi_distance_mm)
     detector = MarkerDetector(zed2_720p(), cell.sizes_mm)
     camera = _Camera(cell, detector, np.random.default_rng(s_cam), config)
     vo_seed = int(np.random.default_rng(s_vo).integers(2**63 - 1))
     return arm, cell, camera, vo_seed
+
+
+def _robot(config):
+    """The nominal model and the start configuration of ``config.robot``."""
+    from posekit.robots import load_robot
+
+    model = load_robot(config.robot, config.base_link, config.tip_link)
+    if config.start_q is not None:
+        return model, np.asarray(config.start_q, dtype=np.float64)
+    if config.robot == "hiab033":
+        return model, np.array(START_Q)
+    raise ConfigError(f"start_q: required for robot {config.robot!r} (the crane's start pose fits only the "
+                      "crane); give its joint values (--start-q-deg)")
 
 
 def _truth(cell, arm):

@@ -22,6 +22,7 @@ from .models import (
     URDF_MODELS,
     bundled_robot_path,
     hiab033,
+    load_robot,
     puma560,
     robot_model,
 )
@@ -45,6 +46,7 @@ __all__ = [
     "URDF_MODELS",
     "bundled_robot_path",
     "hiab033",
+    "load_robot",
     "puma560",
     "robot_model",
     # control

@@ -66,7 +66,7 @@ from .chain import KinematicChain
 from .dh import REVOLUTE, DHChain, dh_row_transform
 from .urdf import load_urdf
 
-__all__ = ["MODEL_NAMES", "URDF_MODELS", "bundled_robot_path", "hiab033", "puma560", "robot_model"]
+__all__ = ["MODEL_NAMES", "URDF_MODELS", "bundled_robot_path", "hiab033", "load_robot", "puma560", "robot_model"]
 
 _deg = np.deg2rad
 
@@ -150,3 +150,31 @@ def robot_model(name: str) -> KinematicChain:
         _, base, tip = URDF_MODELS[name]
         return load_urdf(bundled_robot_path(name), base, tip, name=name)
     raise ConfigError(f"unknown robot model {name!r}, expected one of {list(MODEL_NAMES)}")
+
+
+def load_robot(spec, base_link: str | None = None, tip_link: str | None = None) -> KinematicChain:
+    """A robot named the way configs and flags name one: a bundled model or a URDF file.
+
+    Parameters
+    ----------
+    spec : str or Path
+        One of :data:`MODEL_NAMES`, or the path of a URDF file.
+    base_link, tip_link : str, optional
+        The chain's ends in a URDF file (see :func:`~posekit.robots.load_urdf`).
+
+    Raises
+    ------
+    ConfigError
+        Neither a bundled name nor an existing file; links given for a bundled model; any
+        error of :func:`~posekit.robots.load_urdf`.
+    """
+    text = str(spec)
+    if text in MODEL_NAMES:
+        if base_link is not None or tip_link is not None:
+            raise ConfigError(f"robot {text!r} is a bundled model: base_link and tip_link apply to a URDF file only")
+        return robot_model(text)
+    path = Path(text).expanduser()
+    if path.suffix.lower() != ".urdf" and not path.is_file():
+        raise ConfigError(f"unknown robot {text!r}: expected a bundled model ({', '.join(MODEL_NAMES)}) "
+                          "or a URDF file path")
+    return load_urdf(path, base_link, tip_link)
