@@ -22,21 +22,10 @@ from posekit.geometry import (
     check_transform,
     matrix_from_quaternion,
     quaternion_from_matrix,
+    quaternion_product,
 )
 
 __all__ = ["orientation_reference", "rotation_difference", "rotation_errors_deg"]
-
-
-def _quaternion_product(a, b) -> np.ndarray:
-    """Hamilton product ``a ⊗ b`` of quaternions [w, x, y, z], shape (..., 4)."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
 
 
 def rotation_difference(T_C_O, T_C_M) -> np.ndarray:
@@ -65,7 +54,7 @@ def rotation_difference(T_C_O, T_C_M) -> np.ndarray:
     r_O = quaternion_from_matrix(T_C_O[..., :3, :3], check=False)
     r_T = quaternion_from_matrix(T_C_M[..., :3, :3], check=False)
     r_T_inv = r_T * np.array([1.0, -1.0, -1.0, -1.0])         # unit quaternion: inverse = conjugate
-    return matrix_from_quaternion(_quaternion_product(r_O, r_T_inv))
+    return matrix_from_quaternion(quaternion_product(r_O, r_T_inv))
 
 
 def orientation_reference(T_B_F, T_C_O, T_C_M, *, R_F_C=None) -> np.ndarray:
