@@ -110,7 +110,7 @@ def run(count=None, verbose=True):
     total = cd + pc
     api = _time_api(profiles, gauge)
     sp = _time_scipy(profiles, gauge)
-    from posekit.profiler.camera_peer import time_camera_pipeline   # OpenCV only after our timing
+    from posekit.profiler.camera_peer import time_camera_pipeline  # OpenCV only after our timing
     cam = time_camera_pipeline(n_images=10, repeats=3, seed=0)
     cam_cd, cam_pc = np.asarray(cam["cd_ms"]), np.asarray(cam["pc_ms"])
     cam_total = cam_cd + cam_pc

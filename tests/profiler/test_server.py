@@ -15,18 +15,16 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from hypothesis import given
 from scipy.spatial.transform import Rotation
 
 from posekit.errors import ConfigError
-from posekit.geometry import quaternion_from_matrix, transform_from
+from posekit.geometry import transform_from
 from posekit.profiler import LJ_X8400, NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
 from posekit.profiler.evaluate import pose_errors
 from posekit.profiler.protocol import MAGIC, MAX_POINTS, encode_frame
 from posekit.profiler.sensor import sample_poses, visible_mask
 from posekit.profiler.server import PoseServer, check_address, parse_address
 from posekit.profiler.stream_client import RobotInterfaceStub, SensorClient
-from tests.strategies import FAST, rotation_matrices
 
 SOAK_RATE_HZ = 1000.0
 SOAK_SECONDS = 10.0

@@ -203,16 +203,16 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     rc = main(["seam", "demo", "--particles", "30", "--steps", "60"])
     out = capsys.readouterr().out
     assert rc == 0
-    rows = {l[:24].strip(): [float(v) for v in l[24:].split()] for l in out.splitlines()
-            if l.startswith(("xy,", "yz,"))}
+    rows = {line[:24].strip(): [float(v) for v in line[24:].split()] for line in out.splitlines()
+            if line.startswith(("xy,", "yz,"))}
     assert list(rows) == ["xy, 0 sensors", "xy, 1 sensor", "xy, 2 sensors", "yz, 0 sensors", "yz, 1 sensor",
                           "yz, 2 sensors", "xy, FK only"]
     assert all(len(v) == 6 and all(x >= 0 for x in v) for v in rows.values())
     # fixed decimals (mm and deg to 3 places), never a mix of significant-digit widths
-    numbers = [t for l in out.splitlines() if l.startswith(("xy,", "yz,")) for t in l[24:].split()]
+    numbers = [t for line in out.splitlines() if line.startswith(("xy,", "yz,")) for t in line[24:].split()]
     assert len(numbers) == 42 and all(len(t.split(".")[1]) == 3 for t in numbers)
     assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
-    step = [l for l in out.splitlines() if l.startswith("filter step median: ")]
+    step = [line for line in out.splitlines() if line.startswith("filter step median: ")]
     assert len(step) == 1 and step[0].endswith(" ms (xy, 2 sensors, 30 particles; the paper's sensor period is 10 ms)")
     assert float(step[0].split()[3]) > 0
     # the FK-only row is the 0-sensor run's kinematic error: the same for every sensor count

@@ -354,7 +354,9 @@ def metrics(results: list[EpisodeResult]) -> dict:
     step = np.concatenate([r.step_ms for r in results])
     spread = np.median(np.concatenate([r.spread for r in results]), axis=0)
     laser = np.concatenate([r.laser_mm.reshape(-1, 2) for r in results])
-    fl = lambda v: float(round(float(v), 6))
+    def fl(v):
+        return float(round(float(v), 6))
+
     return {
         "rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], err[:3])},
         "rmse_deg": {a: fl(v) for a, v in zip(AXES[3:], err[3:])},

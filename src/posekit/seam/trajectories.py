@@ -104,7 +104,9 @@ def _smooth_triangle(u: np.ndarray, period: float, blend: float) -> np.ndarray:
     """Triangle wave of unit amplitude (peak at ``u = period / 4``), its corners rounded by a
     moving average of width ``blend * period`` and rescaled to peak 1: exactly linear between
     the corners, parabolic at them."""
-    tri = lambda v: (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))
+    def tri(v):
+        return (2.0 / np.pi) * np.arcsin(np.clip(np.sin(2.0 * np.pi * v / period), -1.0, 1.0))
+
     if blend <= 0.0:
         return tri(u)
     nodes = (np.arange(64) + 0.5) / 64 - 0.5  # midpoint rule over [-1/2, 1/2]
