@@ -172,16 +172,16 @@ INPUT_CASES = {
     "csv-three-columns": ("p.csv", write_text("x,z\n1.0,400.0,7\n"), ["line 2", "expected 2 values"]),
     "csv-header-only": ("p.csv", write_text("x,z\n"), ["no data rows"]),
     "csv-infinite": ("p.csv", write_text("x,z\n1.0,inf\n"), ["line 2", "infinite"]),
-    "csv-binary": ("p.csv", write_bytes(b"\xff\xfe\x00\x81garbage"), ["not a text CSV file"]),
+    "csv-binary": ("p.csv", write_bytes(b"\xff\xfe\x00\x81garbage"), ["UTF-16 (little-endian) text", "in UTF-8"]),
     "npy-wrong-shape": ("p.npy", write_npy(np.zeros((10, 3))), ["expected an array of shape (N, 2)", "(10, 3)"]),
     "npy-batch": ("p.npy", write_npy(np.zeros((2, 10, 2))), ["(N, 2)", "(2, 10, 2)"]),
     "npy-strings": ("p.npy", write_npy(np.array([["a", "b"]])), ["must hold numbers"]),
-    "npy-garbage": ("p.npy", write_bytes(b"not numpy at all"), ["not a valid .npy file"]),
+    "npy-garbage": ("p.npy", write_bytes(b"not numpy at all"), ["not a NumPy .npy file"]),
     "npz-without-profiles": ("p.npz", write_npz(scan=np.zeros((1, 10, 2))), ["'profiles'", "found scan"]),
     "npz-wrong-shape": ("p.npz", write_npz(profiles=np.zeros((10, 2))), ["'profiles' of shape (K, N, 2)", "(10, 2)"]),
     "npz-no-profile": ("p.npz", write_npz(profiles=np.zeros((0, 10, 2))), ["K = 0"]),
     "npz-infinite": ("p.npz", write_npz(profiles=np.full((1, 10, 2), np.inf)), ["infinite"]),
-    "npz-garbage": ("p.npz", write_bytes(b"PK not a zip"), ["not a valid .npz file"]),
+    "npz-garbage": ("p.npz", write_bytes(b"PK not a zip"), ["not a NumPy .npz archive (no zip header)"]),
     "unknown-suffix": ("p.txt", write_text("x,z\n1,2\n"), ["unknown file type '.txt'", ".csv, .npy or .npz"]),
 }
 
@@ -225,7 +225,7 @@ def test_cli_unwritable_out(capsys, tmp_path, good_npz):
 def test_cli_gauge_file_missing(capsys, tmp_path, good_npz):
     path = tmp_path / "missing.yaml"
     rc, out, err = run(capsys, "profiler", "estimate", good_npz, "--gauge", path)
-    assert_one_line_error(rc, out, err, str(path), "cannot read gauge file")
+    assert_one_line_error(rc, out, err, str(path), "no such file; expected a gauge YAML file")
 
 
 def test_cli_gauge_yaml_malformed(capsys, tmp_path, good_npz):
@@ -294,7 +294,7 @@ def test_cli_usage_errors_exit_2(capsys, tmp_path, good_npz):
 # --- library: load_gauge --------------------------------------------------------------
 
 def test_load_gauge_missing(tmp_path):
-    with pytest.raises(GaugeError, match=r"missing\.yaml: cannot read gauge file"):
+    with pytest.raises(GaugeError, match=r"missing\.yaml: no such file; expected a gauge YAML file"):
         load_gauge(tmp_path / "missing.yaml")
 
 

@@ -81,7 +81,7 @@ def _square(n=20, t0=0.0):
              "rotation about it is undetermined; trajectory matching needs a planar or 3D path")),
     ("no_overlap", ("no overlapping timestamps: cam.tum spans 100.000-101.900 s and kin.tum spans 0.000-1.900 s, "
                    "which overlap by fewer than 6 poses for any clock offset within ±1 s")),
-    ("missing", "cam.tum: cannot read the trajectory file (No such file or directory)"),
+    ("missing", "cam.tum: no such file; expected a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)"),
 ])
 def test_bad_input_gives_one_line_errors(tmp_path, capsys, monkeypatch, case, message):
     monkeypatch.chdir(tmp_path)

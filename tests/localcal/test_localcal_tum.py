@@ -76,7 +76,7 @@ def test_malformed_files_name_file_and_line(tmp_path, text, message):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(InputFileError, match=r"nope.tum: cannot read the trajectory file \(No such file"):
+    with pytest.raises(InputFileError, match=r"nope.tum: no such file; expected a TUM trajectory file"):
         read_tum(tmp_path / "nope.tum")
 
 

@@ -313,12 +313,12 @@ def test_bad_urdf(tmp_path, text, kwargs, match):
 def test_missing_and_oversized_files(tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match=r"nope\.urdf: no such URDF file"):
         load_urdf(tmp_path / "nope.urdf")
-    with pytest.raises(ConfigError, match=r"not a file; expected a URDF file"):
+    with pytest.raises(ConfigError, match=r"is a folder; expected a URDF file"):
         load_urdf(tmp_path)
     from posekit.robots import urdf
 
     monkeypatch.setattr(urdf, "MAX_URDF_BYTES", 100)
-    with pytest.raises(ConfigError, match=r"big\.urdf: \d+ bytes; expected a URDF file of at most 100 bytes"):
+    with pytest.raises(ConfigError, match=r"big\.urdf: .* MiB, above the .* MiB limit for a URDF file"):
         load_urdf(_write(tmp_path, _arm(), "big.urdf"))
 
 

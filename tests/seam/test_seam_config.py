@@ -89,11 +89,11 @@ def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, mes
 
 
 def test_missing_file_and_empty_file(tmp_path):
-    with pytest.raises(ConfigError, match=r"nope\.yaml: cannot read config file"):
+    with pytest.raises(ConfigError, match=r"nope\.yaml: no such file; expected a seam configuration YAML file"):
         load_config(tmp_path / "nope.yaml")
     binary = tmp_path / "binary.yaml"
     binary.write_bytes(b"filter:\n  particles: 5\xff\n")
-    with pytest.raises(ConfigError, match=r"binary\.yaml: not a YAML text file \(byte 22 is not UTF-8\)$"):
+    with pytest.raises(ConfigError, match=r"binary\.yaml: line 2: byte 0xff is not UTF-8; expected a seam configuration YAML file in UTF-8 \(save it as UTF-8\)$"):
         load_config(binary)
     assert load_config(_write(tmp_path, "")) == SeamConfig()
 

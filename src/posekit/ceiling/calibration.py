@@ -28,6 +28,7 @@ from ..geometry import (
     normalize_homography,
     refine_homography,
 )
+from ..io import load_json, read_text
 
 __all__ = [
     "Calibration",
@@ -38,7 +39,7 @@ __all__ = [
     "write_points_csv",
 ]
 
-#: The keys of a calibration JSON file, in order (DESIGN.md).
+#: The keys of a calibration JSON file (``posekit ceiling calibrate --out``), in order.
 JSON_KEYS = ("H_image_world", "H_world_image", "rms_px", "rms_world")
 #: Header of a calibration-points CSV file.
 CSV_HEADER = ("X", "Y", "u", "v")
@@ -114,7 +115,7 @@ class Calibration:
         return apply_homography(self.H_image_world, XY, invalid=invalid)
 
     def to_json(self, path):
-        """Write the DESIGN.md calibration file (``H_image_world``, ``H_world_image``,
+        """Write the calibration file of ``posekit ceiling calibrate`` (``H_image_world``, ``H_world_image``,
         ``rms_px``, ``rms_world``, then ``n_points`` and ``inliers`` when known)."""
         data = {"H_image_world": np.asarray(self.H_image_world, dtype=float).tolist(),
                 "H_world_image": np.asarray(self.H_world_image, dtype=float).tolist(),
@@ -228,16 +229,7 @@ def load_calibration(path) -> Calibration:
         negative rms; the message names the file and the key.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: no such file; expected a calibration JSON file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise CalibrationError(f"{path}: not valid JSON (line {exc.lineno} column {exc.colno}: {exc.msg})") from None
+    data = load_json(path, expected="a calibration JSON file", error=CalibrationError)
     if not isinstance(data, dict):
         raise CalibrationError(f"{path}: expected a JSON object with the keys {', '.join(JSON_KEYS)}")
     for key in JSON_KEYS:
@@ -293,12 +285,7 @@ def read_points_csv(path) -> CalibrationPoints:
         line), or fewer than 4 points.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: no such file; expected a CSV of calibration points 'X,Y,u,v'") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    text = read_text(path, expected="a CSV of calibration points 'X,Y,u,v'", error=CalibrationError)
     rows, lines, header_seen = [], [], False
     for lineno, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()

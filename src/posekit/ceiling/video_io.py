@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, InputFileError
+from ..io import check_frame_size, check_input_file, read_image
 
 __all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "Frame", "FrameSource", "open_frames", "list_images"]
 
@@ -57,7 +58,13 @@ def list_images(folder: Path) -> list[Path]:
         The folder has no image file (empty, or only other files).
     """
     folder = Path(folder)
-    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+    try:
+        files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+    except PermissionError:
+        raise InputFileError(f"{folder}: permission denied (cannot list the folder); expected a readable "
+                             "folder of images") from None
+    except OSError as exc:
+        raise InputFileError(f"{folder}: cannot list the folder ({exc.strerror or exc})") from None
     images = [p for p in files if p.suffix.lower() in IMAGE_SUFFIXES]
     if not images:
         if not files:
@@ -102,7 +109,16 @@ class FrameSource:
             first = self._read_image(self._files[0])
             self._count = len(self._files)
         else:
+            check_input_file(self.path, expected="a video file or a folder of images")
             cap = cv2.VideoCapture(str(self.path))
+            if cap.isOpened():  # the container's frame size, before a frame is decoded
+                w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+                if w > 0 and h > 0:
+                    try:
+                        check_frame_size(w, h, str(self.path))
+                    except InputFileError:
+                        cap.release()
+                        raise
             ok, first = (cap.read() if cap.isOpened() else (False, None))
             if not ok or first is None:
                 cap.release()
@@ -121,8 +137,7 @@ class FrameSource:
             self.fps, self.fps_source = DEFAULT_FPS, "default"
 
     def _read_image(self, p: Path) -> np.ndarray:
-        import cv2
-        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        img = read_image(p)  # the header's size is checked before decoding
         if img is None:
             raise InputFileError(f"{p}: cannot decode this file as an image")
         return img

@@ -57,10 +57,11 @@ def _points_from_image(args, seeds):
     from ..ceiling.calibration import write_points_csv
     from ..ceiling.grid import CeilingGrid, find_grid_corners
     from ..errors import CalibrationError
+    from ..io import read_image
 
-    img = cv2.imread(str(args.from_image), cv2.IMREAD_GRAYSCALE)
+    img = read_image(args.from_image, cv2.IMREAD_GRAYSCALE, error=CalibrationError)
     if img is None:
-        raise CalibrationError(f"{args.from_image}: cannot read the image (missing, or not an image file)")
+        raise CalibrationError(f"{args.from_image}: cannot decode the image; expected an image file OpenCV reads")
     grid = CeilingGrid(_pair(args.grid, "--grid"), _pair(args.grid_origin, "--grid-origin"), args.bar_mm)
     corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seeds.image_uv,
                                 polarity="light" if args.light_bars else "dark")

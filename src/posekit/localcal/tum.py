@@ -12,6 +12,7 @@ import numpy as np
 
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.geometry import matrix_from_quaternion, quaternion_from_matrix
+from posekit.io import read_text
 
 __all__ = ["Trajectory", "read_tum", "write_tum"]
 
@@ -88,11 +89,7 @@ def read_tum(path) -> Trajectory:
         previous one. The message names ``file:line``.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else type(exc).__name__
-        raise InputFileError(f"{path}: cannot read the trajectory file ({reason})") from None
+    text = read_text(path, expected="a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)")
     rows, lines = [], []
     for number, raw in enumerate(text.splitlines(), start=1):
         s = raw.strip()

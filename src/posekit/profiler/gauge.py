@@ -7,7 +7,7 @@ the plane ``{p : normal_k · p = offset_k}`` with its normal pointing out of the
 and k+1 meet, written as in the paper's eq. (2): ``q_k + λ s_k`` with ``q_k`` in the
 plane y = 0 and ``s_k = [u_k, 1, w_k]``.
 
-Gauge file (DESIGN.md contract, plus the optional ``extent``)::
+Gauge file (YAML, as in ``examples/gauges/``; ``extent`` is optional)::
 
     name: demo-5
     planes:                      # consecutive faces, in the order the laser line crosses them
@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import GaugeError
 from ..geometry import plane_intersection
+from ..io import load_yaml
 
 __all__ = ["Gauge", "load_gauge", "bundled_gauge", "bundled_gauge_path", "gauge_from_design",
            "gauge_to_yaml", "BUNDLED_GAUGES"]
@@ -220,16 +221,7 @@ def load_gauge(path) -> Gauge:
         y-component, faces that do not meet in order). The message names the file.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise GaugeError(f"{path}: cannot read gauge file ({exc.strerror or exc})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}" if mark is not None else ""
-        raise GaugeError(f"{path}: not valid YAML{at}") from None
+    data = load_yaml(path, expected="a gauge YAML file", error=GaugeError)
     if not isinstance(data, dict):
         raise GaugeError(f"{path}: expected a mapping with keys 'name' and 'planes', got {type(data).__name__}")
     try:

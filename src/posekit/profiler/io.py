@@ -1,18 +1,19 @@
-"""Reading laser profiles and writing pose records (DESIGN.md contracts).
+"""Reading laser profiles and writing pose records (the files of ``posekit profiler estimate``).
 
 Inputs: CSV with header ``x,z`` (mm, scan order, an empty cell or ``nan`` = no return),
 ``.npy`` of shape (N, 2), or ``.npz`` with ``profiles`` of shape (K, N, 2) for batches.
 """
 
 import csv
+import io
 import json
 import math
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputFileError
+from ..io import check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
 
 __all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "record_to_json", "read_truth_csv",
            "write_truth_csv", "TRUTH_COLUMNS"]
@@ -21,20 +22,23 @@ RECORD_CSV_COLUMNS = ["index", "status", "tx", "ty", "tz", "qw", "qx", "qy", "qz
 TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
 
 
+_CSV = "a profile CSV with header 'x,z' and rows of mm values"
+
+
 def _read_csv(path: Path) -> np.ndarray:
+    text = read_text(path, expected=_CSV)
     try:
-        with path.open(newline="") as fh:
-            reader = csv.reader(fh)
-            numbered = [(reader.line_num, r) for r in reader]
-    except UnicodeDecodeError:
-        raise InputFileError(f"{path}: not a text CSV file; expected a header 'x,z' and rows of mm values") from None
+        reader = csv.reader(io.StringIO(text, newline=""))
+        numbered = [(reader.line_num, r) for r in reader]
+    except csv.Error as exc:
+        raise InputFileError(f"{path}: line {reader.line_num}: {str(exc)[:80]}; expected {_CSV}") from None
     # Blank lines are skipped; a row of empty cells (",") is a point with no return.
     numbered = [(line, r) for line, r in numbered if r and not (len(r) == 1 and not r[0].strip())]
     if not numbered:
         raise InputFileError(f"{path}: file is empty; expected a CSV with header 'x,z'")
     first_line, first = numbered[0]
     if [c.strip().lower() for c in first] != ["x", "z"]:
-        raise InputFileError(f"{path}: line {first_line}: expected header 'x,z', got '{','.join(first)}'")
+        raise InputFileError(f"{path}: line {first_line}: expected header 'x,z', got {quote(','.join(first))}")
     if len(numbered) == 1:
         raise InputFileError(f"{path}: no data rows after the header 'x,z'")
     out = np.empty((len(numbered) - 1, 2))
@@ -49,7 +53,7 @@ def _read_csv(path: Path) -> np.ndarray:
             try:
                 out[i, j] = float(cell)
             except ValueError:
-                raise InputFileError(f"{path}: line {line}: '{cell}' is not a number (mm) or empty/nan") from None
+                raise InputFileError(f"{path}: line {line}: {quote(cell)} is not a number (mm) or empty/nan") from None
             if math.isinf(out[i, j]):
                 raise InputFileError(f"{path}: line {line}: infinite value; use an empty cell or nan for no return")
     return out[None]
@@ -84,31 +88,22 @@ def read_profiles(path) -> np.ndarray:
         names the file (and line for a CSV).
     """
     path = Path(path)
-    if not path.exists():
-        raise InputFileError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputFileError(f"{path}: is a folder; expected a .csv, .npy or .npz profile file")
+    expected = "a .csv (header 'x,z'), .npy or .npz profile file"
+    size = check_input_file(path, expected=expected)
     suffix = path.suffix.lower()
-    if path.stat().st_size == 0:
-        raise InputFileError(f"{path}: file is empty; expected a .csv (header 'x,z'), .npy or .npz profile file")
+    if size == 0:
+        raise InputFileError(f"{path}: file is empty; expected {expected}")
     if suffix == ".csv":
         return _read_csv(path)
     if suffix == ".npy":
-        try:
-            arr = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise InputFileError(f"{path}: not a valid .npy file ({exc})") from None
+        arr = load_npy(path)
         if arr.ndim != 2 or arr.shape[1] != 2:
             raise InputFileError(f"{path}: expected an array of shape (N, 2) of (x, z) in mm, got {arr.shape}")
         return _check_array(arr, path, "profile")[None]
     if suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                files = list(data.files)
-                arr = data["profiles"] if "profiles" in files else None
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:
-            raise InputFileError(f"{path}: not a valid .npz file ({exc})") from None
+        arr = load_npz_member(path, "profiles")
         if arr is None:
+            files = npz_members(path)
             raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
                                  f"found {', '.join(files) or 'no arrays'}")
         if arr.ndim != 3 or arr.shape[2] != 2:
@@ -116,7 +111,7 @@ def read_profiles(path) -> np.ndarray:
         if arr.shape[0] == 0:
             raise InputFileError(f"{path}: 'profiles' holds no profile (K = 0)")
         return _check_array(arr, path, "'profiles'")
-    raise InputFileError(f"{path}: unknown file type '{path.suffix}'; expected .csv, .npy or .npz")
+    raise InputFileError(f"{path}: unknown file type {quote(path.suffix, 20)}; expected .csv, .npy or .npz")
 
 
 def _num(v):
@@ -135,7 +130,7 @@ def record_to_json(rec: dict) -> str:
 
 
 class RecordWriter:
-    """Streams pose records as JSON lines or CSV (DESIGN.md fields and columns).
+    """Streams pose records as JSON lines or CSV (columns: :data:`RECORD_CSV_COLUMNS`).
 
     Parameters
     ----------

@@ -32,24 +32,16 @@ _M_TO_MM = 1000.0
 
 def _read_xml(path: Path) -> bytes:
     """The file's bytes after the checks every reader makes: exists, size, well-formed XML."""
-    try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such URDF file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    if not path.is_file():
-        raise ConfigError(f"{path}: not a file; expected a URDF file")
-    if size > MAX_URDF_BYTES:
-        raise ConfigError(f"{path}: {size} bytes; expected a URDF file of at most {MAX_URDF_BYTES} bytes")
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    from posekit.io import read_bytes
+
+    if not path.exists():
+        raise ConfigError(f"{path}: no such URDF file")
+    data = read_bytes(path, expected="a URDF file", error=ConfigError, limit=MAX_URDF_BYTES)
     if b"<!ENTITY" in data:
         raise ConfigError(f"{path}: unsupported URDF: DTD entities; expected plain XML (expand xacro first)")
-    from lxml import etree
+    from posekit._extras import require
 
+    etree = require("lxml.etree", "urdf", f"reading the URDF file {path.name}")
     parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False)
     try:
         root = etree.fromstring(data, parser)
@@ -70,7 +62,9 @@ def _parse(path: Path, data: bytes):
     """The yourdfpy model of a well-formed file, or a ConfigError naming the element."""
     import contextlib
 
-    import yourdfpy
+    from posekit._extras import require
+
+    yourdfpy = require("yourdfpy", "urdf", f"reading the URDF file {path.name}")
 
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):

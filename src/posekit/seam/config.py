@@ -371,19 +371,10 @@ def load_config(path) -> SeamConfig:
         Unreadable file, invalid YAML, unknown key, impossible value; the message names the
         file and the dotted key, e.g. ``cfg.yaml: filter.particles: expected >= 1, got 0``.
     """
+    from posekit.io import load_yaml
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read config file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"{path}: not a YAML text file (byte {exc.start} is not UTF-8)") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}: not valid YAML{at}") from None
+    data = load_yaml(path, expected="a seam configuration YAML file", error=ConfigError)
     return config_from_dict(_resolve_urdf(data, path.parent), str(path))
 
 

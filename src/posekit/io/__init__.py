@@ -1,0 +1,47 @@
+"""Safe input and output shared by every system.
+
+Every reader goes through this layer: existence, permissions, size (declared array sizes and
+image dimensions included, checked before anything is allocated), encoding (UTF-8 with or
+without a byte-order mark, the same rule everywhere), nesting depth and number size of YAML and
+JSON, and a suffix/content mismatch named as such — each failure one line,
+``FILE: what was wrong; what was expected``. Every writer of a run's folder or a single file
+goes through :func:`staged_folder` / :func:`atomic_file`, so nothing is ever half-written.
+The limits are in :class:`Limits` (``--max-input-mb`` / ``--max-image-mp`` raise them).
+"""
+
+from ._arrays import load_npy, load_npz_member, npz_members
+from ._files import check_input_file, read_bytes, read_text, sniff
+from ._images import check_frame_size, image_size, read_image
+from ._limits import Limits, get_limits, quote, set_limits
+from ._output import atomic_file, check_out_folder, staged_folder
+from ._structured import check_document, load_json, load_yaml, parse_json, parse_yaml
+
+__all__ = [
+    # limits and messages
+    "Limits",
+    "get_limits",
+    "set_limits",
+    "quote",
+    # files, text, structured documents
+    "check_input_file",
+    "read_bytes",
+    "read_text",
+    "sniff",
+    "load_yaml",
+    "load_json",
+    "parse_yaml",
+    "parse_json",
+    "check_document",
+    # arrays
+    "load_npy",
+    "load_npz_member",
+    "npz_members",
+    # images
+    "image_size",
+    "read_image",
+    "check_frame_size",
+    # output
+    "staged_folder",
+    "atomic_file",
+    "check_out_folder",
+]
