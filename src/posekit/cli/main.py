@@ -2,10 +2,17 @@
 
 Exit codes: 0 success, 1 a :class:`~posekit.errors.PosekitError` (message only, one line
 on stderr) or a batch with failed items, 2 usage. Tracebacks only with ``--debug``.
+
+Global options are accepted anywhere on the line (``posekit seam simulate --out d --debug``):
+``--debug``, ``--max-input-mb N`` (largest decoded array / text file read, default 1024 /
+256 MiB) and ``--max-image-mp N`` (largest image, megapixels, default 100). Warnings from
+NumPy or OpenCV are not printed (they would come before the one error line) unless ``--debug``.
 """
 
 import argparse
+import math
 import sys
+import warnings
 
 from .. import __version__
 
@@ -16,7 +23,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="posekit", description="Precise robot pose from laser and vision sensors.")
     parser.add_argument("--version", action="version", version=f"posekit {__version__}")
-    parser.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of errors and warnings (anywhere on "
+                        "the line)")
+    parser.add_argument("--max-input-mb", type=float, default=None, metavar="N",
+                        help="largest array (.npy/.npz) or text file read, MiB (default 1024 for arrays, 256 for "
+                             "text; anywhere on the line)")
+    parser.add_argument("--max-image-mp", type=float, default=None, metavar="N",
+                        help="largest image read, megapixels (default 100; anywhere on the line)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -30,20 +43,94 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_GLOBAL_VALUED = ("--max-input-mb", "--max-image-mp")
+
+
+def _split_globals(argv: list[str]) -> tuple[list[str], dict]:
+    """Take the global options out of ``argv`` wherever they are: ``(rest, options)``."""
+    rest, found = [], {}
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--":
+            rest.extend(argv[i:])
+            break
+        if a == "--debug":
+            found["debug"] = True
+        elif a in _GLOBAL_VALUED:
+            if i + 1 >= len(argv):
+                raise _Usage(f"{a}: expected a value")
+            found[a] = argv[i + 1]
+            i += 1
+        elif a.startswith(tuple(f"{g}=" for g in _GLOBAL_VALUED)):
+            key, value = a.split("=", 1)
+            found[key] = value
+        else:
+            rest.append(a)
+        i += 1
+    return rest, found
+
+
+class _Usage(Exception):
+    pass
+
+
+def _limits(found: dict) -> dict:
+    """``posekit.io.set_limits`` keywords from the global size options (validated)."""
+    from ..errors import ConfigError
+
+    changes = {}
+    for flag, ranges in (("--max-input-mb", (1.0, 1e6)), ("--max-image-mp", (0.01, 1e5))):
+        if flag not in found:
+            continue
+        try:
+            value = float(found[flag])
+        except ValueError:
+            raise ConfigError(f"{flag}: expected a number, got '{found[flag][:40]}'") from None
+        lo, hi = ranges
+        if not (math.isfinite(value) and lo <= value <= hi):
+            unit = "MiB" if flag == "--max-input-mb" else "megapixels"
+            raise ConfigError(f"{flag}: expected {lo:g} to {hi:g} {unit}, got {found[flag][:40]}")
+        if flag == "--max-input-mb":
+            changes["array_bytes"] = changes["text_bytes"] = int(value * 2**20)
+        else:
+            changes["image_pixels"] = int(value * 1e6)
+    return changes
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split("\n")).replace("\r", " ")
+
+
 def main(argv=None) -> int:
     """Run ``posekit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    from ..errors import PosekitError
+    from ..io import set_limits
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        argv, found = _split_globals(argv)
+    except _Usage as exc:
+        print(f"posekit: error: {exc}", file=sys.stderr)
+        return 2
+    debug = bool(found.get("debug"))
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:          # argparse: usage errors exit 2, --help/--version exit 0
         return int(exc.code or 0)
-    from ..errors import PosekitError
+    args.debug = debug or args.debug
+    previous = None
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            if not args.debug:
+                warnings.simplefilter("ignore")
+            previous = set_limits(**_limits(found))
+            return int(args.func(args) or 0)
     except PosekitError as exc:
         if args.debug:
             raise
-        print(f"posekit: error: {exc}", file=sys.stderr)
+        print(f"posekit: error: {_one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("posekit: interrupted", file=sys.stderr)
@@ -53,9 +140,12 @@ def main(argv=None) -> int:
     except Exception as exc:  # a bug, not bad input: still one line unless --debug
         if args.debug:
             raise
-        print(f"posekit: internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)",
-              file=sys.stderr)
+        print(f"posekit: internal error: {type(exc).__name__}: {_one_line(exc)[:200]} (rerun with --debug for the "
+              "traceback)", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            set_limits(**vars(previous))
 
 
 if __name__ == "__main__":  # pragma: no cover

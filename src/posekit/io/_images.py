@@ -7,6 +7,7 @@ OpenCV's own log lines are silenced while reading, so nothing leaks before posek
 error.
 """
 
+import struct
 import warnings
 from pathlib import Path
 
@@ -34,6 +35,13 @@ def image_size(path, *, error=InputFileError) -> tuple[int, int] | None:
     from PIL import Image
 
     path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(24)
+    except OSError:
+        return None
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":  # the size is in the first chunk
+        return struct.unpack(">II", head[16:24])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
