@@ -313,6 +313,6 @@ def test_cli_calibrate_from_image(scene, tmp_path, capsys):
     assert len(read_points_csv(found).world_xy) == cal.n_points
     assert re.search(r"found \d+ grid crossings", stdout)
     rc, _, stderr = run_cli(capsys, "calibrate", seeds, "--out", out, "--from-image", tmp_path / "nope.png")
-    assert rc == 1 and "nope.png: cannot read the image" in stderr
+    assert rc == 1 and "nope.png: no such file; expected an image file" in stderr
     rc, _, stderr = run_cli(capsys, "calibrate", seeds, "--out", out, "--from-image", ref, "--grid", "600")
     assert rc == 1 and "--grid: expected two comma-separated numbers, got '600'" in stderr

@@ -307,7 +307,7 @@ def test_cli_demo_smoke(capsys, tmp_path):
                    "frames/s", "36 known points", "std 2.00"):
         assert needle in stdout, (needle, stdout)
     for name in ("video.avi", "truth.csv", "calibration.json", "track.csv", "fig8_image_trajectory.png",
-                 "fig9_world_trajectory.png", "demo.json"):
+                 "fig9_world_trajectory.png", "demo.json", "report.html"):
         assert (tmp_path / "demo" / name).stat().st_size > 0, name
     report = json.loads((tmp_path / "demo" / "demo.json").read_text())
     assert report["ok_without_dot"] == 0

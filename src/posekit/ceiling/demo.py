@@ -5,8 +5,9 @@ camera from the grid corners of the dot-free ``reference.png`` (the T-bar crossi
 by :func:`~posekit.ceiling.grid.find_grid_corners` from four roughly "clicked" corners;
 ``calibration_points.csv`` when the reference image is missing), tracks the dot(s)
 (:func:`~posekit.ceiling.pipeline.track_video`), compares the track with ``truth.csv``,
-runs the 36-known-points assessment and the heading simulation of §V-B, and draws the
-trajectory in the image and on the ceiling with the truth (the paper's Fig. 8 and 9).
+runs the 36-known-points assessment and the heading simulation of §V-B, draws the
+trajectory in the image and on the ceiling with the truth (the paper's Fig. 8 and 9) and
+writes ``report.html`` (:func:`write_demo_report`, through :mod:`posekit.report`).
 """
 
 import csv
@@ -20,7 +21,7 @@ from ..errors import ConfigError, InputFileError
 from .accuracy import ErrorStats, HeadingSimulation, KnownPointsResult, error_stats
 
 __all__ = ["SceneTruthTable", "DemoReport", "read_truth_csv", "calibrate_rendered", "compare_with_truth",
-           "plot_trajectories", "run_demo"]
+           "plot_trajectories", "write_demo_report", "run_demo"]
 
 
 @dataclass
@@ -234,6 +235,7 @@ class DemoReport:
                      f"{hs.error_mm:g} mm: std {hs.std_deg:.3f}° (closed form e/D = {hs.closed_form_deg:.3f}°; "
                      "paper: 2.00°)")
         lines.append("figures: " + ", ".join(p.name for p in self.files if p.suffix == ".png"))
+        lines += [f"report: {p}" for p in self.files if p.name == "report.html"]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -259,16 +261,77 @@ def _fmt(s: ErrorStats) -> str:
     return f"mean {s.mean_mm:.2f} mm, p95 {s.p95_mm:.2f} mm, max {s.max_mm:.2f} mm (n={s.n})"
 
 
+def _stats_row(name: str, s: ErrorStats, paper: str = "") -> dict:
+    return {"rows": name, "n": s.n, "mean": s.mean_mm, "rms": s.rms_mm, "p95": s.p95_mm, "max": s.max_mm,
+            "paper": paper}
+
+
+def write_demo_report(report: DemoReport) -> Path:
+    """Write ``report.html`` into ``report.out_dir``: what :meth:`DemoReport.summary` prints, as tables,
+    and the figures of ``report.files`` (Fig. 8 and 9), embedded."""
+    from ..report import html_figure, html_table, write_html
+
+    e = report.errors
+    overview = [
+        {"item": "video", "value": f"{report.n_frames} frames, dots {', '.join(report.dots)}"},
+        {"item": "calibration", "value": report.calibration_method},
+        {"item": "calibration rms", "value": f"{report.calibration_rms_px:.3f} px, "
+                                             f"{report.calibration_rms_world:.2f} mm"},
+        {"item": "speed, end to end (decode + detect + map + filter)", "value": f"{report.fps:.0f} frames/s"},
+        {"item": "speed without decoding", "value": f"{report.processing_ms:.2f} ms/frame (paper: 26 ms, 27 Hz)"},
+    ]
+    intro = ("<p>The ceiling system of the paper's §V on a synthetic video: rendered, calibrated from the "
+             "ceiling grid, tracked and compared with the renderer's truth. Files: "
+             + ", ".join(f"<a href='{p.name}'>{p.name}</a>" for p in report.files
+                         if p.suffix in (".csv", ".json", ".avi"))
+             + ".</p>" + html_table(overview, ["item", "value"]))
+    counts = report.counts
+    track = [{"status": "ok (a dot measured)", "frames": counts.get("ok", 0)},
+             {"status": "predicted (no dot, Kalman prediction)", "frames": counts.get("predicted", 0)},
+             {"status": "lost", "frames": counts.get("lost", 0)},
+             {"status": "ok without a visible dot (must be 0)", "frames": e["ok_without_dot"]},
+             {"status": "visible dot, not ok (missed or gated)", "frames": e["visible_not_ok"]}]
+    errors = [_stats_row("tracked (ok)", e["ok"]), _stats_row("predicted", e["predicted"]),
+              _stats_row("raw measurements (unfiltered)", e["raw"])]
+    if report.known_points is not None:
+        k = report.known_points
+        errors.append(_stats_row(f"36 known points (§V-B; {k.n_missed} not detected)", k.stats, "mean 14"))
+    heading = []
+    h = e["heading"]
+    if h.get("n"):
+        heading.append({"heading error": f"tracked, two dots ({h['n']} frames)", "std": h["std_deg"],
+                        "mean": h["mean_deg"], "max |err|": h["max_abs_deg"], "paper": ""})
+    hs = report.heading_simulation
+    heading.append({"heading error": (f"simulation (§V-B): dots {hs.distance_mm:g} mm apart, errors on circles of "
+                                      f"radius {hs.error_mm:g} mm; closed form e/D = {hs.closed_form_deg:.3f}°"),
+                    "std": hs.std_deg, "mean": hs.mean_deg, "max |err|": float("nan"), "paper": "std 2.00"})
+    figures = "".join(html_figure(p, caption) for p, caption in (
+        (report.out_dir / "fig8_image_trajectory.png", "Fig. 8: trajectory of the laser dot in the image"),
+        (report.out_dir / "fig9_world_trajectory.png", "Fig. 9: trajectory on the ceiling plane, with the truth"),
+    ) if p in report.files)
+    sections = [
+        ("Track", html_table(track, ["status", "frames"])),
+        ("Position error against the truth",
+         html_table(errors, ["rows", "n", "mean", "rms", "p95", "max", "paper"],
+                    ["", "n", "mean (mm)", "rms (mm)", "p95 (mm)", "max (mm)", "paper (mm)"])),
+        ("Heading", html_table(heading, ["heading error", "std", "mean", "max |err|", "paper"],
+                                     ["", "std (deg)", "mean (deg)", "max |err| (deg)", "paper (deg)"])),
+        ("Figures", figures),
+    ]
+    return write_html(report.out_dir, "posekit ceiling demo: laser dots on the ceiling (paper §V)", intro,
+                      sections)
+
+
 def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, seed: int = 0,
              config=None, known_points: bool = True, progress=None) -> DemoReport:
-    """Render, calibrate, track and evaluate; write the figures and ``demo.json``.
+    """Render, calibrate, track and evaluate; write the figures, ``demo.json`` and ``report.html``.
 
     Parameters
     ----------
     out_dir : path
         Output folder (created): the render (``video.avi``, ``truth.csv``,
         ``calibration_points.csv``, ``reference.png``), ``calibration.json``, ``track.csv``,
-        ``fig8_image_trajectory.png``, ``fig9_world_trajectory.png``, ``demo.json``.
+        ``fig8_image_trajectory.png``, ``fig9_world_trajectory.png``, ``demo.json``, ``report.html``.
     dots : tuple of str
         ``("red",)`` or ``("red", "green")``.
     seconds : float, optional
@@ -326,4 +389,5 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
                         errors=errors, known_points=kp, heading_simulation=hs, files=files)
     (out / "demo.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
     report.files.append(out / "demo.json")
+    report.files.append(write_demo_report(report))
     return report

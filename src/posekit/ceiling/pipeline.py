@@ -4,8 +4,8 @@ Per frame and camera: :class:`~posekit.ceiling.detect.DotDetector` finds the dot
 region of interest around the track's predicted image position when there is one), the
 camera's calibration maps them to the world plane, and a
 :class:`~posekit.ceiling.track.MultiCameraTracker` (one camera is the usual case A/B)
-gates, filters and switches cameras. The result is one row per frame in the DESIGN.md
-format ``frame,time_s,x,y,heading_deg,status``.
+gates, filters and switches cameras. The result is one row per frame, written by
+:func:`write_track_csv` as ``frame,time_s,x,y,heading_deg,status``.
 
 Camera switch (case D): while the track is confident and the active camera's predicted
 dot lies well inside its image, only that camera is searched; the others are searched

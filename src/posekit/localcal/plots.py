@@ -167,7 +167,7 @@ def _html_table(rows, columns):
 
 def _paper_rows(method: str, updates: int) -> str:
     if method == "line":
-        cols = ["e_θx [deg]", "e_θy [deg]", "e_θz [deg]", "e_x [mm]", "e_y [mm]", "e_z [mm]"]
+        cols = ["e_θx (deg)", "e_θy (deg)", "e_θz (deg)", "e_x (mm)", "e_y (mm)", "e_z (mm)"]
         rows = [("paper mean (Table 2)", PAPER_TABLE2_MEAN)]
     else:
         cols = ["1st e_x", "1st e_y", "1st e_z", "2nd e_x", "2nd e_y", "2nd e_z"]

@@ -117,7 +117,7 @@ class Registration:
         return T
 
     def to_json(self) -> dict:
-        """The DESIGN.md record: ``R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm`` first."""
+        """The record of ``posekit localcal match``: ``R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm`` first."""
         return {
             "R": self.R.tolist(),
             "t_mm": self.t_mm.tolist(),

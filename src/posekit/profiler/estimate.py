@@ -41,7 +41,7 @@ def estimate_pose(profile, gauge: Gauge, method: str = "mle", mounting: str = "a
 
 
 def ok_record(index: int, corners: Corners, est: PoseEstimate) -> dict:
-    """The DESIGN.md record of a successful estimate (corners in ridge order)."""
+    """The record of a successful estimate (:class:`~posekit.profiler.io.RecordWriter`; corners in ridge order)."""
     pts = corners.points[::-1] if est.reversed else corners.points
     return {
         "index": int(index),
@@ -57,7 +57,7 @@ def ok_record(index: int, corners: Corners, est: PoseEstimate) -> dict:
 
 
 def error_record(index: int, message: str) -> dict:
-    """The DESIGN.md record of a failed profile."""
+    """The record of a failed profile (:class:`~posekit.profiler.io.RecordWriter`)."""
     return {"index": int(index), "status": "error", "t_mm": None, "q_wxyz": None, "reprojection_um": None,
             "corners_mm": None, "std_t_um": None, "std_rot_deg": None, "error": message}
 

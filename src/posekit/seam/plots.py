@@ -13,6 +13,7 @@ Plotting is kept out of the numerical modules; each function writes one PNG and 
 path. Angles are shown in degrees, lengths in mm.
 """
 
+import inspect
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -32,7 +33,7 @@ __all__ = [
 ]
 
 #: Label of each of the six state/error dimensions (translations in mm, rotations in deg).
-AXIS_LABELS = ("x [mm]", "y [mm]", "z [mm]", "rx [deg]", "ry [deg]", "rz [deg]")
+AXIS_LABELS = ("x (mm)", "y (mm)", "z (mm)", "rx (deg)", "ry (deg)", "rz (deg)")
 DPI = 100
 
 
@@ -56,7 +57,7 @@ def _six_panels(t_s):
     bottom row labelled with the time (s) or the step index."""
     fig, axes = _plt().subplots(3, 2, figsize=(11, 8), sharex=True)
     for ax in axes[-1]:
-        ax.set_xlabel("time [s]" if t_s is not None else "time step")
+        ax.set_xlabel("time (s)" if t_s is not None else "time step")
     return fig, axes.T.ravel()
 
 
@@ -186,20 +187,31 @@ def plot_error_distributions(groups: Mapping[str, np.ndarray], path, *, title: s
             raise ConfigError(f"error distribution plot: group '{k}' must be (M, 6), got {e.shape}")
         data.append(e)
     plt = _plt()
-    fig, axes = plt.subplots(2, 3, figsize=(max(10, 1.1 * len(labels) * 3), 7))
-    colors = [f"C{i % 10}" for i in range(len(labels))]
+    # Horizontal boxes, one row per group, the group names once on the left: the figure keeps
+    # the report's width (11 in at DPI 100 = 1100 px, shown unscaled) whatever the number of
+    # groups, and grows in height instead.
+    n = len(labels)
+    fig, axes = plt.subplots(2, 3, figsize=(11.0, 1.6 + 2 * (0.9 + 0.32 * n)), sharey=True)
+    colors = [f"C{i % 10}" for i in range(n)]
+    # matplotlib >= 3.10 says orientation=, older ones only vert= (deprecated since 3.11)
+    horizontal = ({"orientation": "horizontal"} if "orientation" in inspect.signature(axes[0, 0].boxplot).parameters
+                  else {"vert": False})
     for d, ax in enumerate(axes.ravel()):
         cols = [e[np.isfinite(e[:, d]), d] for e in data]
         cols = [c if len(c) else np.array([np.nan]) for c in cols]
-        bp = ax.boxplot(cols, showfliers=False, whis=(2.5, 97.5), patch_artist=True, widths=0.6)
+        bp = ax.boxplot(cols, **horizontal, showfliers=False, whis=(2.5, 97.5), patch_artist=True, widths=0.6,
+                        medianprops={"color": "k", "lw": 1.5})
         for patch, c in zip(bp["boxes"], colors):
             patch.set_facecolor(c)
             patch.set_alpha(0.6)
-        ax.axhline(0.0, color="0.5", lw=0.8)
-        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, ha="right", fontsize=8)
-        ax.set_title(f"error {AXIS_LABELS[d]}", fontsize=10)
-        ax.grid(True, axis="y", alpha=0.3)
-    fig.suptitle(title or "Error distributions (boxes: quartiles, whiskers: 2.5-97.5 %)")
+        ax.axvline(0.0, color="0.5", lw=0.8)
+        ax.set_xlabel(f"error {AXIS_LABELS[d]}", fontsize=11)
+        ax.tick_params(axis="x", labelsize=10)
+        ax.grid(True, axis="x", alpha=0.3)
+    for ax in axes[:, 0]:
+        ax.set_yticks(range(1, n + 1), labels, fontsize=11)
+    axes[0, 0].invert_yaxis()  # shared: the first group on top in every panel
+    fig.suptitle(title or "Error distributions (boxes: quartiles, whiskers: 2.5–97.5 %)", fontsize=12)
     return _save(fig, path)
 
 

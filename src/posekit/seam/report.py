@@ -9,7 +9,6 @@ Units at this edge: positions in mm, quaternions ``[w, x, y, z]``, errors in mm 
 
 import csv
 import html
-import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -118,11 +117,24 @@ def html_table(rows: Sequence[Mapping], columns: Sequence[str], headers: Sequenc
     return _html_table(rows, columns, headers, cell=_cell)
 
 
+def _fact(value) -> str:
+    """One metrics.json value as a table cell's text: numbers as in the tables, a mapping as
+    ``key value, ...``, a list comma-separated."""
+    value = to_jsonable(value)
+    if isinstance(value, Mapping):
+        return ", ".join(f"{k} {_fact(v)}" for k, v in value.items())
+    if isinstance(value, list):
+        return ", ".join(_fact(v) for v in value)
+    if isinstance(value, float):
+        return _num(value)
+    return "–" if value is None else str(value)
+
+
 def _rmse_rows(metrics: Mapping) -> list[dict]:
     rows = []
     for i, a in enumerate(ERROR_AXES):
         unit, key = ("mm", "rmse_mm") if i < 3 else ("deg", "rmse_deg")
-        rows.append({"axis": f"{a} [{unit}]", "filter": float(metrics[key][a]),
+        rows.append({"axis": f"{a} ({unit})", "filter": float(metrics[key][a]),
                      "kinematics only": float(metrics.get(f"kinematic_{key}", {}).get(a, float("nan")))})
     return rows
 
@@ -211,10 +223,9 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
     if config_yaml:
         sections.append(("Configuration", f"<pre>{html.escape(config_yaml)}</pre>"))
     skip = {"rmse_mm", "rmse_deg", "kinematic_rmse_mm", "kinematic_rmse_deg", "comparison"}
-    facts = "".join(f"<li><code>{html.escape(str(k))}</code> = {html.escape(json.dumps(to_jsonable(v)))}</li>"
-                    for k, v in metrics.items() if k not in skip)
+    facts = [{"metric": str(k), "value": _fact(v)} for k, v in metrics.items() if k not in skip]
     cfg_link = ", <a href='config.yaml'>config.yaml</a>" if config_yaml else ""
     intro = (f"<p>Files: <a href='metrics.json'>metrics.json</a>, <a href='estimates.csv'>estimates.csv</a>"
-             f"{cfg_link}.</p><ul>{facts}</ul>")
+             f"{cfg_link}.</p>" + html_table(facts, ["metric", "value"]))
     paths["report"] = write_html(out, title, intro, sections)
     return paths

@@ -147,7 +147,7 @@ class EpisodeResult:
 
 
 def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
-    """Tool-pose errors in the nominal seam frame (the metrics of DESIGN.md / SEAM.md).
+    """Tool-pose errors in the nominal seam frame (the errors of the paper's Fig. 8; see :func:`metrics`).
 
     Parameters
     ----------
@@ -333,7 +333,7 @@ def _rmse(errors: np.ndarray) -> np.ndarray:
 
 
 def metrics(results: list[EpisodeResult]) -> dict:
-    """Pooled accuracy and speed of episodes in the DESIGN.md ``metrics.json`` shape.
+    """Pooled accuracy and speed of episodes: the ``metrics.json`` of ``posekit seam simulate``.
 
     Returns
     -------
