@@ -33,6 +33,26 @@ it skips are part of that one error, not new ones. It never holds more than one 
 announces cannot be told from the start of the next one: it swallows the head of the next
 frame, whose tail then fails the magic check (one error, two frames lost).
 
+**Hello** (sensor → server, once, the first bytes of a connection): the shared secret of a
+server that requires one (``--token-file``; always when it accepts remote sensors). A
+12-byte header and the token:
+
+======  =====  ==============  ========================================================
+offset  bytes  field           meaning
+======  =====  ==============  ========================================================
+0       4      magic           ``b"PKHI"``
+4       2      version         u16, ``1``
+6       2      flags           u16, reserved: sent as 0, ignored
+8       4      token_length    u32 number L of token bytes, ``1 <= L <= MAX_TOKEN_BYTES``
+12      L      token           the token, UTF-8
+======  =====  ==============  ========================================================
+
+The server does not answer: with the right token the frames that follow are served; with
+a wrong or missing one it closes the connection (the sensor's next send fails). A server
+without a token skips a hello, so a sensor configured with one works with both. The token
+is a password sent in the clear, not encryption: anyone on the path can read it.
+:func:`decode_hello` reads it.
+
 **Robot records** (server → robot interface): one JSON object per line, UTF-8,
 ``\\n``-terminated (:func:`encode_command`, :class:`LineDecoder`).
 """
@@ -50,7 +70,9 @@ from ..errors import ConfigError, ProfileError
 __all__ = ["MAGIC", "VERSION", "HEADER", "HEADER_SIZE", "MAX_POINTS", "MAX_FRAME_BYTES",
            "BAD_MAGIC", "UNKNOWN_VERSION", "OVERSIZED", "TRUNCATED",
            "Frame", "FrameError", "FrameDecoder", "encode_frame",
-           "encode_command", "LineDecoder", "MAX_LINE_BYTES"]
+           "encode_command", "LineDecoder", "MAX_LINE_BYTES",
+           "HELLO_MAGIC", "HELLO_HEADER", "HELLO_HEADER_SIZE", "MAX_TOKEN_BYTES", "NO_HELLO",
+           "Hello", "encode_hello", "decode_hello"]
 
 MAGIC = b"PKPF"
 VERSION = 1
@@ -290,6 +312,111 @@ class FrameDecoder:
         self._buf.clear()
         self._resync = False
         return err
+
+
+# --------------------------------------------------------------------------- hello
+
+HELLO_MAGIC = b"PKHI"
+#: ``struct`` layout of the hello header: magic, version, flags, token_length.
+HELLO_HEADER = struct.Struct("<4sHHI")
+HELLO_HEADER_SIZE = HELLO_HEADER.size                      # 12
+#: Longest token a hello may carry, bytes.
+MAX_TOKEN_BYTES = 1024
+#: Reason of a :class:`FrameError` from :func:`decode_hello`: the stream does not start with a hello.
+NO_HELLO = "no_hello"
+
+
+@dataclass(frozen=True)
+class Hello:
+    """A decoded hello.
+
+    Attributes
+    ----------
+    token : bytes
+        The token as sent (UTF-8).
+    size : int
+        Bytes of the stream the hello took; the first frame starts there.
+    """
+
+    token: bytes
+    size: int
+
+
+def _token_bytes(token) -> bytes:
+    if isinstance(token, str):
+        token = token.encode("utf-8")
+    if not isinstance(token, bytes | bytearray):
+        raise ConfigError(f"token must be a str or bytes, got {type(token).__name__}")
+    if not 1 <= len(token) <= MAX_TOKEN_BYTES:
+        raise ConfigError(f"token must be 1..{MAX_TOKEN_BYTES} bytes, got {len(token)}")
+    return bytes(token)
+
+
+def encode_hello(token: str | bytes) -> bytes:
+    """The hello carrying ``token``: send it first on a connection.
+
+    Parameters
+    ----------
+    token : str or bytes
+        The shared secret (a str is sent as UTF-8), 1 to ``MAX_TOKEN_BYTES`` bytes.
+
+    Raises
+    ------
+    ConfigError
+        If the token is empty, too long, or neither str nor bytes.
+
+    Examples
+    --------
+    >>> data = encode_hello("s3cret")
+    >>> data[:4], len(data)
+    (b'PKHI', 18)
+    >>> decode_hello(data)
+    Hello(token=b's3cret', size=18)
+    """
+    tok = _token_bytes(token)
+    return HELLO_HEADER.pack(HELLO_MAGIC, VERSION, 0, len(tok)) + tok
+
+
+def decode_hello(data) -> Hello | FrameError | None:
+    """Read a hello at the start of ``data`` (the first bytes of a connection).
+
+    Parameters
+    ----------
+    data : bytes-like
+        The bytes received so far.
+
+    Returns
+    -------
+    Hello
+        A complete hello; its ``size`` bytes are consumed.
+    FrameError
+        ``no_hello`` (the stream starts with something else), ``unknown_version`` or
+        ``oversized`` (a token length outside ``1..MAX_TOKEN_BYTES``), decided from the
+        first bytes that show it, without waiting for more.
+    None
+        More bytes are needed (never more than ``HELLO_HEADER_SIZE + MAX_TOKEN_BYTES``).
+
+    Examples
+    --------
+    >>> decode_hello(b"PKH") is None
+    True
+    >>> decode_hello(b"PKPF").reason
+    'no_hello'
+    """
+    n = min(len(data), 4)
+    if bytes(data[:n]) != HELLO_MAGIC[:n]:
+        return FrameError(NO_HELLO, f"expected a hello {HELLO_MAGIC!r} first, got {bytes(data[:n])!r}", 0)
+    if len(data) < HELLO_HEADER_SIZE:
+        return None
+    _, version, _flags, length = HELLO_HEADER.unpack_from(data, 0)
+    if version != VERSION:
+        return FrameError(UNKNOWN_VERSION, f"hello version {version}, this decoder reads {VERSION}", 0)
+    if not 1 <= length <= MAX_TOKEN_BYTES:
+        return FrameError(OVERSIZED, f"hello announces a {length}-byte token, expected 1..{MAX_TOKEN_BYTES}", 0)
+    size = HELLO_HEADER_SIZE + length
+    if len(data) < size:
+        return None
+    return Hello(bytes(data[HELLO_HEADER_SIZE:size]), size)
 
 
 # --------------------------------------------------------------------------- JSON lines

@@ -7,15 +7,22 @@ per frame to the robot interface over TCP.
 
 Threads and buffers::
 
-    sensor ──TCP──▶ receiver ──▶ deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
-                    (decode)      drop-oldest, never blocks     CD → PC → controller → send
+    sensors ──TCP──▶ receiver ──▶ deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
+                     (hello, decode, drop-oldest, never blocks     CD → PC → controller → send
+                      timeouts)
 
-- The **receiver** accepts one sensor connection at a time and decodes frames
-  (:class:`~posekit.profiler.protocol.FrameDecoder`). It never waits for the worker: when
-  the buffer is full the *oldest* frame is dropped (and counted), so the pose that goes
-  out is always from the newest profile and the sensor is never blocked. After a
-  disconnect (also mid-frame) it logs it, discards the partial frame and accepts the next
-  connection.
+- The **receiver** serves every sensor connection at once from one thread (non-blocking
+  sockets, :mod:`selectors`) and decodes frames
+  (:class:`~posekit.profiler.protocol.FrameDecoder`), so one stalled client never blocks
+  another. Each connection has a read timeout (a frame, or the hello, once begun must be
+  complete within ``read_timeout_s``) and an idle timeout (no complete frame for
+  ``idle_timeout_s``); a connection that exceeds one is closed and logged. With a
+  ``token``, a client must first send a hello carrying it
+  (:func:`~posekit.profiler.protocol.encode_hello`), compared in constant time; a wrong
+  or missing one closes the connection. The receiver never waits for the worker: when the
+  buffer is full the *oldest* frame is dropped (and counted), so the pose that goes out
+  is always from the newest profile and the sensor is never blocked. After a disconnect
+  (also mid-frame) it logs it and discards the partial frame.
 - The **worker** takes one frame at a time: NaN-storm check, corner detection
   (:func:`~posekit.profiler.corners.detect_corners_unchecked`), pose
   (:func:`~posekit.profiler.solve.solve_pose_unchecked`, warm-started from the previous
@@ -29,13 +36,16 @@ frames with it, so DT is meaningful): **DT** = receive time of the frame's last 
 sensor stamp (the paper's data transmission, Table III); **CD** = NaN-storm check and
 corner detection; **PC** = pose computation, covariance and the controller. ``QW``, the
 time a frame waited in the buffer, is kept as well (it grows when the worker falls
-behind).
+behind). The sensor stamp is not trusted: DT is only computed when the stamp lies within
+``max_dt_s`` before the receive time and not before the connection's previous believed
+stamp; otherwise DT is unknown (null in the record, NaN in :meth:`PoseServer.timings`)
+and the frame is counted in ``bad_stamps`` (it is still processed).
 
 Record sent to the robot (one JSON line per processed frame, and for a NaN storm)::
 
     {"seq", "t_sensor_ns", "status": "ok"|"error", "t_mm": [3], "q_wxyz": [4],
      "std_t_um": [3], "std_rot_deg": [3], "reprojection_um", "reversed",
-     "command": <controller dict or null>, "timing_ms": {"DT", "QW", "CD", "PC"},
+     "command": <controller dict or null>, "timing_ms": {"DT" (null: stamp not trusted), "QW", "CD", "PC"},
      "error": str|null}
 
 Pose fields are null when the profile failed; the standard deviations are null for the
@@ -45,6 +55,7 @@ closed form (``method="cf"``), which has no error model.
 import gc
 import logging
 import math
+import selectors
 import socket
 import threading
 import time
@@ -56,9 +67,18 @@ from ..errors import ConfigError, ProfileError
 from ..geometry import quaternion_from_matrix
 from .corners import CornerParams, detect_corners_unchecked, raise_for_status
 from .gauge import Gauge
-from .protocol import MAX_FRAME_BYTES, Frame, FrameDecoder, encode_command
+from .protocol import MAX_FRAME_BYTES, Frame, encode_command, encode_hello
 from .refine import pose_covariance_and_reprojection
-from .server_support import Counts, LogLimiter, RobotLink, check_address, parse_address
+from .server_support import (
+    Counts,
+    LogLimiter,
+    RobotLink,
+    SensorConnection,
+    check_address,
+    parse_address,
+    read_token_file,
+    token_digest,
+)
 from .solve import (
     METHODS,
     MOUNTINGS,
@@ -68,12 +88,13 @@ from .solve import (
     warm_start_buffers,
 )
 
-__all__ = ["PoseServer", "parse_address", "check_address", "NAN_STORM"]
+__all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
 
 #: Rejection reason of a frame whose points are (almost) all NaN.
 NAN_STORM = "nan_storm"
 _TIMING_KEYS = ("DT", "QW", "CD", "PC")
 _POLL_S = 0.05                 # how often blocked threads look at the stop flag
+_SECONDS_RANGE = (0.05, 86_400.0)   # accepted timeouts, s
 
 
 def _error_record(frame, error):
@@ -108,7 +129,21 @@ class PoseServer:
         failed profiles are logged at most once per second per kind, with a count of
         the ones held back.
     allow_remote : bool
-        Accept a non-loopback ``listen`` or ``robot`` address.
+        Accept a non-loopback ``listen`` or ``robot`` address; needs a ``token``.
+    token : str or bytes, optional
+        Shared secret every sensor must present first (see
+        :func:`~posekit.profiler.protocol.encode_hello`); required with ``allow_remote``.
+        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`read_token_file` reads one from a file.
+    idle_timeout_s : float
+        A connection that delivers no complete frame for this long is closed, s.
+    read_timeout_s : float
+        A frame (or the hello) whose first byte arrived must be complete within this, s.
+    max_dt_s : float
+        A sensor stamp older than this at receipt (or in the future, or earlier than the
+        previous one) is not believed: DT unknown, counted in ``bad_stamps``.
+    max_connections : int
+        Sensor connections served at once; a new one beyond it closes the connection
+        that has gone longest without a complete frame.
     params : CornerParams
     nan_storm_fraction : float
         A frame with more than this fraction of NaN points (or no points) is rejected
@@ -133,7 +168,9 @@ class PoseServer:
                  queue_size: int = 4, method: str = "mle", mounting: str = "auto",
                  log: logging.Logger | None = None, allow_remote: bool = False,
                  params: CornerParams = CornerParams(), nan_storm_fraction: float = 0.95,
-                 history: int = 100_000, freeze_gc: bool = True):
+                 history: int = 100_000, freeze_gc: bool = True, token: str | bytes | None = None,
+                 idle_timeout_s: float = 30.0, read_timeout_s: float = 2.0, max_dt_s: float = 10.0,
+                 max_connections: int = 16):
         if not isinstance(gauge, Gauge):
             raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
         if method not in METHODS:
@@ -151,6 +188,19 @@ class PoseServer:
             raise ConfigError(f"PoseServer: nan_storm_fraction must be in [0, 1), got {nan_storm_fraction}")
         if controller is not None and not callable(controller):
             raise ConfigError("PoseServer: controller must be callable(seq, t_s, T_G_F, cov) -> dict | None")
+        lo, hi = _SECONDS_RANGE
+        for name, value in (("idle_timeout_s", idle_timeout_s), ("read_timeout_s", read_timeout_s),
+                            ("max_dt_s", max_dt_s)):
+            if not (isinstance(value, int | float) and lo <= value <= hi):
+                raise ConfigError(f"PoseServer: {name} must be a number of seconds in [{lo:g}, {hi:g}], got {value!r}")
+        if not (isinstance(max_connections, int) and max_connections >= 1):
+            raise ConfigError(f"PoseServer: max_connections must be an integer >= 1, got {max_connections!r}")
+        if allow_remote and token is None:
+            raise ConfigError("PoseServer: allow_remote=True (--allow-remote) needs a token (--token-file FILE) "
+                              "that every sensor must present; refusing to accept remote sensors without one")
+        if token is not None:
+            encode_hello(token)              # validates it: str or bytes, 1..MAX_TOKEN_BYTES
+        self._digest = None if token is None else token_digest(token)
         self.gauge = gauge
         self.method = method
         self.mounting = mounting
@@ -160,6 +210,10 @@ class PoseServer:
         self.nan_storm_fraction = float(nan_storm_fraction)
         self.allow_remote = bool(allow_remote)
         self.freeze_gc = bool(freeze_gc)
+        self.idle_timeout_s = float(idle_timeout_s)
+        self.read_timeout_s = float(read_timeout_s)
+        self.max_dt_s = float(max_dt_s)
+        self.max_connections = max_connections
         self._listen_family, self._listen_addr = check_address(listen, "listen address", self.allow_remote)
         self._robot = None if robot is None else check_address(robot, "robot address", self.allow_remote)
         self.log = log if log is not None else logging.getLogger("posekit.server")
@@ -184,7 +238,7 @@ class PoseServer:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._lsock = None
-        self._conn = None
+        self._n_conns = 0
         self._address = None
         self._last_T = None
         self._last_rev = False
@@ -220,7 +274,7 @@ class PoseServer:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.bind(self._listen_addr)
             sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
-            sock.settimeout(_POLL_S)
+            sock.setblocking(False)
         except OSError as exc:
             sock.close()
             raise ConfigError(f"listen address {self._listen_addr[0]}:{self._listen_addr[1]}: "
@@ -234,7 +288,8 @@ class PoseServer:
         ]
         for t in self._threads:
             t.start()
-        self.log.info("listening for the sensor on %s:%d", *self._address)
+        self.log.info("listening for sensors on %s:%d (%s)", *self._address,
+                      "token required" if self._digest is not None else "no token")
         return self._address
 
     def _warm_up(self) -> None:
@@ -262,12 +317,6 @@ class PoseServer:
         self._stop.set()
         with self._cond:
             self._cond.notify_all()
-        conn = self._conn
-        if conn is not None:
-            try:
-                conn.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
         deadline = time.monotonic() + timeout_s
         for t in self._threads:
             t.join(max(0.0, deadline - time.monotonic()))
@@ -302,15 +351,20 @@ class PoseServer:
             whose profile or controller failed), ``dropped`` (oldest frames pushed out of
             the full buffer), ``rejected`` (malformed stretches of the stream and NaN
             storms) with ``reasons`` (a :class:`collections.Counter` by reason),
-            ``disconnects``, ``connections``, ``cold_restarts`` (warm starts that fell back
-            to the closed form), ``sent``/``unsent`` records and ``robot_connects``/
-            ``robot_failures``, and ``queued``. Once idle, ``received == processed +
-            dropped + reasons['nan_storm']``.
+            ``disconnects`` (every close, by either side), ``connections`` (accepted),
+            ``connected`` (open now), ``timeouts`` (closed by the idle or read timeout),
+            ``auth_failures`` (closed for a missing, malformed or wrong hello),
+            ``evictions`` (closed to make room, see ``max_connections``), ``bad_stamps``
+            (frames whose sensor stamp was not believed: DT unknown), ``cold_restarts``
+            (warm starts that fell back to the closed form), ``sent``/``unsent`` records and
+            ``robot_connects``/``robot_failures``, and ``queued``. Once idle, ``received ==
+            processed + dropped + reasons['nan_storm']``.
         """
         with self._stats_lock:
             c = self._counts
             out = dict(vars(c))
             out["reasons"] = Counter(self._reasons)
+            out["connected"] = self._n_conns
         with self._cond:
             out["queued"] = len(self._queue)
         return out
@@ -321,7 +375,8 @@ class PoseServer:
         Returns
         -------
         dict of str to ndarray, shape (k,)
-            ``DT`` (sensor stamp → last byte received), ``QW`` (wait in the buffer),
+            ``DT`` (sensor stamp → last byte received; NaN where the stamp was not
+            believed, see ``max_dt_s``), ``QW`` (wait in the buffer),
             ``CD`` (NaN check + corner detection), ``PC`` (pose + covariance +
             controller), oldest first.
         """
@@ -346,65 +401,132 @@ class PoseServer:
     def _receive_loop(self) -> None:
         buf = bytearray(4 * MAX_FRAME_BYTES)
         view = memoryview(buf)
-        while not self._stop.is_set():
+        sel = selectors.DefaultSelector()
+        sel.register(self._lsock, selectors.EVENT_READ, None)
+        conns: dict = {}
+        idle_ns = int(self.idle_timeout_s * 1e9)
+        read_ns = int(self.read_timeout_s * 1e9)
+        next_check = 0
+        try:
+            while not self._stop.is_set():
+                try:
+                    events = sel.select(_POLL_S)
+                except OSError:                     # e.g. EINTR storms; look at the stop flag
+                    events = []
+                for key, _ in events:
+                    c = key.data
+                    if c is None:
+                        self._accept(sel, conns)
+                    elif c.sock in conns:           # not closed earlier in this round
+                        try:
+                            self._read(c, view, sel, conns)
+                        except Exception as exc:    # a bug, never bad input (the decoders take any bytes)
+                            self.log.exception("receiver: internal error, dropping the connection")
+                            self._close(c, sel, conns, f"internal error ({type(exc).__name__}: {exc})")
+                now = time.perf_counter_ns()
+                if now >= next_check:               # deadlines: ~20 times a second is enough
+                    next_check = now + 50_000_000
+                    expired = [(c, c.expired(now, idle_ns, read_ns)) for c in conns.values()]
+                    for c, why in expired:
+                        if why is not None:
+                            with self._stats_lock:
+                                self._counts.timeouts += 1
+                            self._close(c, sel, conns, why, "timeout", logging.WARNING)
+                    self._limiter.flush_due()
+        finally:
+            for c in list(conns.values()):
+                c.close()
+            conns.clear()
+            with self._stats_lock:
+                self._n_conns = 0
+            sel.close()
+
+    def _accept(self, sel, conns: dict) -> None:
+        """Accept every pending connection (the listening socket is non-blocking)."""
+        for _ in range(64):
             try:
-                conn, peer = self._lsock.accept()
-            except TimeoutError:
-                self._limiter.flush_due()
-                continue
-            except OSError:
-                if self._stop.is_set():
-                    break
+                sock, addr = self._lsock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:        # e.g. out of file descriptors: try again later
+                self._limiter.event("accept_failed", logging.WARNING, f"cannot accept a sensor connection ({exc})")
                 time.sleep(_POLL_S)
-                continue
-            conn.settimeout(_POLL_S)
-            self._conn = conn
+                return
+            now = time.perf_counter_ns()
+            if len(conns) >= self.max_connections:
+                oldest = min(conns.values(), key=lambda c: c.t_progress_ns)
+                with self._stats_lock:
+                    self._counts.evictions += 1
+                self._close(oldest, sel, conns, f"evicted: {self.max_connections} connections open and it had "
+                            f"the oldest complete frame", "evicted", logging.WARNING)
+            sock.setblocking(False)
+            try:
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            except OSError:
+                pass
+            peer = f"{addr[0]}:{addr[1]}"
+            c = SensorConnection(sock, peer, now, self._digest)
+            conns[sock] = c
+            sel.register(sock, selectors.EVENT_READ, c)
             with self._stats_lock:
                 self._counts.connections += 1
-            self._limiter.event("connect", logging.INFO, f"sensor connected from {peer[0]}:{peer[1]}")
-            decoder = FrameDecoder()
-            why = "closed by the sensor"
-            try:
-                while not self._stop.is_set():
-                    try:
-                        n = conn.recv_into(view)
-                    except TimeoutError:
-                        self._limiter.flush_due()
-                        continue
-                    except OSError as exc:
-                        why = f"connection error ({exc})"
-                        break
-                    t_recv = time.perf_counter_ns()
-                    if n == 0:
-                        break
-                    for item in decoder.feed(view[:n], t_recv):
-                        if isinstance(item, Frame):
-                            self._enqueue(item)
-                        else:
-                            self._reject(item.reason, item.detail)
-            except Exception as exc:      # a bug, never bad input (the decoder takes any bytes)
-                self.log.exception("receiver: internal error, dropping the connection")
-                why = f"internal error ({type(exc).__name__}: {exc})"
-            finally:
-                self._conn = None
-                conn.close()
-            if self._stop.is_set():
-                break
-            partial = decoder.flush()
-            with self._stats_lock:
-                self._counts.disconnects += 1
-            level = logging.INFO
-            if partial is not None:
-                self._reject(partial.reason, partial.detail)
-                why += f", mid-frame: {partial.detail}; the partial frame was discarded"
-                level = logging.WARNING
-            self._limiter.event("disconnect", level,
-                                f"sensor {peer[0]}:{peer[1]} disconnected ({why}); waiting for the next connection")
+                self._n_conns = len(conns)
+            self._limiter.event("connect", logging.INFO, f"sensor connected from {peer}")
 
-    def _enqueue(self, frame: Frame) -> None:
+    def _read(self, c: SensorConnection, view, sel, conns: dict) -> None:
+        """One ``recv`` on a readable connection; decode, enqueue, or close it."""
+        try:
+            n = c.sock.recv_into(view)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            self._close(c, sel, conns, f"connection error ({exc})")
+            return
+        t_recv = time.perf_counter_ns()
+        if n == 0:
+            self._close(c, sel, conns, "closed by the sensor")
+            return
+        items, refused = c.feed(view[:n], t_recv)
+        if refused is not None:
+            with self._stats_lock:
+                self._counts.auth_failures += 1
+            self._close(c, sel, conns, f"refused: {refused}", "auth", logging.WARNING)
+            return
+        max_ns = int(self.max_dt_s * 1e9)
+        for item in items:
+            if isinstance(item, Frame):
+                dt_ns, why = c.transmission_ns(item.t_sensor_ns, item.t_recv_ns, max_ns)
+                if why is not None:
+                    with self._stats_lock:
+                        self._counts.bad_stamps += 1
+                    self._limiter.event("bad_stamp", logging.WARNING,
+                                        f"sensor {c.peer}: seq {item.seq}: {why}; DT not measured for this frame")
+                self._enqueue(item, dt_ns)
+            else:
+                self._reject(item.reason, item.detail)
+
+    def _close(self, c: SensorConnection, sel, conns: dict, why: str, key: str = "disconnect",
+               level: int = logging.INFO) -> None:
+        """Close one connection, count and log it (once, rate-limited by kind)."""
+        try:
+            sel.unregister(c.sock)
+        except (KeyError, ValueError, OSError):
+            pass
+        conns.pop(c.sock, None)
+        partial = c.close()
+        with self._stats_lock:
+            self._counts.disconnects += 1
+            self._n_conns = len(conns)
+        if partial is not None:
+            self._reject(partial.reason, partial.detail)
+            why += f", mid-frame: {partial.detail}; the partial frame was discarded"
+            level = max(level, logging.WARNING)
+        self._limiter.event(key, level, f"sensor {c.peer} disconnected ({why})")
+
+    def _enqueue(self, frame: Frame, dt_ns: int | None) -> None:
         with self._cond:
             dropped = len(self._queue) == self.queue_size
-            self._queue.append(frame)           # a full deque drops its oldest item
+            self._queue.append((frame, dt_ns))  # a full deque drops its oldest item
             self._cond.notify()
         with self._stats_lock:
             self._counts.received += 1
@@ -424,9 +546,9 @@ class PoseServer:
                         self._cond.wait(_POLL_S)
                     if self._stop.is_set():
                         break
-                    frame = self._queue.popleft()
+                    frame, dt_ns = self._queue.popleft()
                 try:
-                    record = self._process(frame)
+                    record = self._process(frame, dt_ns)
                 except Exception as exc:  # a bug, never bad input: report it and go on
                     self.log.exception("worker: internal error on frame seq %d", frame.seq)
                     with self._stats_lock:
@@ -461,10 +583,10 @@ class PoseServer:
             return cold
         return solve_pose_unchecked(corners, ccov, g, self._method_code, self._mounting_code)
 
-    def _process(self, frame: Frame) -> dict:
+    def _process(self, frame: Frame, dt_ns: int | None = None) -> dict:
         t0 = time.perf_counter_ns()
         seq = frame.seq
-        dt_ms = (frame.t_recv_ns - frame.t_sensor_ns) * 1e-6
+        dt_ms = None if dt_ns is None else dt_ns * 1e-6
         qw_ms = (t0 - frame.t_recv_ns) * 1e-6
         rec = _error_record(frame, None)
         pts = frame.points
@@ -526,7 +648,7 @@ class PoseServer:
             else:
                 c.errors += 1
             row = self._tim[self._tim_n % self._tim.shape[0]]
-            row[0] = dt_ms
+            row[0] = math.nan if dt_ms is None else dt_ms
             row[1] = qw_ms
             row[2] = cd_ms
             row[3] = pc_ms

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from .protocol import LineDecoder, encode_frame
+from .protocol import LineDecoder, encode_frame, encode_hello
 
 __all__ = ["SensorClient", "StreamReport", "RobotInterfaceStub"]
 
@@ -53,20 +53,31 @@ class SensorClient:
         The :class:`~posekit.profiler.server.PoseServer` address.
     timeout_s : float
         Connect timeout, and the longest a send may block, s.
+    token : str or bytes, optional
+        The server's shared secret (``--token-file``), sent first in a hello
+        (:func:`~posekit.profiler.protocol.encode_hello`); a server without a token skips it.
 
     Raises
     ------
     ConfigError
-        If the server cannot be reached.
+        If the server cannot be reached, or the token is empty or too long.
     """
 
-    def __init__(self, host: str, port: int, timeout_s: float = 5.0):
+    def __init__(self, host: str, port: int, timeout_s: float = 5.0, token: str | bytes | None = None):
+        hello = None if token is None else encode_hello(token)
         try:
             self._sock = socket.create_connection((host, int(port)), timeout=timeout_s)
         except OSError as exc:
             raise ConfigError(f"sensor client: cannot connect to {host}:{port} ({exc.strerror or exc})") from None
         self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.address = (host, int(port))
+        if hello is not None:
+            try:
+                self._sock.sendall(hello)
+            except OSError as exc:
+                self._sock.close()
+                raise ConfigError(f"sensor client: {host}:{port} closed the connection before the hello "
+                                  f"({exc.strerror or exc})") from None
 
     def send_profile(self, seq: int, points_xz, t_sensor_ns: int | None = None) -> int:
         """Send one profile frame.
