@@ -215,9 +215,14 @@ def test_cli_npz_without_profiles_message_is_not_wrapped(capsys, tmp_path):
 
 
 def test_cli_unwritable_out(capsys, tmp_path, good_npz):
-    out_path = tmp_path / "no" / "such" / "folder" / "poses.csv"
+    (tmp_path / "a_file").write_text("")
+    out_path = tmp_path / "a_file" / "poses.csv"  # its folder is a file
     rc, out, err = run(capsys, "profiler", "estimate", good_npz, "--gauge", DEMO5, "--out", out_path)
     assert_one_line_error(rc, out, err, str(out_path), "cannot write")
+    # missing folders of a new file are created, and the file appears whole
+    deep = tmp_path / "new" / "folder" / "poses.csv"
+    rc, out, err = run(capsys, "profiler", "estimate", good_npz, "--gauge", DEMO5, "--out", deep)
+    assert deep.read_text().startswith("index,status,") and not list(deep.parent.glob(".*partial"))
 
 
 # --- CLI: gauge files -----------------------------------------------------------------

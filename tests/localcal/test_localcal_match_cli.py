@@ -116,7 +116,8 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys):
     rc = main(["localcal", "match", a, a, "--max-dt", "0", "--out", str(tmp_path / "r.json")])
     assert rc == 1
     assert capsys.readouterr().err == "posekit: error: max_dt_s must be a number > 0, got 0\n"
+    (tmp_path / "no").write_text("a file, not a folder")
     rc = main(["localcal", "match", a, a, "--out", str(tmp_path / "no" / "r.json")])
     err = capsys.readouterr().err
-    assert rc == 1 and err.startswith(f"posekit: error: --out {tmp_path / 'no' / 'r.json'}: cannot write the result")
+    assert rc == 1 and err.startswith(f"posekit: error: --out {tmp_path / 'no' / 'r.json'}: cannot write in")
     assert err.count("\n") == 1

@@ -92,8 +92,7 @@ def test_an_unwritable_out_fails_before_any_run(tmp_path, capsys, verb):
     captured = capsys.readouterr()
     assert rc == 1
     assert captured.out == ""                          # nothing was run
-    folder = out if verb[0] == "simulate" else out / "line"
-    assert captured.err == f"posekit: error: --out {folder}: cannot create the output folder (Not a directory)\n"
+    assert captured.err == f"posekit: error: --out {out}: {blocker} is a file, not a folder; expected a folder path\n"
 
 
 def test_a_failed_run_keeps_its_row_in_the_written_tables(tmp_path, capsys, monkeypatch):

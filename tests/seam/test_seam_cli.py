@@ -48,7 +48,7 @@ def test_unwritable_out_is_an_error_before_any_run(capsys, tmp_path, verb):
     a_file.write_text("")
     rc, out, err = _run(capsys, "seam", *verb, "--out", str(a_file))
     assert rc == 1 and out == ""
-    assert err == f"posekit: error: --out {a_file}: cannot create the output folder (File exists)\n"
+    assert err == f"posekit: error: --out {a_file}: exists and is not a folder; expected a folder name\n"
 
 
 def test_simulate_usage_errors_exit_2(capsys, tmp_path):

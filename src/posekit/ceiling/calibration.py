@@ -28,7 +28,7 @@ from ..geometry import (
     normalize_homography,
     refine_homography,
 )
-from ..io import load_json, read_text
+from ..io import load_json, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
@@ -124,12 +124,8 @@ class Calibration:
             data["n_points"] = int(self.n_points)
         if self.inliers is not None:
             data["inliers"] = [bool(b) for b in self.inliers]
-        path = Path(path)
-        try:
-            path.write_text("{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items())
-                            + "\n}\n")
-        except OSError as exc:
-            raise CalibrationError(f"{path}: cannot write the calibration ({exc.strerror or exc})") from None
+        text = "{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items()) + "\n}\n"
+        write_text_atomic(path, text, error=CalibrationError)
 
 
 def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0, rng=None) -> Calibration:
@@ -332,8 +328,4 @@ def write_points_csv(path, world_xy, image_uv):
     world = np.asarray(world_xy, dtype=float).reshape(-1, 2)
     image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
     body = "".join(f"{X:.6g},{Y:.6g},{u:.4f},{v:.4f}\n" for (X, Y), (u, v) in zip(world, image))
-    path = Path(path)
-    try:
-        path.write_text(",".join(CSV_HEADER) + "\n" + body)
-    except OSError as exc:
-        raise CalibrationError(f"{path}: cannot write the points ({exc.strerror or exc})") from None
+    write_text_atomic(path, ",".join(CSV_HEADER) + "\n" + body, error=CalibrationError)

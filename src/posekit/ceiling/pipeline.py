@@ -324,10 +324,10 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
 
 def write_track_csv(rows: Iterable[TrackRow], path: str | Path) -> Path:
     """Write ``frame,time_s,x,y,heading_deg,status`` (mm, s, degrees; NaN as empty)."""
+    from ..io import atomic_file
+
     path = Path(path)
-    if path.parent and not path.parent.exists():
-        path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as fh:
+    with atomic_file(path, "w", newline="") as fh:  # complete or absent, never half-written
         w = csv.writer(fh)
         w.writerow(TRACK_COLUMNS)
         for r in rows:

@@ -1,12 +1,22 @@
 """Helpers shared by the sub-command modules."""
 
-import os
 import sys
 from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder"]
+__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged"]
+
+#: Help of ``--overwrite``, the same on every verb that writes a folder.
+OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
+                  "is complete)")
+
+
+def add_overwrite(parser, out_default: str | None = None) -> None:
+    """Add ``--overwrite`` to a verb that writes a run's folder to ``--out``; a verb with a default
+    folder (``out_default``) replaces that one on every run."""
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    parser.set_defaults(out_default=out_default)
 
 
 def resolve_gauge(arg: str):
@@ -37,13 +47,25 @@ def parse_triplet(text: str, name: str) -> tuple[float, float, float]:
     return vals
 
 
-def out_folder(out) -> Path:
-    """Create the output folder before the (long) runs; a one-line ConfigError if it cannot be written."""
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"--out {folder}: cannot create the output folder ({exc.strerror or exc})") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ConfigError(f"--out {folder}: the output folder is not writable")
-    return folder
+def out_folder(args) -> Path:
+    """Check ``args.out`` before the (long) runs: a new or empty folder (or ``--overwrite``) whose
+    parent is writable; a one-line ConfigError otherwise. The run then writes through
+    :func:`posekit.io.staged_folder`, so the folder appears whole or not at all."""
+    from ..io import check_out_folder
+
+    return check_out_folder(args.out, overwrite=_overwrite(args))
+
+
+def _overwrite(args) -> bool:
+    """``--overwrite``, or the verb's own default folder (a demo's ``posekit-demo``), which each run
+    replaces."""
+    default = getattr(args, "out_default", None)
+    return bool(getattr(args, "overwrite", False)) or (default is not None and str(args.out) == default)
+
+
+def staged(args):
+    """``posekit.io.staged_folder`` for ``args.out`` / ``args.overwrite``: a temporary folder
+    that becomes ``--out`` when the block succeeds."""
+    from ..io import staged_folder
+
+    return staged_folder(args.out, overwrite=_overwrite(args))

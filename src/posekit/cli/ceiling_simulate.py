@@ -1,8 +1,10 @@
 """``posekit ceiling simulate``: render a synthetic ceiling video with its truth."""
 
 import sys
+from pathlib import Path
 
 from ..errors import ConfigError
+from ._common import add_overwrite, out_folder, staged
 
 __all__ = ["add_simulate_parser", "run_simulate"]
 
@@ -17,6 +19,7 @@ def add_simulate_parser(verbs):
                     "laser pointers drives the paper's 2.4 m x 4.4 m rectangle. Writes video.avi (MJPG), "
                     "truth.csv, calibration_points.csv (X,Y,u,v of grid corners), reference.png.")
     s.add_argument("--out", required=True, help="output folder")
+    add_overwrite(s)
     s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same video; default 0)")
     s.add_argument("--dots", default="red", help="lasers: red (case A), red,green or red,red (case B, "
                                                  "40 cm apart), line (case C); default red")
@@ -38,6 +41,18 @@ def _progress(iterable, total=None):
     return tqdm(iterable, total=total, desc="render", unit="frame", leave=False)
 
 
+def _moved(paths, old: Path, new: Path):
+    """The ``paths`` record with every path under ``old`` re-rooted under ``new``."""
+    import dataclasses
+
+    def move(v):
+        return new / Path(v).relative_to(old) if isinstance(v, Path) and Path(v).is_relative_to(old) else v
+
+    if dataclasses.is_dataclass(paths):
+        return dataclasses.replace(paths, **{f.name: move(getattr(paths, f.name)) for f in dataclasses.fields(paths)})
+    return paths._replace(**{k: move(v) for k, v in paths._asdict().items()})
+
+
 def run_simulate(args) -> int:
     from ..ceiling.render import SceneConfig, render_video
 
@@ -48,7 +63,10 @@ def run_simulate(args) -> int:
         raise ConfigError(f"--duration-s: expected a positive number of seconds, got {args.duration_s}")
     config = SceneConfig(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes,
                          noise_std=args.noise_std)
-    paths = render_video(config, args.out, frames_png=args.frames_png, progress=_progress)
+    out_folder(args)
+    with staged(args) as tmp:
+        paths = render_video(config, tmp, frames_png=args.frames_png, progress=_progress)
+    paths = _moved(paths, tmp, Path(args.out))
     print(f"wrote {paths.n_frames} frames ({config.width_px}x{config.height_px}, {config.fps:g} fps) to "
           f"{paths.video}; truth {paths.truth.name}, calibration {paths.calibration_points.name}, "
           f"reference {paths.reference.name}" + (f", frames in {paths.frames_dir}" if paths.frames_dir else ""))

@@ -3,6 +3,8 @@
 import sys
 from pathlib import Path
 
+from ._common import add_overwrite, out_folder, staged
+
 __all__ = ["add_track_parser", "add_demo_parser", "run_track", "run_demo"]
 
 
@@ -78,7 +80,9 @@ def run_track(args) -> int:
 def add_demo_parser(verbs):
     d = verbs.add_parser("demo", help="render a ceiling video, calibrate, track, and compare with the truth "
                                       "(the paper's §V: Fig. 8/9, accuracy, speed)")
-    d.add_argument("--out", default="posekit-ceiling-demo", help="output folder (default posekit-ceiling-demo)")
+    d.add_argument("--out", default="posekit-ceiling-demo",
+                   help="output folder (default posekit-ceiling-demo, replaced on each run)")
+    add_overwrite(d, "posekit-ceiling-demo")
     d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
     d.add_argument("--seconds", type=float, default=None, help="length of the rendered video, s "
                                                                 "(default: the renderer's)")
@@ -90,7 +94,10 @@ def run_demo(args) -> int:
     from ..ceiling.demo import run_demo as demo
     from ..ceiling.pipeline import parse_dots
 
-    report = demo(args.out, dots=parse_dots(args.dots), seconds=args.seconds, seed=args.seed,
-                  progress=_frame_progress(desc="demo"))
-    print(report.summary())
+    dots = parse_dots(args.dots)
+    out_folder(args)
+    with staged(args) as tmp:
+        report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"))
+        summary = report.summary().replace(str(tmp), str(args.out))
+    print(summary)
     return 0

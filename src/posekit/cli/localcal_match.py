@@ -2,7 +2,6 @@
 
 import json
 import sys
-from pathlib import Path
 
 __all__ = ["add_match_parser", "run_match"]
 
@@ -37,7 +36,6 @@ def run_match(args) -> int:
     """Run ``posekit localcal match``; returns the exit code (0)."""
     import numpy as np
 
-    from ..errors import ConfigError
     from ..geometry import rotation_angle_between
     from ..localcal.registration import match_trajectories
     from ..localcal.tum import read_tum
@@ -48,11 +46,9 @@ def run_match(args) -> int:
                              time_offset_s=args.time_offset, max_offset_s=args.max_offset,
                              with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
                              names=(str(args.camera), str(args.kinematic)))
-    out = Path(args.out)
-    try:
-        out.write_text(json.dumps(reg.to_json(), indent=2) + "\n")
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot write the result ({exc.strerror or exc})") from None
+    from ..io import write_text_atomic
+
+    out = write_text_atomic(args.out, json.dumps(reg.to_json(), indent=2) + "\n")
     angle = np.rad2deg(float(rotation_angle_between(np.eye(3), reg.R, check=False)))
     how = (f"{reg.n_pairs} pose pairs within {args.max_dt:g} s at a clock offset of "
            f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps

@@ -1,11 +1,12 @@
 """``posekit localcal simulate`` and ``posekit localcal demo``: look-then-move episodes on the
 simulated long-reach arm, with the paper's tables (2, 3, 4) and figures (6, 7, 8, 9)."""
 
+import contextlib
 import shlex
 import sys
 
-from ..errors import ConfigError
-from ._common import out_folder
+from ..errors import ConfigError, EstimationError
+from ._common import add_overwrite, out_folder, staged
 
 __all__ = ["add_demo_parser", "add_simulate_parser", "run_demo", "run_simulate"]
 
@@ -41,6 +42,7 @@ def add_simulate_parser(verbs):
                         "for any robot but hiab033")
     s.add_argument("--truth", action="store_true", help="also print the simulator's true errors")
     s.add_argument("--out", required=True, help="output folder")
+    add_overwrite(s)
     s.set_defaults(func=run_simulate)
     return s
 
@@ -55,6 +57,7 @@ def add_demo_parser(verbs):
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     _camera_options(s)
     s.add_argument("--out", default=None, help="write tables, figures and report.html to OUT/line and OUT/trajectory")
+    add_overwrite(s)
     s.set_defaults(func=run_demo)
     return s
 
@@ -149,12 +152,13 @@ def run_simulate(args) -> int:
         raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
     config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi,
                      **_robot_options(args))
-    out_folder(args.out)
+    out_folder(args)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
                             scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())
     command = "posekit localcal simulate " + " ".join(
         shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
-    files = _write(result, args.out, command)       # every run has its row, failed ones with status=error
+    with staged(args) as tmp:
+        files = _write(result, tmp, command)       # every run has its row, failed ones with status=error
     _all_failed(result)
     print(tables_text(result, truth=args.truth))
     failed = sum(ep is None for ep in result.episodes)
@@ -174,17 +178,24 @@ def run_demo(args) -> int:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
     config = _config(args)
     if args.out:
+        out_folder(args)
+    failure = None
+    with staged(args) if args.out else contextlib.nullcontext() as tmp:
         for method in ("line", "trajectory"):
-            out_folder(Path(args.out) / method)
-    for method in ("line", "trajectory"):
-        result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
-                                progress=sys.stderr.isatty())
-        if args.out:
-            _write(result, Path(args.out) / method, f"posekit localcal demo --seed {args.seed}")
-        _all_failed(result)                         # one episode: it failed, so the demo did
-        print(f"== {method} method: one look-then-move episode, seed {args.seed} ==")
-        print(tables_text(result))
-        print()
+            result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
+                                    progress=sys.stderr.isatty())
+            if args.out:
+                _write(result, Path(tmp) / method, f"posekit localcal demo --seed {args.seed}")
+            try:
+                _all_failed(result)                 # one episode: it failed, so the demo did
+            except EstimationError as exc:          # what ran is still written, then the error
+                failure = exc
+                break
+            print(f"== {method} method: one look-then-move episode, seed {args.seed} ==")
+            print(tables_text(result))
+            print()
+    if failure is not None:
+        raise failure
     if args.out:
         print(f"wrote the tables, figures and report.html to {Path(args.out) / 'line'} and "
               f"{Path(args.out) / 'trajectory'}")

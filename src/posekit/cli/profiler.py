@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from ._common import parse_triplet, progress, resolve_gauge
+from ._common import add_overwrite, out_folder, parse_triplet, progress, resolve_gauge, staged
 
 __all__ = ["add_parser"]
 
@@ -36,6 +36,7 @@ def add_parser(sub):
     s.add_argument("--standoff-mm", type=float, default=None, help="nominal depth of the gauge, mm (mid-range)")
     s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same profiles)")
     s.add_argument("--out", required=True, help="output folder: profiles.npz and truth.csv")
+    add_overwrite(s)
     s.set_defaults(func=run_simulate)
 
     from .profiler_loop import add_loop_parser
@@ -95,16 +96,14 @@ def run_simulate(args) -> int:
         sigma_z_um=args.noise_um, outlier_rate=args.outliers, dropouts_per_profile=args.dropouts)
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"), standoff_mm=args.standoff_mm)
+    out_folder(args)
     rng = np.random.default_rng(args.seed)
     Ts = sample_poses(gauge, args.count, rng, ws)
     profiles = render_profiles(gauge, Ts, noise, rng)
     out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot create folder ({exc.strerror or exc})") from None
-    np.savez_compressed(out / "profiles.npz", profiles=profiles.astype(np.float64), T_G_F=Ts)
-    write_truth_csv(out / "truth.csv", Ts, quaternion_from_matrix(Ts[:, :3, :3]))
+    with staged(args) as tmp:
+        np.savez_compressed(tmp / "profiles.npz", profiles=profiles.astype(np.float64), T_G_F=Ts)
+        write_truth_csv(tmp / "truth.csv", Ts, quaternion_from_matrix(Ts[:, :3, :3]))
     valid = np.isfinite(profiles[..., 0]).mean()
     print(f"wrote {args.count} profiles of gauge '{gauge.name}' ({profiles.shape[1]} points each, "
           f"{100 * valid:.1f} % returns) to {out / 'profiles.npz'} and the poses to {out / 'truth.csv'}")

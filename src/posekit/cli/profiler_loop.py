@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from ._common import progress, resolve_gauge
+from ._common import add_overwrite, out_folder, progress, resolve_gauge, staged
 
 __all__ = ["add_loop_parser", "run_loop"]
 
@@ -16,7 +16,9 @@ def add_loop_parser(verbs):
 def add_loop_arguments(p, out_default=None):
     p.add_argument("--gauge", default="demo-5", help="gauge YAML file or bundled name (default demo-5)")
     p.add_argument("--out", required=out_default is None, default=out_default,
-                   help="output folder: table3.csv, table4.csv, figures, report.html")
+                   help="output folder: table3.csv, table4.csv, figures, report.html"
+                        + (f" (default {out_default}, replaced on each run)" if out_default else ""))
+    add_overwrite(p, out_default)
     p.add_argument("--repeats", type=int, default=3, help="runs per axis, step and mode (default 3)")
     p.add_argument("--axes", default="x,y,z,xyz", help="step directions (default x,y,z,xyz)")
     p.add_argument("--steps-mm", default="1,2", help="step sizes, mm (default 1,2)")
@@ -44,6 +46,7 @@ def run_loop(args) -> int:
     if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
         raise ConfigError(f"--noise-um must be a finite number >= 0, got {args.noise_um:g}")
     gauge = resolve_gauge(args.gauge)
+    out_folder(args)
     axes = tuple(a.strip() for a in args.axes.split(","))
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "
@@ -53,7 +56,9 @@ def run_loop(args) -> int:
                          seed=args.seed, realtime=args.realtime, nonlinear=not args.linear,
                          camera=not args.no_camera,
                          progress=lambda it: progress(it, total=len(it), desc="runs"))
-    paths = write_loop_report(exp, Path(args.out))
+    with staged(args) as tmp:
+        paths = write_loop_report(exp, tmp)
+        paths = {k: Path(args.out) / Path(v).relative_to(tmp) for k, v in paths.items()}
     print()
     print("Table IV (Mp overshoot, zeta damping ratio, Mf peak-frequency magnitude; measured by posekit):")
     print(format_table4(exp))

@@ -2,9 +2,10 @@
 
 import math
 import sys
+from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import parse_triplet
+from ._common import add_overwrite, out_folder, parse_triplet, staged
 
 __all__ = ["add_study_parser", "parse_numbers"]
 
@@ -31,7 +32,8 @@ def parse_numbers(text: str, name: str, integer: bool = False) -> tuple:
 
 def _common(p, out_default):
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same numbers; default 0)")
-    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default})")
+    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run)")
+    add_overwrite(p, out_default)
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
     p.add_argument("--workers", type=int, default=None,
@@ -140,8 +142,11 @@ def run_study(args) -> int:
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
     fn, cfg = _build(args)
+    out_folder(args)
     study = fn(cfg, scheduler=args.scheduler, n_workers=args.workers)
-    report = write_report(study, args.out)
+    with staged(args) as tmp:
+        write_report(study, tmp)
+    report = Path(args.out) / "report.html"
     _print_summary(study, report)
     sys.stdout.flush()
     return 0

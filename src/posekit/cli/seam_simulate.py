@@ -8,7 +8,7 @@ import sys
 import time
 
 from ..errors import ConfigError
-from ._common import out_folder
+from ._common import add_overwrite, out_folder, staged
 from ._common import progress as _progress
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
@@ -68,6 +68,7 @@ def add_simulate_parser(verbs):
                    help="particles recorded per step in run 0 for Fig. 5 (default 200; 0: no Fig. 5)")
     p.add_argument("--dump-config", action="store_true", help="print the effective configuration and exit")
     p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
+    add_overwrite(p)
     p.set_defaults(func=run_simulate)
     return p
 
@@ -82,6 +83,7 @@ def add_demo_parser(verbs):
     p.add_argument("--particles", type=int, default=DEMO_PARTICLES,
                    help=f"particle count (default {DEMO_PARTICLES})")
     p.add_argument("--out", default=None, help="also write figures, metrics.json and report.html here")
+    add_overwrite(p)
     p.set_defaults(func=run_demo)
     return p
 
@@ -120,7 +122,7 @@ def run_simulate(args) -> int:
     _check_runs(args.runs)
     if args.record_particles < 0:
         raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
-    out_folder(args.out)
+    out_folder(args)
     from ..seam.compare import compare_configurations, run_episodes
     from ..seam.report import write_simulation
     from ..seam.simulate import metrics
@@ -130,7 +132,8 @@ def run_simulate(args) -> int:
     m = metrics(results)
     comparison = (compare_configurations(cfg, args.runs, progress=progress, reuse=(cfg, results))
                   if args.compare else None)
-    paths = write_simulation(args.out, results, m, dump_config(cfg), comparison=comparison)
+    with staged(args) as tmp:
+        paths = write_simulation(tmp, results, m, dump_config(cfg), comparison=comparison)
     count = cfg.sensors.count
     label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"
     rows = [(label, _rmse_values(m))]
@@ -142,7 +145,7 @@ def run_simulate(args) -> int:
           f"filter step median {m['step_ms_median']:.3f} ms")
     print("RMSE per axis in the seam frame (mm, deg):")
     print(rmse_table(rows))
-    print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
+    print(f"wrote {args.out}: {', '.join(p.name for p in paths.values())}")
     return 0
 
 
@@ -157,7 +160,7 @@ def run_demo(args) -> int:
         if value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
     if args.out:
-        out_folder(args.out)
+        out_folder(args)
     cfg = apply_overrides(config_from_dict({}, "defaults"),
                           {"trajectory.steps": args.steps, "filter.particles": args.particles, "seed": args.seed})
     t0 = time.perf_counter()
@@ -173,7 +176,8 @@ def run_demo(args) -> int:
     print(f"filter step median: {main.metrics['step_ms_median']:.3f} ms ({main.label}, {args.particles} particles; "
           f"the paper's sensor period is 10 ms)")
     if args.out:
-        paths = write_simulation(args.out, main.results, main.metrics, dump_config(main.config), comparison=sets,
-                                 title="Seam tracking demo")
-        print(f"wrote {paths['report'].parent}: {', '.join(p.name for p in paths.values())}")
+        with staged(args) as tmp:
+            paths = write_simulation(tmp, main.results, main.metrics, dump_config(main.config), comparison=sets,
+                                     title="Seam tracking demo")
+        print(f"wrote {args.out}: {', '.join(p.name for p in paths.values())}")
     return 0

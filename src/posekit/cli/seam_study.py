@@ -3,6 +3,7 @@
 import sys
 
 from ..errors import ConfigError
+from ._common import add_overwrite
 
 __all__ = ["add_study_parser", "parse_factors"]
 
@@ -32,6 +33,7 @@ def add_study_parser(verbs):
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes of the local cluster (default: one per core)")
     p.add_argument("--out", required=True, help="output folder")
+    add_overwrite(p)
     p.set_defaults(func=run_study)
     return p
 
@@ -60,7 +62,7 @@ def parse_factors(text: str | None):
 def run_study(args) -> int:
     from ..seam.report import ERROR_AXES
     from ..seam.study import make_factors, seam_study, write_study
-    from ._common import out_folder
+    from ._common import out_folder, staged
     from .seam_simulate import build_config
 
     if args.workers is not None and args.scheduler is not None:
@@ -71,10 +73,13 @@ def run_study(args) -> int:
     cfg = build_config(args)
     names, ranges = parse_factors(args.parameters)
     factors = make_factors(cfg.model_dump(mode="json"), names, spread=args.spread, ranges=ranges)
-    out_folder(args.out)
+    out_folder(args)
     study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
                        scheduler=args.scheduler, n_workers=args.workers)
-    report = write_study(study, args.out)
+    with staged(args) as tmp:
+        report = write_study(study, tmp)
+        written = [n for n in ("fig6_pvalues.png", "parameters_ranked.csv", "runs.csv", "report.html")
+                   if (report.parent / n).exists()]
     failed = sum(s != "ok" for s in study.status)
     print(f"seam study: {len(study.X)} runs × {study.episodes} episode(s), {len(factors)} parameters, "
           f"{failed} failed; {study.wall_s:.1f} s wall, {study.task_cpu_s:.1f} s CPU in the tasks")
@@ -86,9 +91,7 @@ def run_study(args) -> int:
         for r in study.ranked:
             print(f"{r['rank']:>4}  {r['parameter']:<28}{r['min_log10_p']:>12.2f}  {r['most_affected']:<14}  "
                   + "".join(f"{r['log10_p_' + a]:>9.2f}" for a in ERROR_AXES))
-    written = [n for n in ("fig6_pvalues.png", "parameters_ranked.csv", "runs.csv", "report.html")
-               if (report.parent / n).exists()]
-    print(f"wrote {report.parent}: {', '.join(written)}")
+    print(f"wrote {args.out}: {', '.join(written)}")
     sys.stdout.flush()
     if failed:  # a batch with failed items: every row is written, the exit code says so
         print(f"posekit: error: {failed} of {len(study.X)} study runs failed; their rows in runs.csv say why",

@@ -13,7 +13,7 @@ from ._arrays import load_npy, load_npz_member, npz_members
 from ._files import check_input_file, read_bytes, read_text, sniff
 from ._images import check_frame_size, image_size, read_image
 from ._limits import Limits, get_limits, quote, set_limits
-from ._output import atomic_file, check_out_folder, staged_folder
+from ._output import atomic_file, check_out_folder, staged_folder, write_text_atomic
 from ._structured import check_document, load_json, load_yaml, parse_json, parse_yaml
 
 __all__ = [
@@ -44,4 +44,5 @@ __all__ = [
     "staged_folder",
     "atomic_file",
     "check_out_folder",
+    "write_text_atomic",
 ]

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from posekit.errors import ConfigError
 
-__all__ = ["atomic_file", "check_out_folder", "staged_folder"]
+__all__ = ["atomic_file", "check_out_folder", "staged_folder", "write_text_atomic"]
 
 
 def _umask() -> int:
@@ -46,6 +46,9 @@ def check_out_folder(out, *, overwrite: bool = False, flag: str = "--out") -> Pa
             raise ConfigError(f"{flag} {out}: the folder exists and is not empty; expected a new or empty "
                               "folder (pass --overwrite to replace it)")
     parent = out.absolute().parent
+    blocker = next((p for p in (parent, *parent.parents) if p.exists()), None)
+    if blocker is not None and not blocker.is_dir():
+        raise ConfigError(f"{flag} {out}: {blocker} is a file, not a folder; expected a folder path")
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -79,6 +82,10 @@ def staged_folder(out, *, overwrite: bool = False, flag: str = "--out"):
     os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp
+    except OSError as exc:  # a full disk, a permission change: one line, the old run untouched
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise ConfigError(f"{flag} {out}: cannot write the results ({exc.strerror or exc}); "
+                          "the previous contents are unchanged") from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -119,3 +126,19 @@ def atomic_file(path, mode: str = "w", *, flag: str = "--out", **open_kwargs):
         except OSError:
             pass
         raise
+
+
+def write_text_atomic(path, text: str, *, flag: str = "--out", error=ConfigError) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` under a temporary name and rename it into place.
+
+    Raises ``error`` (one line naming ``flag`` and the file) when the folder cannot be written.
+    """
+    path = Path(path)
+    try:
+        with atomic_file(path, "w", flag=flag, encoding="utf-8", newline="") as fh:
+            fh.write(text)
+    except ConfigError as exc:
+        raise error(str(exc)) from None
+    except OSError as exc:
+        raise error(f"{flag} {path}: cannot write ({exc.strerror or exc})") from None
+    return path

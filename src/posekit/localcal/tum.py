@@ -151,6 +151,8 @@ def write_tum(path, traj: Trajectory) -> None:
     """
     q = quaternion_from_matrix(traj.rotations)
     data = np.column_stack([traj.t_s, traj.positions / 1000.0, q[:, 1:4], q[:, :1]])
-    with open(path, "w") as fh:
+    from posekit.io import atomic_file
+
+    with atomic_file(path, "w") as fh:
         fh.write("# timestamp tx ty tz qx qy qz qw (s, m)\n")
         np.savetxt(fh, data, fmt=["%.6f"] + ["%.9f"] * 7)

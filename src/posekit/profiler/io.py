@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError
-from ..io import check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
+from ..io import atomic_file, check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
 
 __all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "record_to_json", "read_truth_csv",
            "write_truth_csv", "TRUTH_COLUMNS"]
@@ -152,10 +152,15 @@ class RecordWriter:
             raise InputFileError(f"unknown output format '{fmt}'; expected jsonl or csv")
         self.fmt = fmt
         self._own = out is not None
-        try:
-            self._fh = open(out, "w", newline="") if out is not None else stream
-        except OSError as exc:
-            raise InputFileError(f"{out}: cannot write ({exc.strerror or exc})") from None
+        self._atomic = None
+        if out is not None:  # a temporary file renamed into place on a clean close
+            self._atomic = atomic_file(out, "w", newline="")
+            try:
+                self._fh = self._atomic.__enter__()
+            except OSError as exc:
+                raise InputFileError(f"{out}: cannot write ({exc.strerror or exc})") from None
+        else:
+            self._fh = stream
         self._csv = csv.writer(self._fh) if fmt == "csv" else None
         if self._csv is not None:
             self._csv.writerow(RECORD_CSV_COLUMNS)
@@ -169,17 +174,19 @@ class RecordWriter:
         vals = [rec["index"], rec["status"], *t, *q, rec["reprojection_um"], rec["error"] or ""]
         self._csv.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v) for v in vals])
 
-    def close(self) -> None:
-        if self._own:
-            self._fh.close()
-        else:
+    def close(self, exc_info=(None, None, None)) -> None:
+        """Finish the output: rename the file into place, or (after an exception) drop it."""
+        if self._atomic is not None:
+            atomic, self._atomic = self._atomic, None
+            atomic.__exit__(*exc_info)
+        elif not self._own:
             self._fh.flush()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.close()
+        self.close(exc)
 
 
 def write_truth_csv(path, Ts_G_F, q_wxyz):
