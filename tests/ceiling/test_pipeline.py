@@ -296,12 +296,12 @@ def test_cli_bad_input_is_one_line(capsys, short_render, tmp_path):
     check(["--calibration given 1 time(s) for 2 input(s)"], "track", paths.video, "--calibration", cal,
           "--input2", paths.video, "--out", tmp_path / "t.csv")
     check(["--dots"], "track", paths.video, "--calibration", cal, "--dots", "blue", "--out", tmp_path / "t.csv")
-    check(["--seconds must be a positive number"], "demo", "--out", tmp_path / "d", "--seconds", "-1")
+    check(["--duration-s must be a positive number of seconds"], "demo", "--out", tmp_path / "d", "--duration-s", "-1")
 
 
 def test_cli_demo_smoke(capsys, tmp_path):
     needs_renderer()
-    rc, stdout, err = cli(capsys, "demo", "--out", tmp_path / "demo", "--seconds", "2")
+    rc, stdout, err = cli(capsys, "demo", "--out", tmp_path / "demo", "--duration-s", "2")
     assert rc == 0, err
     for needle in ("grid corners found in reference.png", "position error (ok rows)", "heading error",
                    "frames/s", "36 known points", "std 2.00"):

@@ -64,8 +64,13 @@ def test_simulate_with_the_ooi_never_seen_is_a_one_line_error(tmp_path, capsys):
     assert rows[0]["error"] == "EstimationError: the OOI (markers 1, 2, 3) not seen by the camera at the start pose"
 
 
+def test_bad_method_is_a_usage_error_like_every_choice_flag(tmp_path, capsys):
+    rc = main(["localcal", "simulate", "--method", "circle", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "argument --method: invalid choice: 'circle' (choose from" in err
+
+
 @pytest.mark.parametrize("argv, message", [
-    (["--method", "circle"], "--method: expected one of line | trajectory, got 'circle'"),
     (["--method", "line", "--runs", "0"], "--runs: expected an integer >= 1, got 0"),
     (["--method", "line", "--updates", "0"], "--updates: expected an integer >= 1, got 0"),
     (["--method", "line", "--occlude-ooi", "maybe"],

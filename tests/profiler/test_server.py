@@ -577,7 +577,7 @@ def test_cli_serve_runs_for_a_duration_and_prints_a_summary(gauge, loop_profiles
     (["--listen", "127.0.0.1"], "--listen '127.0.0.1': expected HOST:PORT"),
     (["--listen", "127.0.0.1:0", "--robot", "robot:abc"], "--robot 'robot:abc': port 'abc' is not a number"),
     (["--listen", "127.0.0.1:0", "--queue", "0"], "--queue must be >= 1, got 0"),
-    (["--listen", "127.0.0.1:0", "--duration", "-1"], "--duration must be > 0 seconds, got -1"),
+    (["--listen", "127.0.0.1:0", "--duration", "-1"], "--duration-s must be > 0 seconds, got -1"),
 ])
 def test_cli_serve_bad_addresses_are_config_errors(argv, needle):
     args = _serve_parser().parse_args(["serve", "--gauge", "demo-5", *argv])

@@ -363,7 +363,7 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
     except OSError as exc:
         raise ConfigError(f"--out {out}: cannot create folder ({exc.strerror or exc})") from None
     if seconds is not None and not (np.isfinite(seconds) and seconds > 0):
-        raise ConfigError(f"--seconds must be a positive number, got {seconds!r}")
+        raise ConfigError(f"--duration-s must be a positive number of seconds, got {seconds!r}")
     cfg = SceneConfig() if config is None else config
     cfg = replace(cfg, dots=tuple(dots), seed=int(seed),
                   **({} if seconds is None else {"duration_s": float(seconds)}))

@@ -1,11 +1,12 @@
 """Helpers shared by the sub-command modules."""
 
+import argparse
 import sys
 from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged"]
+__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated"]
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
 OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
@@ -69,3 +70,21 @@ def staged(args):
     from ..io import staged_folder
 
     return staged_folder(args.out, overwrite=_overwrite(args))
+
+
+class _Deprecated(argparse.Action):
+    """An old spelling of a flag: works for one release, with a note on stderr."""
+
+    def __init__(self, option_strings, dest, new: str, **kw):
+        self.new = new
+        super().__init__(option_strings, dest, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"posekit: note: {option_string} is deprecated and will be removed; use {self.new}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_deprecated(parser, old: str, new: str, dest: str, type=None) -> None:
+    """Keep ``old`` as a hidden, deprecated alias of ``new`` (same ``dest``)."""
+    parser.add_argument(old, dest=dest, type=type, action=_Deprecated, new=new, help=argparse.SUPPRESS,
+                        default=argparse.SUPPRESS)

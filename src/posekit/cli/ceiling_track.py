@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from ._common import add_overwrite, out_folder, staged
+from ._common import add_deprecated, add_overwrite, out_folder, staged
 
 __all__ = ["add_track_parser", "add_demo_parser", "run_track", "run_demo"]
 
@@ -84,7 +84,8 @@ def add_demo_parser(verbs):
                    help="output folder (default posekit-ceiling-demo, replaced on each run)")
     add_overwrite(d, "posekit-ceiling-demo")
     d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
-    d.add_argument("--seconds", type=float, default=None, help="length of the rendered video, s "
+    add_deprecated(d, "--seconds", "--duration-s", "seconds", float)
+    d.add_argument("--duration-s", dest="seconds", type=float, default=None, help="length of the rendered video, s "
                                                                 "(default: the renderer's)")
     d.add_argument("--seed", type=int, default=0, help="random seed of the render (default 0)")
     d.set_defaults(func=run_demo)

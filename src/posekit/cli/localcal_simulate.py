@@ -18,13 +18,15 @@ def add_simulate_parser(verbs):
         description="Run RUNS simulated look-then-move episodes of the line-equation or the trajectory-"
                     "matching method on the simulated HIAB033-like long-reach arm; print the paper's "
                     "tables and write them (CSV), results.json, the figures (PNG) and report.html to OUT.")
-    s.add_argument("--method", required=True, help="range adjustment method: line | trajectory")
+    s.add_argument("--method", required=True, choices=["line", "trajectory"], help="range adjustment method")
     s.add_argument("--runs", type=int, default=10, help="number of episodes (default 10)")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0; same seed, same numbers)")
     s.add_argument("--updates", type=int, default=2, help="look-then-move updates per episode (default 2)")
     s.add_argument("--scheduler", default="serial",
                    help="serial (default, in this process), local (a Dask cluster on this machine) "
                         "or a Dask scheduler address tcp://HOST:PORT")
+    s.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local cluster (--scheduler local; default: one per core)")
     s.add_argument("--no-timestamps", action="store_true",
                    help="trajectory method: match VO and encoder trajectories without timestamps")
     s.add_argument("--occlude-ooi", default="never",
@@ -134,6 +136,16 @@ def _scheduler(text: str):
     raise ConfigError(f"--scheduler: expected serial, local or a Dask address like tcp://HOST:PORT, got '{text}'")
 
 
+def _workers(args):
+    if args.workers is None:
+        return None
+    if args.scheduler != "local":
+        raise ConfigError("--workers sets the size of the local cluster; it needs --scheduler local")
+    if not 1 <= args.workers <= 256:
+        raise ConfigError(f"--workers: expected 1 to 256 worker processes, got {args.workers}")
+    return args.workers
+
+
 def run_simulate(args) -> int:
     """Run ``posekit localcal simulate``; the exit code is 0 if every run succeeded, else 1."""
     from ..localcal.episode import METHODS, OCCLUSIONS
@@ -154,7 +166,8 @@ def run_simulate(args) -> int:
                      **_robot_options(args))
     out_folder(args)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
-                            scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty())
+                            scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty(),
+                            n_workers=_workers(args))
     command = "posekit localcal simulate " + " ".join(
         shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
     with staged(args) as tmp:

@@ -11,6 +11,7 @@ NumPy or OpenCV are not printed (they would come before the one error line) unle
 
 import argparse
 import math
+import re
 import sys
 import warnings
 
@@ -40,7 +41,39 @@ def build_parser() -> argparse.ArgumentParser:
     localcal.add_parser(sub)
     seam.add_parser(sub)
     bench.add_parser(sub)
+    _describe_verbs(parser)
     return parser
+
+
+def _describe_verbs(parser: argparse.ArgumentParser) -> None:
+    """Give every verb without a description its one-line help as description (``--help``)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help for a in action._choices_actions}
+            for name, sub in action.choices.items():
+                if not sub.description and helps.get(name):
+                    sub.description = helps[name][0].upper() + helps[name][1:] + "."
+                _describe_verbs(sub)
+
+
+_NEGATIVE = re.compile(r"^-(\d|\.\d)")
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--tilts-deg -60:60:15`` -> ``--tilts-deg=-60:60:15``: a value that starts with a minus
+    sign is not an option (argparse would take it for one unless it is a plain number)."""
+    out = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if (a.startswith("--") and "=" not in a and a != "--" and i + 1 < len(argv)
+                and _NEGATIVE.match(argv[i + 1])):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
 
 
 _GLOBAL_VALUED = ("--max-input-mb", "--max-image-mp")
@@ -114,6 +147,7 @@ def main(argv=None) -> int:
         print(f"posekit: error: {exc}", file=sys.stderr)
         return 2
     debug = bool(found.get("debug"))
+    argv = _join_negative_values(argv)
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -3,6 +3,7 @@
 import sys
 from pathlib import Path
 
+from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, parse_triplet, progress, resolve_gauge, staged
 
 __all__ = ["add_parser"]
@@ -56,6 +57,9 @@ def run_estimate(args) -> int:
     from ..profiler.estimate import estimate_batch
     from ..profiler.io import RecordWriter, read_profiles
 
+    if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
+        raise ConfigError(f"--out {args.out}: unknown suffix '{Path(args.out).suffix[:20]}'; expected FILE.jsonl "
+                          "(JSON lines) or FILE.csv")
     gauge = resolve_gauge(args.gauge)
     profiles = read_profiles(args.input)
     failed = 0

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from ._common import add_overwrite, out_folder, progress, resolve_gauge, staged
+from ._common import add_deprecated, add_overwrite, out_folder, progress, resolve_gauge, staged
 
 __all__ = ["add_loop_parser", "run_loop"]
 
@@ -19,7 +19,8 @@ def add_loop_arguments(p, out_default=None):
                    help="output folder: table3.csv, table4.csv, figures, report.html"
                         + (f" (default {out_default}, replaced on each run)" if out_default else ""))
     add_overwrite(p, out_default)
-    p.add_argument("--repeats", type=int, default=3, help="runs per axis, step and mode (default 3)")
+    p.add_argument("--runs", dest="repeats", type=int, default=3, help="runs per axis, step and mode (default 3)")
+    add_deprecated(p, "--repeats", "--runs", "repeats", int)
     p.add_argument("--axes", default="x,y,z,xyz", help="step directions (default x,y,z,xyz)")
     p.add_argument("--steps-mm", default="1,2", help="step sizes, mm (default 1,2)")
     p.add_argument("--noise-um", type=float, default=5.0, help="profiler noise in z, µm (x: twice); default 5")

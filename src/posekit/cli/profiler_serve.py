@@ -10,7 +10,7 @@ import sys
 import threading
 import time
 
-from ._common import resolve_gauge
+from ._common import add_deprecated, resolve_gauge
 
 __all__ = ["add_serve_parser", "run_serve"]
 
@@ -37,7 +37,8 @@ def add_serve_parser(verbs):
                    help="cf: closed form eq. (9)-(14); mle: refined (default)")
     p.add_argument("--mounting", choices=["auto", "normal", "reversed"], default="auto",
                    help="scan order of the corners vs the ridges (default: auto-detect)")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
+    add_deprecated(p, "--duration", "--duration-s", "duration", float)
+    p.add_argument("--duration-s", dest="duration", type=float, default=None, metavar="S",
                    help="stop after S seconds (default: run until Ctrl-C)")
     p.add_argument("--status-every", type=float, default=5.0, metavar="S",
                    help=f"seconds between status lines, {_STATUS_RANGE[0]:g} to {_STATUS_RANGE[1]:g} (default 5)")
@@ -109,7 +110,7 @@ def run_serve(args) -> int:
     if args.queue < 1:
         raise ConfigError(f"--queue must be >= 1, got {args.queue}")
     if args.duration is not None and not args.duration > 0:
-        raise ConfigError(f"--duration must be > 0 seconds, got {args.duration:g}")
+        raise ConfigError(f"--duration-s must be > 0 seconds, got {args.duration:g}")
     _check_seconds(args.status_every, "--status-every", _STATUS_RANGE)
     _check_seconds(args.idle_timeout_s, "--idle-timeout-s", _TIMEOUT_RANGE)
     _check_seconds(args.read_timeout_s, "--read-timeout-s", _TIMEOUT_RANGE)

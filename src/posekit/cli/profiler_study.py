@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_overwrite, out_folder, parse_triplet, staged
+from ._common import add_deprecated, add_overwrite, out_folder, parse_triplet, staged
 
 __all__ = ["add_study_parser", "parse_numbers"]
 
@@ -56,7 +56,8 @@ def add_study_parser(verbs):
     c = kinds.add_parser("corners", help="Table I: errors vs corner count n and number of random gauges m")
     c.add_argument("--corners", default="4,5,7,10", help="corner counts n (default 4,5,7,10)")
     c.add_argument("--gauges", default="10,50,100,150", help="numbers of random gauges m (default 10,50,100,150)")
-    c.add_argument("--poses", type=int, default=100, help="random poses per gauge (default 100)")
+    c.add_argument("--count", dest="poses", type=int, default=100, help="random poses per gauge (default 100)")
+    add_deprecated(c, "--poses", "--count", "poses", int)
     c.add_argument("--noise-um", type=float, default=5.0, help="Gaussian noise in z, µm (default 5)")
     c.add_argument("--noise-x-um", type=float, default=None, help="noise in x, µm (default: twice --noise-um)")
     _workspace(c)
@@ -68,7 +69,8 @@ def add_study_parser(verbs):
     n.add_argument("--noise-x-ratio", type=float, default=2.0, help="noise in x / noise in z (default 2)")
     n.add_argument("--corners", type=int, default=5, help="corner count n (default 5)")
     n.add_argument("--gauges", type=int, default=150, help="random gauges (default 150)")
-    n.add_argument("--poses", type=int, default=100, help="random poses per gauge (default 100)")
+    n.add_argument("--count", dest="poses", type=int, default=100, help="random poses per gauge (default 100)")
+    add_deprecated(n, "--poses", "--count", "poses", int)
     _workspace(n)
     _common(n, "study_noise")
     n.set_defaults(func=run_study)

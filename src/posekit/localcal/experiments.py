@@ -171,7 +171,7 @@ def _run_task(task):
 
 def run_experiment(method: str, runs: int = 10, seed: int = 0, *, updates: int = 2,
                    config: EpisodeConfig | None = None, scheduler=SERIAL,
-                   progress: bool | None = None) -> ExperimentResult:
+                   progress: bool | None = None, n_workers: int | None = None) -> ExperimentResult:
     """Run ``runs`` look-then-move episodes of one method and build the paper's tables.
 
     Parameters
@@ -189,6 +189,8 @@ def run_experiment(method: str, runs: int = 10, seed: int = 0, *, updates: int =
     scheduler : 'serial', None or str
         Passed to :func:`posekit.sweep.run_tasks`; ``'serial'`` (default) runs in this
         process, None starts a local Dask cluster, an address uses a running scheduler.
+    n_workers : int, optional
+        Worker processes of the local cluster (``scheduler=None`` only).
     progress : bool, optional
         Progress bar; default only on a terminal.
 
@@ -211,7 +213,8 @@ def run_experiment(method: str, runs: int = 10, seed: int = 0, *, updates: int =
     tasks = [{"method": method, "seed": task_seed(seed, i), "updates": int(updates), "config": config}
              for i in range(int(runs))]
     t0 = time.perf_counter()
-    out = run_tasks(_run_task, tasks, scheduler=scheduler, progress=progress, desc=f"localcal {method}")
+    out = run_tasks(_run_task, tasks, scheduler=scheduler, progress=progress, desc=f"localcal {method}",
+                    n_workers=n_workers)
     wall = time.perf_counter() - t0
     episodes = [ep for ep, _ in out]
     failures = [fail for _, fail in out]
