@@ -113,3 +113,30 @@ def test_a_verbs_own_default_folder_is_replaced_each_run():
     assert _overwrite(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
     assert not _overwrite(ns(out="mine", overwrite=False, out_default="posekit-demo"))
     assert _overwrite(ns(out="mine", overwrite=True, out_default=None))
+
+
+@pytest.mark.parametrize("verb", [["profiler", "simulate", "--gauge", "demo-5", "--count", "1"],
+                                  ["ceiling", "simulate", "--duration-s", "0.2"]])
+def test_simulate_into_a_read_only_folder_is_one_line(tmp_path, capsys, monkeypatch, verb):
+    """Root can write anywhere, so the read-only folder is simulated at os.access."""
+    import os
+
+    ro = tmp_path / "read_only"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if str(p) == str(ro) else real(p, mode, **kw))
+    rc, out, err = run(capsys, *verb, "--out", ro / "run")
+    assert rc == 1 and err == f"posekit: error: --out {ro / 'run'}: the folder {ro} is not writable\n"
+    assert list(ro.iterdir()) == []
+
+
+def test_a_permission_error_while_creating_the_run_folder_is_one_line(tmp_path, capsys, monkeypatch):
+    import tempfile
+
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "mkdtemp", denied)
+    rc, out, err = run(capsys, "profiler", "simulate", "--gauge", "demo-5", "--count", "1", "--out", tmp_path / "r")
+    assert rc == 1 and err == (f"posekit: error: --out {tmp_path / 'r'}: cannot create a folder in {tmp_path} "
+                               "(Permission denied)\n")
