@@ -10,6 +10,7 @@ __all__ = [
     "ProfileError",
     "EstimationError",
     "ConfigError",
+    "MissingExtraError",
     "InputFileError",
     "CalibrationError",
     "TrajectoryError",
@@ -35,6 +36,10 @@ class EstimationError(PosekitError):
 
 class ConfigError(PosekitError, ValueError):
     """A configuration file or option has an unknown, missing or impossible value."""
+
+
+class MissingExtraError(ConfigError):
+    """An optional dependency is not installed; the message names the extra that brings it."""
 
 
 class InputFileError(PosekitError, ValueError):

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ._extras import require
 from .errors import ConfigError
 
 __all__ = ["run_tasks", "task_seed", "SERIAL", "DEFAULT_CONNECT_TIMEOUT_S"]
@@ -47,6 +48,12 @@ __all__ = ["run_tasks", "task_seed", "SERIAL", "DEFAULT_CONNECT_TIMEOUT_S"]
 SERIAL = "serial"
 #: Seconds to wait for a remote scheduler before giving up.
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
+
+
+def _distributed(desc: str = ""):
+    """``distributed``, or a one-line error naming the ``studies`` extra (and the serial way out)."""
+    return require("distributed", "studies", f"{desc or 'a parallel run'} on Dask",
+                   alternative=f"run it in this process with --scheduler {SERIAL}")
 
 
 def task_seed(seed: int, *key: int) -> np.random.SeedSequence:
@@ -94,7 +101,7 @@ def _run_serial(fn, tasks, bar) -> list:
 
 def _gather_in_order(client, fn, tasks, bar) -> list:
     """Submit every task, collect results as they finish, return them in task order."""
-    from distributed import as_completed
+    as_completed = _distributed().as_completed
 
     futures = client.map(fn, list(tasks), pure=False)
     index = {f.key: i for i, f in enumerate(futures)}
@@ -113,7 +120,7 @@ def _gather_in_order(client, fn, tasks, bar) -> list:
 
 
 def _connect(address: str, timeout_s: float):
-    from distributed import Client
+    Client = _distributed().Client
     try:
         return Client(address, timeout=timeout_s, set_as_default=False)
     except Exception as exc:  # noqa: BLE001 -- OSError/TimeoutError, but a non-Dask peer can raise anything
@@ -122,7 +129,8 @@ def _connect(address: str, timeout_s: float):
 
 
 def _local_cluster(n_workers: int):
-    from distributed import Client, LocalCluster
+    distributed = _distributed()
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
     cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                            dashboard_address=":0", silence_logs=logging.ERROR)
     try:
@@ -168,6 +176,8 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence, *, scheduler=None, n_wo
     ConfigError
         For an unknown scheduler, ``n_workers`` < 1 or with a scheduler other than the
         local one, or a scheduler address that cannot be reached.
+    MissingExtraError
+        A scheduler other than 'serial' without Dask installed (the ``studies`` extra).
     Exception
         The first exception raised by ``fn`` (the remaining tasks are cancelled).
     """
@@ -180,6 +190,8 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence, *, scheduler=None, n_wo
     if isinstance(scheduler, str) and scheduler != SERIAL and "://" not in scheduler:
         raise ConfigError(f"scheduler: expected '{SERIAL}' or a Dask address like tcp://HOST:PORT, "
                           f"got '{scheduler}'")
+    if isinstance(scheduler, str | None) and scheduler != SERIAL:
+        _distributed(desc)      # before any work or progress bar: say which extra is missing
     if not tasks:
         return []
     bar = _bar(len(tasks), desc, _want_progress(progress))

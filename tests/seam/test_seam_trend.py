@@ -66,18 +66,32 @@ def test_bad_input(y, kw, message):
 
 def test_a_solver_that_stops_early_is_an_error_not_a_result(monkeypatch):
     """The status is checked: Clarabel cut to one iteration ('user_limit') raises, it does not return knots."""
-    import warnings
+    import clarabel
 
-    import cvxpy as cp
+    default_settings = clarabel.DefaultSettings
 
-    solve = cp.Problem.solve
+    def one_iteration():
+        settings = default_settings()
+        settings.max_iter = 1
+        return settings
 
-    def one_iteration(self, *args, **kwargs):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)       # cvxpy: "Solution may be inaccurate"
-            return solve(self, *args, **{**kwargs, "max_iter": 1})
-
-    monkeypatch.setattr(cp.Problem, "solve", one_iteration)
+    monkeypatch.setattr(clarabel, "DefaultSettings", one_iteration)
     with pytest.raises(EstimationError, match=r"^trend filter: solver status 'user_limit', expected 'optimal' "
                                               r"\(N = 100, lam = 100, eps = 0\.02 mm\)$"):
+        trend_filter(_piecewise_linear(), lam=100.0, eps_mm=0.02)
+
+
+def test_an_infeasible_problem_is_an_error(monkeypatch):
+    """Any status but Clarabel's Solved is an error, named with cvxpy's word for it."""
+    import clarabel
+
+    solver = clarabel.DefaultSolver
+
+    def negative_eps(P, q, A, b, cones, settings):
+        b = b.copy()
+        b[-2 * 3 * 100:] = -1.0         # the last 2 x 3N rows are -eps <= z - y <= eps: now eps = -1
+        return solver(P, q, A, b, cones, settings)
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", negative_eps)
+    with pytest.raises(EstimationError, match=r"^trend filter: solver status 'infeasible', expected 'optimal' "):
         trend_filter(_piecewise_linear(), lam=100.0, eps_mm=0.02)

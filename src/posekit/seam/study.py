@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import ConfigError, EstimationError, PosekitError
 from ..sweep import run_tasks, task_seed
 from .report import ERROR_AXES
@@ -192,7 +193,7 @@ def fit_parameter_effects(X: np.ndarray, Y: np.ndarray, parameters: Sequence[str
     EstimationError
         Fewer than P + 2 usable runs, or a factor that does not vary.
     """
-    import statsmodels.api as sm
+    sm = require("statsmodels.api", "studies", "the seam study's parameter effects (OLS)")
 
     X = np.asarray(X, dtype=float)
     Y = np.asarray(Y, dtype=float)
@@ -367,6 +368,7 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
         raise ConfigError(f"study episodes: expected >= 1 per run, got {episodes}")
     if int(seed) < 0:
         raise ConfigError(f"study seed: expected an integer >= 0, got {seed}")
+    require("statsmodels.api", "studies", "posekit seam study")      # for the OLS at the end: say so now
     base = config.model_dump(mode="json")
     factors = tuple(factors) if factors is not None else make_factors(base)
     lows = np.array([f.low for f in factors])
