@@ -96,3 +96,31 @@ def test_dh_robots_need_no_urdf_extra(monkeypatch):
 
     chain = load_robot("puma560")
     assert np.all(np.isfinite(chain.forward_kinematics(np.zeros(6))))
+
+
+def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
+    """Without OpenCV the vision commands say which extra to install; modules still import."""
+    _hide(monkeypatch, "cv2")
+    import importlib
+
+    import posekit.ceiling.detect as detect
+    import posekit.localcal.camera as camera
+
+    importlib.reload(detect)  # the module-level name is a lazy stand-in: importing works
+    importlib.reload(camera)
+    try:
+        cal = tmp_path / "cal.json"
+        cal.write_text('{"H_image_world": [[1,0,0],[0,1,0],[0,0,1]], "H_world_image": [[1,0,0],[0,1,0],[0,0,1]], '
+                       '"rms_px": 0.1, "rms_world": 0.1}')
+        (tmp_path / "frames").mkdir()
+        (tmp_path / "frames" / "0001.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
+        err = _one_line_error(capsys, ["ceiling", "track", str(tmp_path / "frames"), "--calibration", str(cal),
+                                       "--out", str(tmp_path / "t.csv")])
+        assert err.endswith("needs the 'vision' extra: pip install \"posekit[vision]\""), err
+        err = _one_line_error(capsys, ["localcal", "simulate", "--method", "line", "--runs", "1",
+                                       "--out", str(tmp_path / "l")])
+        assert "needs the 'vision' extra" in err, err
+    finally:
+        monkeypatch.undo()
+        importlib.reload(detect)
+        importlib.reload(camera)

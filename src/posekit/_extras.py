@@ -1,15 +1,17 @@
 """Optional dependencies: import one, or say in one line which extra of posekit installs it.
 
-The core install runs the profiler, ceiling, localcal and seam pipelines; the rest comes with
-extras (see pyproject.toml and the README): ``studies`` (Dask, statsmodels) and ``urdf``
-(yourdfpy, lxml). Every lazy import of an optional package goes through :func:`require`.
+The core install runs the profiler and seam pipelines and ``posekit localcal match``; the rest
+comes with extras (see pyproject.toml and the README): ``vision`` (OpenCV: the ceiling system,
+the localcal camera simulator, image reading and the profiler's OpenCV camera peer),
+``studies`` (Dask, statsmodels) and ``urdf`` (yourdfpy, lxml). Every import of an optional
+package goes through :func:`require`, or :func:`lazy` for a module-level name.
 """
 
 import importlib
 
 from .errors import MissingExtraError
 
-__all__ = ["require"]
+__all__ = ["lazy", "require"]
 
 
 def require(module: str, extra: str, what: str, *, alternative: str = ""):
@@ -52,3 +54,22 @@ def require(module: str, extra: str, what: str, *, alternative: str = ""):
         if missing.split(".")[0] != top:            # the package is there; something it imports is not
             msg += f"; {' '.join(str(exc).split())[:160]}"
         raise MissingExtraError(msg) from None
+
+
+class _Lazy:
+    """A module imported on first attribute access, through :func:`require`."""
+
+    def __init__(self, module: str, extra: str, what: str):
+        self._spec = (module, extra, what)
+        self._module = None
+
+    def __getattr__(self, name):
+        if self._module is None:
+            self._module = require(*self._spec)
+        return getattr(self._module, name)
+
+
+def lazy(module: str, extra: str, what: str):
+    """A stand-in for ``import module`` at the top of a file: importing the file works without
+    the extra, and the first use of the module raises the one-line MissingExtraError."""
+    return _Lazy(module, extra, what)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import ConfigError, InputFileError
 from .accuracy import ErrorStats, HeadingSimulation, KnownPointsResult, error_stats
 
@@ -88,7 +89,7 @@ def calibrate_rendered(render_dir, grid=None):
     pts = read_points_csv(render_dir / "calibration_points.csv")
     ref = render_dir / "reference.png"
     if ref.exists():
-        import cv2
+        cv2 = require("cv2", "vision", "posekit ceiling demo")
 
         from .grid import CeilingGrid, find_grid_corners
         if grid is None:
@@ -351,7 +352,7 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
     """
     from dataclasses import replace
 
-    import cv2
+    cv2 = require("cv2", "vision", "posekit ceiling demo")
 
     from .accuracy import known_points_assessment, simulate_heading_error
     from .pipeline import track_video, write_track_csv

@@ -47,11 +47,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import cv2
 import numba as nb
 import numpy as np
 
+from posekit._extras import lazy
+
 from ..errors import ConfigError, InputFileError
+
+cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
 __all__ = ["Dot", "Line", "LaserColor", "LASER_COLORS", "DotDetector", "LineDetector"]
 

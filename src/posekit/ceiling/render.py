@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import erf
 
+from .._extras import require
 from ..errors import ConfigError, InputFileError
 from ._render_kernels import (
     NOISE_LUT_BITS,
@@ -525,7 +526,7 @@ def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
     (the ceiling without dots) and, with ``frames_png``, ``frames/000000.png`` ... (lossless).
     ``progress`` wraps the frame iterator (a progress bar), if given.
     """
-    import cv2
+    cv2 = require("cv2", "vision", "the ceiling video renderer")
 
     out = Path(out_dir)
     try:

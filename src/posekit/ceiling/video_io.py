@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import ConfigError, InputFileError
 from ..io import check_frame_size, check_input_file, read_image
 
@@ -77,7 +78,7 @@ def list_images(folder: Path) -> list[Path]:
 
 
 def _as_bgr(img: np.ndarray) -> np.ndarray:
-    import cv2
+    cv2 = require("cv2", "vision", "reading video and images (ceiling track)")
     if img.ndim == 2:
         return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
     if img.shape[2] == 4:
@@ -96,7 +97,7 @@ class FrameSource:
     """
 
     def __init__(self, path: Path, fps: float | None = None):
-        import cv2
+        cv2 = require("cv2", "vision", "reading video and images (ceiling track)")
         self.path = Path(path)
         if fps is not None and not (np.isfinite(fps) and fps > 0):
             raise ConfigError(f"--fps must be a positive number, got {fps!r}")
@@ -153,7 +154,7 @@ class FrameSource:
                 self._check_size(img, size, p.name)
                 yield Frame(i, i / self.fps, img, p.name)
             return
-        import cv2
+        cv2 = require("cv2", "vision", "reading video and images (ceiling track)")
         cap = cv2.VideoCapture(str(self.path))
         try:
             i = 0

@@ -3,6 +3,8 @@
 import sys
 from pathlib import Path
 
+from .._extras import require
+
 __all__ = ["add_calibrate_parser", "run_calibrate"]
 
 
@@ -51,7 +53,7 @@ def _pair(text, option):
 
 
 def _points_from_image(args, seeds):
-    import cv2
+    cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
     import numpy as np
 
     from ..ceiling.calibration import write_points_csv

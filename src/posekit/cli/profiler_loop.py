@@ -1,5 +1,7 @@
 """``posekit profiler loop``: the closed-loop experiment of §IV-C over loopback sockets."""
 
+import importlib.util
+import sys
 from pathlib import Path
 
 from ._common import add_deprecated, add_overwrite, out_folder, progress, resolve_gauge, staged
@@ -48,6 +50,11 @@ def run_loop(args) -> int:
         raise ConfigError(f"--noise-um must be a finite number >= 0, got {args.noise_um:g}")
     gauge = resolve_gauge(args.gauge)
     out_folder(args)
+    camera = not args.no_camera
+    if camera and importlib.util.find_spec("cv2") is None:
+        print("posekit: note: Table III without the OpenCV camera pipeline, which needs the 'vision' extra: "
+              'pip install "posekit[vision]"', file=sys.stderr)
+        camera = False
     axes = tuple(a.strip() for a in args.axes.split(","))
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "
@@ -55,7 +62,7 @@ def run_loop(args) -> int:
     exp = run_experiment(gauge, axes=axes, steps_mm=steps, repeats=args.repeats,
                          noise=NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um),
                          seed=args.seed, realtime=args.realtime, nonlinear=not args.linear,
-                         camera=not args.no_camera,
+                         camera=camera,
                          progress=lambda it: progress(it, total=len(it), desc="runs"))
     with staged(args) as tmp:
         paths = write_loop_report(exp, tmp)

@@ -15,6 +15,7 @@ import numpy as np
 
 from posekit.errors import InputFileError
 
+from .._extras import require
 from ._files import check_input_file
 from ._limits import get_limits
 
@@ -55,7 +56,7 @@ def image_size(path, *, error=InputFileError) -> tuple[int, int] | None:
 
 
 def _silence_opencv():
-    import cv2
+    cv2 = require("cv2", "vision", "reading images")
 
     try:
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)

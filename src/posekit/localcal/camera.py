@@ -26,12 +26,14 @@ import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
+from posekit._extras import lazy
 from posekit.errors import ConfigError, EstimationError, InputFileError
 
 from ._checks import rigid_transform as _rigid
+
+cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 
 __all__ = [
     "ARUCO_DICTIONARY",

@@ -34,9 +34,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-import cv2
 import numpy as np
 
+from posekit._extras import lazy
 from posekit.errors import ConfigError
 from posekit.geometry import (
     check_transform,
@@ -47,6 +47,8 @@ from posekit.geometry import (
 
 from ._checks import rigid_transform
 from .camera import MarkerDetector, marker_corners, render_markers
+
+cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 
 __all__ = [
     "GroundTruth",

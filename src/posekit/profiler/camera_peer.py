@@ -34,8 +34,11 @@ from __future__ import annotations
 
 import time
 
-import cv2
 import numpy as np
+
+from posekit._extras import lazy
+
+cv2 = lazy("cv2", "vision", "the OpenCV camera pipeline (Table III)")
 
 __all__ = [
     "IMAGE_SIZE",
