@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ConfigError
 from .control import OpenLoop, PDController
 from .gauge import Gauge
-from .loop_sim import AXES
+from .loop_sim import AXES, aggregate_table4
 from .response import impulse_resonance, step_metrics
 from .robotsim import RobotSimulator
 from .sensor import LJ_X8400, NoiseModel, nominal_pose, render_profiles
@@ -36,7 +36,7 @@ from .stream_client import RobotInterfaceStub, SensorClient
 __all__ = ["LoopRun", "FlangeCompensator", "run_loop_step", "LoopExperiment", "run_experiment",
            "transfer_times", "stage_stats", "TABLE4_COLUMNS", "TABLE3_COLUMNS"]
 
-TABLE4_COLUMNS = ["axis", "step_mm", "mode", "Mp_pct", "zeta", "Mf_um"]
+TABLE4_COLUMNS = ["axis", "step_mm", "mode", "n", "Mp_pct", "Mp_pct_std", "zeta", "zeta_std", "Mf_um", "Mf_um_std"]
 TABLE3_COLUMNS = ["system", "stage", "mean_ms", "std_ms", "median_ms", "max_ms", "min_ms", "samples"]
 
 
@@ -232,24 +232,17 @@ class LoopExperiment:
     impulse: LoopRun | None = None
     table3: list = field(default_factory=list)
     table4: list = field(default_factory=list)
-    table4_spread: list = field(default_factory=list)
     resonance: dict | None = None
     server_stats: dict | None = None
     wall_s: float = 0.0
 
 
 def _table4(runs, source="measured"):
+    """Table IV rows of the loop's runs through the one aggregation of :mod:`.loop_sim`."""
     groups = {}
     for r in runs:
-        groups.setdefault((r.axis, r.step_mm, r.mode), []).append(r.metrics(source))
-    rows, spread = [], []
-    for (axis, step, mode), ms in groups.items():
-        arr = {k: np.array([m[k] for m in ms]) for k in ("Mp_pct", "zeta", "Mf_um")}
-        rows.append({"axis": axis, "step_mm": step, "mode": mode,
-                     **{k: float(np.mean(v)) for k, v in arr.items()}})
-        spread.append({"axis": axis, "step_mm": step, "mode": mode,
-                       **{k: float(np.std(v)) for k, v in arr.items()}})
-    return rows, spread
+        groups.setdefault((r.axis, r.axis, r.step_mm, r.mode), []).append(r.metrics(source))
+    return aggregate_table4(groups)
 
 
 def run_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(1.0, 2.0), repeats: int = 3,
@@ -319,7 +312,7 @@ def run_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(1.0, 
     finally:
         server.stop()
         stub.stop()
-    exp.table4, exp.table4_spread = _table4(exp.runs)
+    exp.table4 = _table4(exp.runs)
     n_profile_bytes = 4 * LJ_X8400.n_points                     # the paper's 1 × 3200 float32 profile
     exp.table3 = [stage_stats("proposed", "DT", tim["DT"]), stage_stats("proposed", "CD", tim["CD"]),
                   stage_stats("proposed", "PC", tim["PC"]),

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..report import html_figure, html_table, pyplot, save_figure, write_csv, write_html
 from .loop import TABLE3_COLUMNS, TABLE4_COLUMNS, LoopExperiment
+from .loop_sim import format_table4 as _format_table4
 from .response import amplitude_spectrum
 
 __all__ = ["write_loop_report", "PAPER_TABLE4", "PAPER_TABLE3", "format_table3", "format_table4", "server_rows",
@@ -29,22 +30,8 @@ PAPER_TABLE3 = {
 
 
 def format_table4(exp: LoopExperiment) -> str:
-    """Text table: measured Table IV (mean ± std over repeats) with the improvement and the paper."""
-    spread = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4_spread}
-    means = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4}
-    lines = [f"{'axis':<5}{'step':>5}  {'mode':<7}{'Mp %':>15}{'zeta':>14}{'Mf µm':>16}   paper Mp/zeta/Mf"]
-    for (axis, step, mode), r in means.items():
-        s = spread[(axis, step, mode)]
-        paper = PAPER_TABLE4.get((axis, step, mode))
-        ptxt = "" if paper is None else f"{paper[0]:.2f} / {paper[1]:.2f} / {paper[2]:.2f}"
-        lines.append(f"{axis:<5}{step:>5.1f}  {mode:<7}{r['Mp_pct']:>8.2f} ±{s['Mp_pct']:>5.2f}"
-                     f"{r['zeta']:>8.2f} ±{s['zeta']:>4.2f}{r['Mf_um']:>9.2f} ±{s['Mf_um']:>5.2f}   {ptxt}")
-        if mode == "closed" and (axis, step, "open") in means:
-            o = means[(axis, step, "open")]
-            imp = [100 * (o["Mp_pct"] - r["Mp_pct"]) / o["Mp_pct"], 100 * (r["zeta"] - o["zeta"]) / o["zeta"],
-                   100 * (o["Mf_um"] - r["Mf_um"]) / o["Mf_um"]]
-            lines.append(f"{'':<5}{'':>5}  {'improve':<7}{imp[0]:>14.1f}%{imp[1]:>13.1f}%{imp[2]:>15.1f}%")
-    return "\n".join(lines)
+    """Text Table IV of a loop experiment: measured mean ± std over repeats beside the paper's."""
+    return _format_table4(exp.table4, PAPER_TABLE4)
 
 
 def format_table3(exp: LoopExperiment) -> str:
@@ -145,7 +132,6 @@ def server_rows(stats: dict | None) -> list[dict]:
 def table4_rows(exp: LoopExperiment) -> list[dict]:
     """Table IV as display rows: measured mean (± std over repeats when there are several) beside the
     paper's, and after each closed-loop row the improvement over the open loop (positive: better)."""
-    spread = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4_spread}
     means = {(r["axis"], r["step_mm"], r["mode"]): r for r in exp.table4}
     repeats = 1 + max((r.repeat for r in exp.runs), default=0)
     keys = ("Mp_pct", "zeta", "Mf_um")
@@ -155,11 +141,10 @@ def table4_rows(exp: LoopExperiment) -> list[dict]:
 
     rows = []
     for (axis, step, mode), r in means.items():
-        s = spread.get((axis, step, mode), {})
         paper = PAPER_TABLE4.get((axis, step, mode))
         row = {"axis": axis, "step": f"{step:g}", "mode": mode}
         for k in keys:
-            row[k] = _fmt(r[k]) + (f" ± {_fmt(s.get(k, np.nan))}" if repeats > 1 else "")
+            row[k] = _fmt(r[k]) + (f" ± {_fmt(r.get(k + '_std', np.nan))}" if repeats > 1 else "")
             row[f"paper_{k}"] = "" if paper is None else _fmt(paper[keys.index(k)])
         rows.append(row)
         if mode == "closed" and (axis, step, "open") in means:

@@ -27,7 +27,8 @@ from .control import OpenLoop
 from .response import step_metrics
 from .robotsim import RobotSimulator
 
-__all__ = ["StepResult", "simulate_step", "simulate_impulse", "run_table4", "table4", "format_table4", "AXES"]
+__all__ = ["StepResult", "simulate_step", "simulate_impulse", "run_table4", "table4", "aggregate_table4",
+           "format_table4", "AXES"]
 
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0), "xyz": (1.0, 1.0, 1.0)}
 """Step directions: one axis, or the composite +x+y+z (each axis moves by ``step_mm``)."""
@@ -293,6 +294,23 @@ def table4(results, source: str = "measured", **kwargs) -> list[dict]:
     for r in results:
         for comp, m in r.metrics(source, **kwargs).items():
             groups[(r.axis, comp, r.step_mm, r.mode)].append(m)
+    return aggregate_table4(groups)
+
+
+def aggregate_table4(groups) -> list[dict]:
+    """The one Table IV aggregation: mean and sample standard deviation (ddof 1) of Mp, ζ, Mf.
+
+    Parameters
+    ----------
+    groups : mapping
+        ``(axis, component, step_mm, mode) -> [metrics dict with Mp_pct, zeta, Mf_um, f_peak_hz]``,
+        one dict per run, in the order the rows should appear.
+
+    Returns
+    -------
+    list of dict
+        As :func:`table4`.
+    """
     rows = []
     for (axis, comp, step, mode), ms in groups.items():
         row = {"axis": axis, "component": comp, "step_mm": step, "mode": mode, "n": len(ms)}
@@ -305,14 +323,25 @@ def table4(results, source: str = "measured", **kwargs) -> list[dict]:
     return rows
 
 
-def format_table4(rows) -> str:
-    """Plain-text Table IV: one line per row, ``mean ± std`` and the closed-loop improvement."""
+def format_table4(rows, paper=None) -> str:
+    """The one plain-text Table IV: a line per row, ``mean ± std`` and the closed-loop improvement.
+
+    Parameters
+    ----------
+    rows : list of dict
+        From :func:`table4` / :func:`aggregate_table4`.
+    paper : mapping, optional
+        ``(axis, step_mm, mode) -> (Mp %, ζ, Mf µm)`` printed beside each row (the paper's).
+    """
     index = {(r["axis"], r["component"], r["step_mm"], r["mode"]): r for r in rows}
-    lines = [f"{'axis':<6}{'step':>5} {'mode':<7}{'Mp (%)':>16}{'zeta':>14}{'Mf (um)':>16}"]
+    head = f"{'axis':<6}{'step':>5} {'mode':<7}{'Mp (%)':>16}{'zeta':>14}{'Mf (um)':>16}"
+    lines = [head + ("   paper Mp/zeta/Mf" if paper else "")]
     for (axis, comp, step, mode), r in index.items():
         name = axis if axis == comp else f"{axis}:{comp}"
         cells = [f"{r[k]:.2f} ± {r[k + '_std']:.2f}" for k in ("Mp_pct", "zeta", "Mf_um")]
-        lines.append(f"{name:<6}{step:>5g} {mode:<7}{cells[0]:>16}{cells[1]:>14}{cells[2]:>16}")
+        p = (paper or {}).get((axis, step, mode))
+        ptxt = "" if p is None else f"   {p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f}"
+        lines.append(f"{name:<6}{step:>5g} {mode:<7}{cells[0]:>16}{cells[1]:>14}{cells[2]:>16}{ptxt}")
         if mode == "closed" and (axis, comp, step, "open") in index:
             o = index[(axis, comp, step, "open")]
             imp = [100 * (o["Mp_pct"] - r["Mp_pct"]) / o["Mp_pct"] if o["Mp_pct"] else float("nan"),
