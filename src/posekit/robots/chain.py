@@ -11,12 +11,12 @@ frame b into frame a; batches take leading axes, ``q`` of shape ``(..., n)``.
 """
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from posekit.errors import ConfigError
+from posekit.geometry import matrix_from_rotation_vector
 
 from . import _kernels as _k
 
@@ -55,6 +55,20 @@ def as_vector(x, name: str, n: int | None = None) -> np.ndarray:
         want = f"({n},)" if n is not None else "(n,)"
         raise ConfigError(f"{name}: expected shape {want}, got shape {a.shape}")
     return a
+
+
+def joint_types_and_names(types, names, n: int, name: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Validated joint types (``"revolute"``/``"prismatic"``) and names (``joint_1`` … by default)."""
+    types = tuple(types)
+    if len(types) != n:
+        raise ConfigError(f"{name}: expected {n} joint types, got {len(types)}")
+    bad = [t for t in types if t not in JOINT_TYPES]
+    if bad:
+        raise ConfigError(f"{name}: unknown joint type {bad[0]!r}, expected one of {JOINT_TYPES}")
+    names = tuple(f"joint_{i + 1}" for i in range(n)) if names is None else tuple(names)
+    if len(names) != n:
+        raise ConfigError(f"{name}: expected {n} joint names, got {len(names)}")
+    return types, names
 
 
 def limits(q_min, q_max, n: int, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -254,16 +268,6 @@ class KinematicChain:
         object.__setattr__(self, "_A", A)
 
 
-def _rotation_from_vector(v: np.ndarray) -> np.ndarray:
-    """Rodrigues' rotation matrix of a small rotation vector ``v`` (3,), rad."""
-    th = math.sqrt(float(v @ v))
-    if th == 0.0:
-        return np.eye(3)
-    k = v / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
-
-
 @dataclass(frozen=True, eq=False)
 class SerialChain(KinematicChain):
     """A serial chain given by a fixed origin transform and an axis per joint (a URDF path).
@@ -327,9 +331,7 @@ class SerialChain(KinematicChain):
         n = origins.shape[0]
         if ax.shape != (n, 3):
             raise ConfigError(f"{self.name}: axes: expected shape ({n}, 3), got {ax.shape}")
-        names = tuple(f"joint_{i + 1}" for i in range(n)) if self.joint_names is None else tuple(self.joint_names)
-        if len(names) != n:
-            raise ConfigError(f"{self.name}: expected {n} joint names, got {len(names)}")
+        types, names = joint_types_and_names(self.joint_types, self.joint_names, n, self.name)
         for i in range(n):
             check_rigid(origins[i], f"{self.name}: joint '{names[i]}' origin")
         if not np.all(np.isfinite(ax)):
@@ -339,12 +341,6 @@ class SerialChain(KinematicChain):
             i = int(np.argmax(norm < 1e-12))
             raise ConfigError(f"{self.name}: joint '{names[i]}' has a zero axis; expected a non-zero direction")
         ax = ax / norm[:, None]
-        types = tuple(self.joint_types)
-        if len(types) != n:
-            raise ConfigError(f"{self.name}: expected {n} joint types, got {len(types)}")
-        bad = [t for t in types if t not in JOINT_TYPES]
-        if bad:
-            raise ConfigError(f"{self.name}: unknown joint type {bad[0]!r}, expected one of {JOINT_TYPES}")
         T_last = np.eye(4) if self.T_last_flange is None else check_rigid(self.T_last_flange, f"{self.name}: T_last_flange")
         T_tool = np.eye(4) if self.T_flange_tool is None else check_rigid(self.T_flange_tool, f"{self.name}: T_flange_tool")
         lo, hi = limits(self.q_min, self.q_max, n, self.name)
@@ -374,7 +370,7 @@ class SerialChain(KinematicChain):
         out = fixed.copy()
         for i in range(fixed.shape[0]):
             E = np.eye(4)
-            E[:3, :3] = _rotation_from_vector(dr[i])
+            E[:3, :3] = matrix_from_rotation_vector(dr[i])
             E[:3, 3] = dt[i]
             out[i] = fixed[i] @ E
         return dataclasses.replace(self, origins=out[:-1], T_last_flange=out[-1],

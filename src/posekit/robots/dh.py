@@ -31,12 +31,12 @@ import numpy as np
 from posekit.errors import ConfigError
 
 from .chain import (
-    JOINT_TYPES,
     PRISMATIC,
     REVOLUTE,
     KinematicChain,
     as_vector,
     check_rigid,
+    joint_types_and_names,
     limits,
 )
 
@@ -136,16 +136,8 @@ class DHChain(KinematicChain):
             if not np.all(np.isfinite(v)):
                 raise ConfigError(f"{self.name}: {key} must be finite, got {v.tolist()}")
             set_(self, key, v)
-        types = tuple(self.joint_types)
-        if len(types) != n:
-            raise ConfigError(f"{self.name}: expected {n} joint types, got {len(types)}")
-        bad = [t for t in types if t not in JOINT_TYPES]
-        if bad:
-            raise ConfigError(f"{self.name}: unknown joint type {bad[0]!r}, expected one of {JOINT_TYPES}")
+        types, names = joint_types_and_names(self.joint_types, self.joint_names, n, self.name)
         set_(self, "joint_types", types)
-        names = tuple(f"joint_{i + 1}" for i in range(n)) if self.joint_names is None else tuple(self.joint_names)
-        if len(names) != n:
-            raise ConfigError(f"{self.name}: expected {n} joint names, got {len(names)}")
         set_(self, "joint_names", names)
         lo, hi = limits(self.q_min, self.q_max, n, self.name)
         set_(self, "q_min", lo)
