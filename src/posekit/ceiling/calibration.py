@@ -49,6 +49,13 @@ MAX_COND = 1e12
 INVERSE_TOL = 1e-6
 #: RANSAC is on by default from this many points.
 RANSAC_MIN_POINTS = 6
+#: Most calibration points a file or a call may hold. A ceiling grid seen by one camera has tens
+#: to hundreds of crossings; at this limit RANSAC and the refinement take about a second.
+MAX_POINTS = 10_000
+#: Two points closer than this (Hartley-normalized units, mean distance √2) coincide: twice the
+#: homography's own test, so that test never meets a pile of coinciding points (it lists every
+#: pair: N² of them for N copies of one point).
+_COINCIDE_TOL = 2e-9
 
 
 @dataclass(eq=False)
@@ -154,8 +161,10 @@ def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0,
     Raises
     ------
     CalibrationError
-        Degenerate points (fewer than 4, duplicates, on one line, ...).
+        Degenerate points (fewer than 4, more than :data:`MAX_POINTS`, two that coincide, on
+        one line, ...).
     """
+    _check_count_and_distinct(world_xy, image_uv)
     world, image = check_correspondences(world_xy, image_uv, names=("world", "image"))
     n = len(world)
     use_ransac = n >= RANSAC_MIN_POINTS if ransac is None else bool(ransac)
@@ -181,6 +190,39 @@ def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0,
     rms_px = math.sqrt(float(np.mean(np.sum((apply_homography(H, w_in) - i_in) ** 2, axis=1))))
     rms_world = math.sqrt(float(np.mean(np.sum((apply_homography(H_world_image, i_in) - w_in) ** 2, axis=1))))
     return Calibration(H, H_world_image, rms_px, rms_world, inliers, n)
+
+
+def _check_count_and_distinct(world_xy, image_uv):
+    """At most :data:`MAX_POINTS` points, and no two that coincide, found in O(N log N).
+
+    The message of a coinciding pair is the homography's own (the first pair in index order).
+    Malformed input (shape, non-finite values) is left to ``check_correspondences``.
+    """
+    from scipy.spatial import cKDTree
+
+    for pts, name in ((world_xy, "world"), (image_uv, "image")):
+        try:
+            arr = np.asarray(pts, dtype=np.float64)
+        except (TypeError, ValueError):
+            return
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            return
+        if len(arr) > MAX_POINTS:
+            raise CalibrationError(f"calibrate: {len(arr)} {name} points; expected at most {MAX_POINTS} "
+                                   "(a ceiling grid in view has tens to hundreds of crossings)")
+        if len(arr) < 2 or not np.isfinite(arr).all():
+            continue
+        q = arr - arr.mean(axis=0)
+        d = np.sqrt(q[:, 0] ** 2 + q[:, 1] ** 2).mean()
+        pn = q * (math.sqrt(2.0) / d if d > 0 else 1.0)
+        tree = cKDTree(pn)
+        dist, _ = tree.query(pn, k=2)                    # column 1: the nearest other point
+        close = np.flatnonzero(dist[:, 1] <= _COINCIDE_TOL)
+        if close.size:
+            i = int(close[0])
+            j = min(k for k in tree.query_ball_point(pn[i], _COINCIDE_TOL) if k != i)
+            raise CalibrationError(f"homography: {name} points {i} and {j} coincide at "
+                                   f"({arr[i, 0]:g}, {arr[i, 1]:g}); expected distinct points")
 
 
 def _matrix(data, key, path):
@@ -278,7 +320,8 @@ def read_points_csv(path) -> CalibrationPoints:
     ------
     CalibrationError
         Missing or empty file, wrong header, a row without 4 finite numbers (naming the
-        line), or fewer than 4 points.
+        line), fewer than 4 or more than :data:`MAX_POINTS` points, a world or image point
+        that repeats an earlier line.
     """
     path = Path(path)
     text = read_text(path, expected="a CSV of calibration points 'X,Y,u,v'", error=CalibrationError)
@@ -305,6 +348,9 @@ def read_points_csv(path) -> CalibrationPoints:
             if not math.isfinite(value):
                 raise CalibrationError(f"{path} line {lineno}: {name} is '{field}'; expected a finite number")
             values.append(value)
+        if len(rows) == MAX_POINTS:
+            raise CalibrationError(f"{path} line {lineno}: more than {MAX_POINTS} calibration points; expected "
+                                   f"at most {MAX_POINTS} (a ceiling grid in view has tens to hundreds of crossings)")
         rows.append(values)
         lines.append(lineno)
     if not header_seen:
@@ -312,6 +358,16 @@ def read_points_csv(path) -> CalibrationPoints:
     if len(rows) < 4:
         raise CalibrationError(f"{path}: {len(rows)} calibration points; a homography needs at least 4 "
                                "(6 or more let RANSAC reject a mis-clicked one)")
+    for cols, what, why in (((0, 1), "world point X={:g}, Y={:g}", "each ceiling point once"),
+                            ((2, 3), "image point u={:g}, v={:g}",
+                             "distinct pixels (two ceiling points cannot share one)")):
+        seen = {}
+        for k, row in enumerate(rows):
+            key = (row[cols[0]], row[cols[1]])
+            first = seen.setdefault(key, k)
+            if first != k:
+                raise CalibrationError(f"{path} line {lines[k]}: {what.format(*key)} repeats line {lines[first]}; "
+                                       f"expected {why}")
     arr = np.array(rows, dtype=np.float64)
     return CalibrationPoints(arr[:, :2], arr[:, 2:], np.array(lines))
 

@@ -5,10 +5,14 @@ import json
 from pathlib import Path
 
 from ..errors import ConfigError
+from ._flags import bounded_int, check_flags
 
 __all__ = ["add_parser", "BENCHMARKS"]
 
 BENCHMARKS = ("profiler", "ceiling", "seam", "robots")
+#: Most samples of one benchmark (profiles, frames, filter steps or calls; each benchmark takes at
+#: least its own minimum).
+MAX_COUNT = 10_000
 PLANNED = ()
 
 
@@ -16,7 +20,8 @@ def add_parser(sub):
     p = sub.add_parser("bench", help="time a system against the peer a user would otherwise pick")
     p.add_argument("name", choices=[*BENCHMARKS, *PLANNED, "all"], help="which benchmark")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
-    p.add_argument("--count", type=int, default=None, help="number of samples (benchmark's default)")
+    p.add_argument("--count", type=bounded_int(1, MAX_COUNT, "samples"), default=None,
+                   help=f"number of samples, 1..{MAX_COUNT} (default: the benchmark's)")
     p.set_defaults(func=run)
 
 
@@ -42,6 +47,7 @@ def run(args) -> int:
     if args.name in PLANNED:
         raise ConfigError(f"benchmark '{args.name}' does not exist yet: its system is not implemented; "
                           f"available: {', '.join(BENCHMARKS)}")
+    check_flags(args)
     names = BENCHMARKS if args.name == "all" else (args.name,)
     for name in names:
         results = _load(name).run(count=args.count, verbose=not args.json)

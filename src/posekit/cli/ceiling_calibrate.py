@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 from .._extras import require
+from ._flags import bounded_float, check_flags, check_range, seed
 
 __all__ = ["add_calibrate_parser", "run_calibrate"]
 
@@ -24,16 +25,17 @@ def add_calibrate_parser(verbs):
     g.add_argument("--ransac", dest="ransac", action="store_const", const=True, default=None,
                    help="reject mis-clicked points by RANSAC (default: on from 6 points)")
     g.add_argument("--no-ransac", dest="ransac", action="store_const", const=False, help="use every point")
-    c.add_argument("--threshold-px", type=float, default=3.0,
-                   help="RANSAC inlier threshold on the reprojection error, px (default 3)")
-    c.add_argument("--seed", type=int, default=0, help="random seed of RANSAC (default 0)")
+    c.add_argument("--threshold-px", type=bounded_float(0.01, 1e4, "px"), default=3.0,
+                   help="RANSAC inlier threshold on the reprojection error, 0.01..10000 px (default 3)")
+    c.add_argument("--seed", type=seed, default=0, help="random seed of RANSAC (default 0)")
     c.add_argument("--from-image", metavar="REF.png",
                    help="reference image of the ceiling grid: find all T-bar crossings from the seed points")
     c.add_argument("--grid", default="600,1200", metavar="SX,SY",
-                   help="T-bar spacing along X and Y, mm (default 600,1200)")
+                   help="T-bar spacing along X and Y, 10..100000 mm (default 600,1200)")
     c.add_argument("--grid-origin", default="0,0", metavar="X0,Y0",
-                   help="world position of one crossing, mm (default 0,0)")
-    c.add_argument("--bar-mm", type=float, default=15.0, help="T-bar width, mm (default 15)")
+                   help="world position of one crossing, -1e6..1e6 mm (default 0,0)")
+    c.add_argument("--bar-mm", type=bounded_float(0.1, 1e3, "mm"), default=15.0,
+                   help="T-bar width, 0.1..1000 mm and under 10 %% of the spacing (default 15)")
     c.add_argument("--light-bars", action="store_true", help="the T-bars are lighter than the tiles")
     c.add_argument("--write-points", metavar="FOUND.csv",
                    help="with --from-image: write the crossings found as a points CSV")
@@ -41,18 +43,21 @@ def add_calibrate_parser(verbs):
     return c
 
 
-def _pair(text, option):
+def _pair(text, option, lo, hi):
+    """'600,1200' -> (600.0, 1200.0), each in ``lo..hi`` mm; a one-line ConfigError naming ``option``."""
     from ..errors import ConfigError
     try:
         vals = tuple(float(v) for v in text.split(","))
     except ValueError:
         vals = ()
     if len(vals) != 2:
-        raise ConfigError(f"{option}: expected two comma-separated numbers, got '{text}'")
+        raise ConfigError(f"{option}: expected two comma-separated numbers, got '{text[:80]}'")
+    for v in vals:
+        check_range(option, v, lo, hi, "mm", what="two numbers", shown=repr(text))
     return vals
 
 
-def _points_from_image(args, seeds):
+def _points_from_image(args, seeds, grid_mm, origin_mm):
     cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
     import numpy as np
 
@@ -64,7 +69,7 @@ def _points_from_image(args, seeds):
     img = read_image(args.from_image, cv2.IMREAD_GRAYSCALE, error=CalibrationError)
     if img is None:
         raise CalibrationError(f"{args.from_image}: cannot decode the image; expected an image file OpenCV reads")
-    grid = CeilingGrid(_pair(args.grid, "--grid"), _pair(args.grid_origin, "--grid-origin"), args.bar_mm)
+    grid = CeilingGrid(grid_mm, origin_mm, args.bar_mm)
     corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seeds.image_uv,
                                 polarity="light" if args.light_bars else "dark")
     print(f"found {len(corners.image_uv)} grid crossings in {args.from_image}")
@@ -84,9 +89,12 @@ def run_calibrate(args) -> int:
 
     if not (np.isfinite(args.threshold_px) and args.threshold_px > 0):
         raise ConfigError(f"--threshold-px must be a number > 0, got {args.threshold_px:g}")
+    check_flags(args)
+    grid_mm = _pair(args.grid, "--grid", 10.0, 1e5)
+    origin_mm = _pair(args.grid_origin, "--grid-origin", -1e6, 1e6)
     pts = read_points_csv(args.points)
     if args.from_image:
-        world, image, lines = _points_from_image(args, pts)
+        world, image, lines = _points_from_image(args, pts, grid_mm, origin_mm)
     else:
         if args.write_points:
             raise ConfigError("--write-points needs --from-image")

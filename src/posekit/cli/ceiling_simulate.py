@@ -5,10 +5,13 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
+from ._flags import bounded_float, check_flags, seed
 
 __all__ = ["add_simulate_parser", "run_simulate"]
 
 DOT_CHOICES = {"red": ("red",), "red,green": ("red", "green"), "red,red": ("red", "red"), "line": ("line",)}
+#: Longest video, s, and its most frames (--duration-s × --fps: one hour at 15 fps, ~1.5 GB of MJPG).
+MAX_DURATION_S, MAX_FRAMES = 3600.0, 54_000
 
 
 def add_simulate_parser(verbs):
@@ -20,15 +23,17 @@ def add_simulate_parser(verbs):
                     "truth.csv, calibration_points.csv (X,Y,u,v of grid corners), reference.png.")
     s.add_argument("--out", required=True, help="output folder")
     add_overwrite(s)
-    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same video; default 0)")
+    s.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same video; default 0)")
     s.add_argument("--dots", default="red", help="lasers: red (case A), red,green or red,red (case B, "
                                                  "40 cm apart), line (case C); default red")
-    s.add_argument("--duration-s", type=float, default=60.0, help="video length, s (default 60)")
-    s.add_argument("--fps", type=float, default=15.0, help="frame rate (default 15)")
+    s.add_argument("--duration-s", type=bounded_float(0.0, MAX_DURATION_S, "s", lo_open=True), default=60.0,
+                   help="video length, (0, 3600] s, at most 54,000 frames (default 60)")
+    s.add_argument("--fps", type=bounded_float(1.0, 120.0, "Hz"), default=15.0, help="frame rate, 1..120 Hz (default 15)")
     s.add_argument("--holes", action="store_true", default=True,
                    help="air-conditioning vents where a dot vanishes (default)")
     s.add_argument("--no-holes", dest="holes", action="store_false", help="a ceiling without vents")
-    s.add_argument("--noise-std", type=float, default=2.0, help="sensor noise, grey levels (default 2)")
+    s.add_argument("--noise-std", type=bounded_float(0.0, 255.0, "grey levels"), default=2.0,
+                   help="sensor noise, 0..255 grey levels (default 2)")
     s.add_argument("--frames-png", action="store_true", help="also write every frame as frames/NNNNNN.png")
     s.set_defaults(func=run_simulate)
     return s
@@ -61,6 +66,10 @@ def run_simulate(args) -> int:
         raise ConfigError(f"--dots: expected one of {' | '.join(DOT_CHOICES)}, got '{args.dots}'")
     if not args.duration_s > 0:
         raise ConfigError(f"--duration-s: expected a positive number of seconds, got {args.duration_s}")
+    check_flags(args)
+    if args.duration_s * args.fps > MAX_FRAMES:
+        raise ConfigError(f"--duration-s {args.duration_s:g} × --fps {args.fps:g} = {args.duration_s * args.fps:.0f} "
+                          f"frames; expected at most {MAX_FRAMES}")
     config = SceneConfig(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes,
                          noise_std=args.noise_std)
     out_folder(args)

@@ -4,8 +4,13 @@ import sys
 from pathlib import Path
 
 from ._common import add_deprecated, add_overwrite, out_folder, staged
+from ._flags import bounded_float, check_flags, seed
 
 __all__ = ["add_track_parser", "add_demo_parser", "run_track", "run_demo"]
+
+#: ``--duration-s`` of the demo: at most an hour (54,000 frames at 15 fps); > 0 is checked by
+#: ``posekit.ceiling.demo.run_demo`` with its own message.
+_DURATION = bounded_float(None, 3600.0, "s", flag="--duration-s")
 
 
 def _frame_progress(total=None, desc="track"):
@@ -33,10 +38,11 @@ def add_track_parser(verbs):
     t.add_argument("--line-method", choices=["moments", "hough"], default="moments",
                    help="with --dots line: measure the segment by its principal axis (default, most precise) "
                         "or by a Hough transform of its centre line")
-    t.add_argument("--fps", type=float, default=None,
-                   help="frame rate for the timestamps (default: the video's, or 15 for an image folder)")
-    t.add_argument("--max-predict-s", type=float, default=1.0,
-                   help="predict through a dropout for at most this long, then 'lost' (default 1 s)")
+    t.add_argument("--fps", type=bounded_float(0.01, 1e4, "Hz"), default=None,
+                   help="frame rate for the timestamps, 0.01..10000 Hz (default: the video's, or 15 for an image "
+                        "folder)")
+    t.add_argument("--max-predict-s", type=bounded_float(0.0, 3600.0, "s"), default=1.0,
+                   help="predict through a dropout for at most this long, then 'lost', 0..3600 s (default 1 s)")
     t.add_argument("--out", required=True, metavar="TRACK.csv",
                    help="output CSV frame,time_s,x,y,heading_deg,status (mm, s, degrees)")
     t.set_defaults(func=run_track)
@@ -57,6 +63,7 @@ def run_track(args) -> int:
         config = TrackerConfig(dots=dots, max_predict_s=args.max_predict_s)
     except ConfigError:
         raise ConfigError(f"--max-predict-s must be a number >= 0, got {args.max_predict_s:g}") from None
+    check_flags(args)
     out = Path(args.out)
     if out.is_dir():
         raise ConfigError(f"--out {out}: is a folder; expected a CSV file name")
@@ -84,10 +91,10 @@ def add_demo_parser(verbs):
                    help="output folder (default posekit-ceiling-demo, replaced on each run)")
     add_overwrite(d, "posekit-ceiling-demo")
     d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
-    add_deprecated(d, "--seconds", "--duration-s", "seconds", float)
-    d.add_argument("--duration-s", dest="seconds", type=float, default=None, help="length of the rendered video, s "
-                                                                "(default: the renderer's)")
-    d.add_argument("--seed", type=int, default=0, help="random seed of the render (default 0)")
+    add_deprecated(d, "--seconds", "--duration-s", "seconds", _DURATION)
+    d.add_argument("--duration-s", dest="seconds", type=_DURATION, default=None,
+                   help="length of the rendered video, (0, 3600] s (default: the renderer's)")
+    d.add_argument("--seed", type=seed, default=0, help="random seed of the render (default 0)")
     d.set_defaults(func=run_demo)
 
 
@@ -96,6 +103,7 @@ def run_demo(args) -> int:
     from ..ceiling.pipeline import parse_dots
 
     dots = parse_dots(args.dots)
+    check_flags(args)
     out_folder(args)
     with staged(args) as tmp:
         report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"))

@@ -3,6 +3,8 @@
 import json
 import sys
 
+from ._flags import bounded_float, check_flags
+
 __all__ = ["add_match_parser", "run_match"]
 
 
@@ -18,16 +20,17 @@ def add_match_parser(verbs):
     p.add_argument("--out", required=True, metavar="RESULT.json", help="result file to write")
     p.add_argument("--no-timestamps", dest="timestamps", action="store_false",
                    help="ignore the timestamps: correspondence-free point-set registration")
-    p.add_argument("--max-dt", type=float, default=0.02, metavar="S",
-                   help="largest time difference of an associated pose pair, s (default 0.02)")
-    p.add_argument("--time-offset", type=float, default=None, metavar="S",
-                   help="known clock offset t_kinematic - t_camera, s (default: estimated)")
-    p.add_argument("--max-offset", type=float, default=1.0, metavar="S",
-                   help="search the clock offset within +-S seconds (default 1)")
+    # --max-dt > 0 is checked by match_trajectories (max_dt_s) with its own message
+    p.add_argument("--max-dt", type=bounded_float(None, 10.0, "s"), default=0.02, metavar="S",
+                   help="largest time difference of an associated pose pair, (0, 10] s (default 0.02)")
+    p.add_argument("--time-offset", type=bounded_float(-1e10, 1e10, "s"), default=None, metavar="S",
+                   help="known clock offset t_kinematic - t_camera, -1e10..1e10 s (default: estimated)")
+    p.add_argument("--max-offset", type=bounded_float(0.0, 86400.0, "s"), default=1.0, metavar="S",
+                   help="search the clock offset within +-S seconds, 0..86400 (default 1)")
     p.add_argument("--with-scale", action="store_true",
                    help="also estimate a scale (Sim(3)), for a monocular VO trajectory")
-    p.add_argument("--outlier-fraction", type=float, default=0.05, metavar="F",
-                   help="expected fraction of gross outliers (default 0.05)")
+    p.add_argument("--outlier-fraction", type=bounded_float(0.0, 0.5, hi_open=True), default=0.05, metavar="F",
+                   help="expected fraction of gross outliers, [0, 0.5) (default 0.05)")
     p.set_defaults(func=run_match)
     return p
 
@@ -40,6 +43,7 @@ def run_match(args) -> int:
     from ..localcal.registration import match_trajectories
     from ..localcal.tum import read_tum
 
+    check_flags(args)
     src = read_tum(args.camera)
     dst = read_tum(args.kinematic)
     reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,

@@ -7,6 +7,14 @@ import sys
 
 from ..errors import ConfigError, EstimationError
 from ._common import add_overwrite, out_folder, staged
+from ._flags import bounded_float, bounded_int, check_flags, seed, workers
+
+#: Most episodes of one simulate run (a few seconds each), most look-then-move updates per episode.
+MAX_RUNS, MAX_UPDATES = 10_000, 100
+#: Fastest camera, Hz (a VO camera runs at 10-60 Hz; the images along a motion grow with it).
+MAX_CAMERA_HZ = 100.0
+#: Largest start joint value, deg (mm for a prismatic joint).
+MAX_START_Q = 1e6
 
 __all__ = ["add_demo_parser", "add_simulate_parser", "run_demo", "run_simulate"]
 
@@ -19,14 +27,16 @@ def add_simulate_parser(verbs):
                     "matching method on the simulated HIAB033-like long-reach arm; print the paper's "
                     "tables and write them (CSV), results.json, the figures (PNG) and report.html to OUT.")
     s.add_argument("--method", required=True, choices=["line", "trajectory"], help="range adjustment method")
-    s.add_argument("--runs", type=int, default=10, help="number of episodes (default 10)")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0; same seed, same numbers)")
-    s.add_argument("--updates", type=int, default=2, help="look-then-move updates per episode (default 2)")
+    s.add_argument("--runs", type=bounded_int(1, MAX_RUNS), default=10,
+                   help=f"number of episodes, 1..{MAX_RUNS} (default 10)")
+    s.add_argument("--seed", type=seed, default=0, help="random seed (default 0; same seed, same numbers)")
+    s.add_argument("--updates", type=bounded_int(1, MAX_UPDATES), default=2,
+                   help=f"look-then-move updates per episode, 1..{MAX_UPDATES} (default 2)")
     s.add_argument("--scheduler", default="serial",
                    help="serial (default, in this process), local (a Dask cluster on this machine) "
                         "or a Dask scheduler address tcp://HOST:PORT")
-    s.add_argument("--workers", type=int, default=None,
-                   help="worker processes of the local cluster (--scheduler local; default: one per core)")
+    s.add_argument("--workers", type=workers, default=None,
+                   help="worker processes of the local cluster, 1..256 (--scheduler local; default: one per core)")
     s.add_argument("--no-timestamps", action="store_true",
                    help="trajectory method: match VO and encoder trajectories without timestamps")
     s.add_argument("--occlude-ooi", default="never",
@@ -56,7 +66,7 @@ def add_demo_parser(verbs):
         description="Run one simulated look-then-move episode of the line-equation method and one of the "
                     "trajectory-matching method (two updates each) and print the paper's tables. "
                     "Writes nothing unless --out is given.")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     _camera_options(s)
     s.add_argument("--out", default=None, help="write tables, figures and report.html to OUT/line and OUT/trajectory")
     add_overwrite(s)
@@ -65,10 +75,11 @@ def add_demo_parser(verbs):
 
 
 def _camera_options(s):
-    s.add_argument("--camera-hz", type=float, default=10.0,
-                   help="camera images per second along the circular path (line method; default 10)")
-    s.add_argument("--plot-hz", type=float, default=2.0,
-                   help="camera images per second along the other motions, for the error plots (default 2; 0 = none)")
+    s.add_argument("--camera-hz", type=bounded_float(0.001, MAX_CAMERA_HZ, "Hz"), default=10.0,
+                   help="camera images per second along the circular path, 0.001..100 Hz (line method; default 10)")
+    s.add_argument("--plot-hz", type=bounded_float(0.0, MAX_CAMERA_HZ, "Hz"), default=2.0,
+                   help="camera images per second along the other motions, for the error plots, 0..100 Hz "
+                        "(default 2; 0 = none)")
 
 
 def _config(args, **extra):
@@ -79,6 +90,7 @@ def _config(args, **extra):
         raise ConfigError(f"--camera-hz: expected a rate > 0, got {args.camera_hz:g}")
     if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
         raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
+    check_flags(args)
     return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
 
 
@@ -95,8 +107,11 @@ def _robot_options(args) -> dict:
             values = [float(v) for v in args.start_q_deg.split(",")]
         except ValueError:
             raise ConfigError(f"--start-q-deg: expected comma-separated numbers, got '{args.start_q_deg[:80]}'") from None
-        if not all(math.isfinite(v) and abs(v) <= 1e6 for v in values):
+        if not all(math.isfinite(v) for v in values):
             raise ConfigError(f"--start-q-deg: expected finite values, got '{args.start_q_deg[:80]}'")
+        if not all(abs(v) <= MAX_START_Q for v in values):
+            raise ConfigError(f"--start-q-deg: expected values in -{MAX_START_Q:.0e}..{MAX_START_Q:.0e} deg (mm for a "
+                              f"prismatic joint), got '{args.start_q_deg[:80]}'")
         start = values
     options = {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}
     model = load_robot(args.robot, args.base_link, args.tip_link)

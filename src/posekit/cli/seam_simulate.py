@@ -10,6 +10,7 @@ import time
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
 from ._common import progress as _progress
+from ._flags import bounded_int, check_flags, seed
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
 
@@ -18,6 +19,21 @@ TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
 DEMO_STEPS = 300
 DEMO_PARTICLES = 300
+#: ``posekit.seam.config.MAX_STEPS`` / ``MAX_PARTICLES`` (not imported: the parser stays light; a test
+#: keeps them equal). The configuration also bounds steps × particles and steps × seam points.
+MAX_STEPS, MAX_PARTICLES = 100_000, 1_000_000
+#: Most Monte-Carlo episodes of one command.
+MAX_RUNS = 10_000
+#: Most episode-steps kept in memory for the metrics and figures (runs × steps, × 6 with
+#: --compare or in the demo): about 1 KB each, so 1 GiB at the limit.
+MAX_KEPT_STEPS = 1_000_000
+#: Most recorded particle poses for Fig. 5 (steps × --record-particles, 48 bytes each: 96 MB).
+MAX_RECORDED = 2_000_000
+#: Particles recorded per step by default (fewer on a long episode, within MAX_RECORDED).
+RECORD_DEFAULT = 200
+_STEPS = bounded_int(2, MAX_STEPS)
+_PARTICLES = bounded_int(1, MAX_PARTICLES)
+_RUNS = bounded_int(1, MAX_RUNS)
 
 
 #: Progress over episodes: a tqdm bar on a terminal, silent otherwise.
@@ -51,9 +67,11 @@ def _episode_flags(p):
                    help="seam/trajectory kind (overrides trajectory.kind)")
     p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None,
                    help="laser sensors ahead of the tool (overrides sensors.count)")
-    p.add_argument("--particles", type=int, default=None, help="particle count (overrides filter.particles)")
-    p.add_argument("--steps", type=int, default=None, help="time steps per episode (overrides trajectory.steps)")
-    p.add_argument("--seed", type=int, default=None, help="seed (overrides seed; same seed, same numbers)")
+    p.add_argument("--particles", type=_PARTICLES, default=None,
+                   help=f"particle count, 1..{MAX_PARTICLES} (overrides filter.particles)")
+    p.add_argument("--steps", type=_STEPS, default=None,
+                   help=f"time steps per episode, 2..{MAX_STEPS} (overrides trajectory.steps)")
+    p.add_argument("--seed", type=seed, default=None, help="seed (overrides seed; same seed, same numbers)")
 
 
 def add_simulate_parser(verbs):
@@ -61,11 +79,13 @@ def add_simulate_parser(verbs):
     p = verbs.add_parser("simulate", help="simulate seam tracking episodes: metrics.json, estimates.csv, "
                                           "figures, report.html")
     _episode_flags(p)
-    p.add_argument("--runs", type=int, default=1, help="Monte-Carlo episodes (default 1)")
+    p.add_argument("--runs", type=_RUNS, default=1,
+                   help=f"Monte-Carlo episodes, 1..{MAX_RUNS}; runs × steps at most {MAX_KEPT_STEPS:,} (default 1)")
     p.add_argument("--compare", action="store_true",
                    help="also run trajectories xy, yz with 0, 1, 2 sensors for Fig. 8 (same filter)")
-    p.add_argument("--record-particles", type=int, default=200,
-                   help="particles recorded per step in run 0 for Fig. 5 (default 200; 0: no Fig. 5)")
+    p.add_argument("--record-particles", type=bounded_int(0, 10_000), default=None,
+                   help=f"particles recorded per step in run 0 for Fig. 5, 0..10000 and steps × this at most "
+                        f"{MAX_RECORDED:,} (default {RECORD_DEFAULT}, fewer on a long episode; 0: no Fig. 5)")
     p.add_argument("--dump-config", action="store_true", help="print the effective configuration and exit")
     p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
     add_overwrite(p)
@@ -77,11 +97,12 @@ def add_demo_parser(verbs):
     """Add ``demo`` to the ``posekit seam`` sub-parsers."""
     p = verbs.add_parser("demo", help=f"quick look: 0, 1, 2 sensors on the xy and yz seams "
                                       f"({DEMO_STEPS} steps, {DEMO_PARTICLES} particles), RMSE per axis")
-    p.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    p.add_argument("--runs", type=int, default=1, help="episodes per configuration (default 1)")
-    p.add_argument("--steps", type=int, default=DEMO_STEPS, help=f"time steps per episode (default {DEMO_STEPS})")
-    p.add_argument("--particles", type=int, default=DEMO_PARTICLES,
-                   help=f"particle count (default {DEMO_PARTICLES})")
+    p.add_argument("--seed", type=seed, default=0, help="seed (default 0)")
+    p.add_argument("--runs", type=_RUNS, default=1, help=f"episodes per configuration, 1..{MAX_RUNS} (default 1)")
+    p.add_argument("--steps", type=_STEPS, default=DEMO_STEPS,
+                   help=f"time steps per episode, 2..{MAX_STEPS} (default {DEMO_STEPS})")
+    p.add_argument("--particles", type=_PARTICLES, default=DEMO_PARTICLES,
+                   help=f"particle count, 1..{MAX_PARTICLES} (default {DEMO_PARTICLES})")
     p.add_argument("--out", default=None, help="also write figures, metrics.json and report.html here")
     add_overwrite(p)
     p.set_defaults(func=run_demo)
@@ -98,6 +119,7 @@ def build_config(args):
                              ("--seed", args.seed, 0)):
         if value is not None and value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
+    check_flags(args, ("particles", "steps", "seed"))
     cfg = apply_overrides(cfg, {"trajectory.kind": args.trajectory, "filter.particles": args.particles,
                                 "trajectory.steps": args.steps, "seed": args.seed})
     if args.sensors is not None:
@@ -110,6 +132,27 @@ def _check_runs(runs):
         raise ConfigError(f"--runs: expected an integer >= 1, got {runs}")
 
 
+def _check_kept(runs: int, steps: int, configurations: int = 1) -> None:
+    """At most :data:`MAX_KEPT_STEPS` episode-steps held for the metrics and figures."""
+    kept = runs * steps * configurations
+    if kept > MAX_KEPT_STEPS:
+        times = f" × {configurations} configurations" if configurations > 1 else ""
+        raise ConfigError(f"--runs {runs} × {steps} steps{times} = {kept:,} episode-steps kept for the metrics and "
+                          f"figures; expected at most {MAX_KEPT_STEPS:,} (1 GiB): fewer --runs or --steps")
+
+
+def _record_count(args, steps: int) -> int:
+    """``--record-particles``, or its default within :data:`MAX_RECORDED`; a one-line error for a
+    given value over it."""
+    if args.record_particles is None:
+        return min(RECORD_DEFAULT, MAX_RECORDED // steps)
+    if steps * args.record_particles > MAX_RECORDED:
+        raise ConfigError(f"--record-particles {args.record_particles} × {steps} steps = "
+                          f"{steps * args.record_particles:,} recorded particle poses; expected at most "
+                          f"{MAX_RECORDED:,} (96 MB): at most {MAX_RECORDED // steps} per step, or 0 (no Fig. 5)")
+    return args.record_particles
+
+
 def run_simulate(args) -> int:
     from ..seam.config import dump_config
 
@@ -120,14 +163,17 @@ def run_simulate(args) -> int:
     if not args.out:
         raise ConfigError("--out: an output folder is required (or use --dump-config)")
     _check_runs(args.runs)
-    if args.record_particles < 0:
+    if args.record_particles is not None and args.record_particles < 0:
         raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
+    check_flags(args)
+    _check_kept(args.runs, cfg.trajectory.steps, 6 if args.compare else 1)
+    record = _record_count(args, cfg.trajectory.steps)
     out_folder(args)
     from ..seam.compare import compare_configurations, run_episodes
     from ..seam.report import write_simulation
     from ..seam.simulate import metrics
 
-    results = run_episodes(cfg, args.runs, record_particles=args.record_particles, progress=progress,
+    results = run_episodes(cfg, args.runs, record_particles=record, progress=progress,
                            desc="episodes")
     m = metrics(results)
     comparison = (compare_configurations(cfg, args.runs, progress=progress, reuse=(cfg, results))
@@ -159,12 +205,15 @@ def run_demo(args) -> int:
                              ("--seed", args.seed, 0)):
         if value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
+    check_flags(args)
+    _check_kept(args.runs, args.steps, 6)
     if args.out:
         out_folder(args)
     cfg = apply_overrides(config_from_dict({}, "defaults"),
                           {"trajectory.steps": args.steps, "filter.particles": args.particles, "seed": args.seed})
     t0 = time.perf_counter()
-    sets = compare_configurations(cfg, args.runs, record_particles=200 if args.out else 0, progress=progress)
+    record = min(RECORD_DEFAULT, MAX_RECORDED // args.steps) if args.out else 0
+    sets = compare_configurations(cfg, args.runs, record_particles=record, progress=progress)
     print(f"seam demo: {args.runs} run(s) × {args.steps} steps, {args.particles} particles, sensors 20/40 mm ahead "
           f"({time.perf_counter() - t0:.1f} s)")
     print("RMSE per axis in the seam frame (mm, deg):")

@@ -1,9 +1,15 @@
 """``posekit seam study``: Monte-Carlo tuning study of the filter parameters (Fig. 6)."""
 
+import math
 import sys
 
 from ..errors import ConfigError
 from ._common import add_overwrite
+from ._flags import bounded_float, bounded_int, check_flags, seed, workers
+
+#: Most random parameter draws, most episodes per draw, and most episodes in all (a study of
+#: 100,000 default episodes takes about a day on 2 cores: more belongs on a cluster, in parts).
+MAX_RUNS, MAX_EPISODES, MAX_STUDY_EPISODES = 10_000, 100, 100_000
 
 __all__ = ["add_study_parser", "parse_factors"]
 
@@ -18,20 +24,26 @@ def add_study_parser(verbs):
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="overrides trajectory.kind")
     p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None, help="overrides sensors.count")
-    p.add_argument("--particles", type=int, default=None, help="overrides filter.particles")
-    p.add_argument("--steps", type=int, default=None, help="overrides trajectory.steps")
-    p.add_argument("--runs", type=int, default=100, help="random parameter draws (default 100)")
-    p.add_argument("--episodes", type=int, default=1, help="episodes per draw, errors pooled (default 1)")
+    from .seam_simulate import _PARTICLES, _STEPS, MAX_PARTICLES, MAX_STEPS
+
+    p.add_argument("--particles", type=_PARTICLES, default=None,
+                   help=f"overrides filter.particles, 1..{MAX_PARTICLES}")
+    p.add_argument("--steps", type=_STEPS, default=None, help=f"overrides trajectory.steps, 2..{MAX_STEPS}")
+    p.add_argument("--runs", type=bounded_int(1, MAX_RUNS), default=100,
+                   help=f"random parameter draws, 1..{MAX_RUNS} (default 100)")
+    p.add_argument("--episodes", type=bounded_int(1, MAX_EPISODES), default=1,
+                   help=f"episodes per draw, errors pooled, 1..{MAX_EPISODES}; runs × episodes at most "
+                        f"{MAX_STUDY_EPISODES:,} (default 1)")
     p.add_argument("--parameters", default=None,
                    help="comma-separated dotted keys to perturb, each optionally KEY=LOW:HIGH "
                         "(default: the filter's noise, force, plateau and initial widths, ESS threshold)")
-    p.add_argument("--spread", type=float, default=0.5,
-                   help="relative half-range of a perturbation around the base value (default 0.5)")
-    p.add_argument("--seed", type=int, default=0, help="study seed (default 0; same seed, same table)")
+    p.add_argument("--spread", type=bounded_float(0.0, 1.0, lo_open=True, hi_open=True), default=0.5,
+                   help="relative half-range of a perturbation around the base value, (0, 1) (default 0.5)")
+    p.add_argument("--seed", type=seed, default=0, help="study seed (default 0; same seed, same table)")
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="worker processes of the local cluster (default: one per core)")
+    p.add_argument("--workers", type=workers, default=None,
+                   help="worker processes of the local cluster, 1..256 (default: one per core)")
     p.add_argument("--out", required=True, help="output folder")
     add_overwrite(p)
     p.set_defaults(func=run_study)
@@ -52,7 +64,9 @@ def parse_factors(text: str | None):
             try:
                 lo, hi = (float(v) for v in rng.split(":"))
             except ValueError:
-                raise ConfigError(f"--parameters: expected KEY or KEY=LOW:HIGH, got '{item}'") from None
+                raise ConfigError(f"--parameters: expected KEY or KEY=LOW:HIGH, got '{item[:80]}'") from None
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise ConfigError(f"--parameters: expected finite LOW and HIGH in KEY=LOW:HIGH, got '{item[:80]}'")
             ranges[name.strip()] = (lo, hi)
     if not names:
         raise ConfigError(f"--parameters: expected at least one dotted key, got '{text}'")
@@ -71,6 +85,10 @@ def run_study(args) -> int:
         if v < 1:
             raise ConfigError(f"{flag}: expected an integer >= 1, got {v}")
     cfg = build_config(args)
+    check_flags(args)
+    if args.runs * args.episodes > MAX_STUDY_EPISODES:
+        raise ConfigError(f"--runs {args.runs} × --episodes {args.episodes} = {args.runs * args.episodes:,} episodes; "
+                          f"expected at most {MAX_STUDY_EPISODES:,} (about a day on 2 cores)")
     names, ranges = parse_factors(args.parameters)
     factors = make_factors(cfg.model_dump(mode="json"), names, spread=args.spread, ranges=ranges)
     out_folder(args)

@@ -3,7 +3,11 @@
 Every parameter lives here with its default and its unit in its name (mm, deg, N, s). The
 defaults are the paper's setup: h = 0.01 s, T = 500 steps, two laser sensors 20 mm and 40 mm
 ahead of the tool, the xy trajectory. Unknown keys are errors (``extra='forbid'``), and so are
-inf and NaN values.
+inf and NaN values, YAML booleans where a number is expected, and every number outside its
+range (in the comment beside each key): no value that passes validation can overflow or
+allocate absurdly later, and an episode's size is bounded (:data:`MAX_PARTICLE_STEPS`,
+:data:`MAX_STEP_SEAM_POINTS`). A range error names the key, the bound, what arrived and the
+whole range with its unit: ``filter.d0_mm: expected <= 1000.0, got 1e+308 (allowed 0..1000 mm)``.
 
 Sections
 --------
@@ -21,23 +25,33 @@ Sections
 source (file). ``SeamConfig.model_validate(dict)`` raises pydantic's ``ValidationError``.
 """
 
+import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal, get_args, get_origin
 
+import annotated_types
 import yaml
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
     field_validator,
     model_validator,
 )
+from pydantic.fields import FieldInfo
+from pydantic_core import PydanticCustomError
 
 from posekit.errors import ConfigError
 
 __all__ = [
     "DEFAULT_SENSOR_DISTANCES_MM",
+    "MAX_PARTICLES",
+    "MAX_PARTICLE_STEPS",
+    "MAX_STEPS",
+    "MAX_STEP_SEAM_POINTS",
+    "SEED_MAX",
     "RESAMPLER_NAMES",
     "TRAJECTORY_KINDS",
     "FilterConfig",
@@ -64,6 +78,63 @@ class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+# ------------------------------------------------------------------ numbers and their ranges
+#
+# Every number has a documented range (in the comment beside it) chosen so that no value that
+# passes validation can overflow or allocate absurdly later: lengths up to 10 m of seam, noise
+# and plateau widths up to 1 m or 180 deg, strictly positive standard deviations at least 1e-9
+# (they divide), and the episode's size bounded (steps <= 100,000, particles <= 1,000,000,
+# steps x particles <= MAX_PARTICLE_STEPS). A YAML boolean is never read as a number.
+
+#: Largest seed: NumPy's SeedSequence takes any int >= 0; 2**63 - 1 fits every int64 column.
+SEED_MAX = 2**63 - 1
+#: Most time steps of one episode (1,000 s of welding at the paper's 100 Hz).
+MAX_STEPS = 100_000
+#: Most particles of the filter (about 0.1 GiB per (N, 4, 4) pose array).
+MAX_PARTICLES = 1_000_000
+#: Most filter work of one episode, ``trajectory.steps × filter.particles`` particle-steps
+#: (0.3-1 µs each on one core: at most a few minutes to a quarter of an hour per episode).
+MAX_PARTICLE_STEPS = 10**9
+#: Most ``trajectory.steps × seam points`` (the seam is sampled every 0.5 mm over ``length_mm +
+#: seam_extension_mm``): the simulator cuts every step's laser planes with every seam segment
+#: at once, about 110 bytes each, so 1 GiB at this limit (500 steps on the default 260 mm seam: 2.6e5).
+MAX_STEP_SEAM_POINTS = 10**7
+
+
+def _not_bool(value):
+    """Refuse YAML ``true`` / ``false`` where a number is expected (pydantic would read 1 / 0)."""
+    if isinstance(value, bool):
+        raise PydanticCustomError("bool_not_number", "expected a number, got a boolean")
+    return value
+
+
+#: A float field that refuses booleans; numbers and numeric strings ('1e-3' in YAML) are read.
+Number = Annotated[float, BeforeValidator(_not_bool)]
+#: An int field that refuses booleans.
+Integer = Annotated[int, BeforeValidator(_not_bool)]
+
+
+def _item(lo: float | None, hi: float) -> Any:
+    """The type of one element of a tuple field: a number in ``lo..hi`` (not a boolean)."""
+    return Annotated[float, BeforeValidator(_not_bool), Field(ge=lo, le=hi)]
+
+
+def _num(default, lo=None, hi=None, unit: str = "", *, lo_open: bool = False, hi_open: bool = False, **kw):
+    """A ``Field`` with its range (``lo..hi``, either end open) and its unit for error messages."""
+    bounds = {}
+    if lo is not None:
+        bounds["gt" if lo_open else "ge"] = lo
+    if hi is not None:
+        bounds["lt" if hi_open else "le"] = hi
+    return Field(default, json_schema_extra={"unit": unit}, **bounds, **kw)
+
+
+Coord_mm = _item(-1e5, 1e5)            # a position in the robot base frame: within 100 m of the base
+Force_n = _item(-1e5, 1e5)             # a force component: within 100 kN
+Distance_mm = _item(None, 1e3)         # a sensor distance ahead of the tool: <= 1 m (> 0 checked below)
+JointSeed_deg = _item(-1e4, 1e4)       # an IK seed joint value
+
+
 class TrajectoryConfig(_Section):
     """The seam and the nominal robot program along it (paper §III-B, Fig. 9).
 
@@ -76,16 +147,16 @@ class TrajectoryConfig(_Section):
     """
 
     kind: Literal["xy", "yz", "line", "bend"] = "xy"
-    length_mm: float = Field(200.0, gt=0.0)
-    amplitude_mm: float | None = Field(None, ge=0.0)  # None: 20 (xy), 100 (yz), 0 otherwise
-    period_mm: float | None = Field(None, gt=0.0)  # None: 100 (xy), 200 (yz)
-    corner_smoothing: float = Field(0.1, ge=0.0, lt=0.5)  # corner blend, fraction of the period
-    steps: int = Field(500, ge=2)
-    dt_s: float = Field(0.01, gt=0.0)
-    bend_at: float = Field(0.5, gt=0.0, lt=1.0)  # fraction of length_mm
-    bend_deg: float = Field(30.0, gt=-90.0, lt=90.0)
-    start_mm: tuple[float, float, float] = (450.0, -100.0, 0.0)  # seam start, robot base frame
-    seam_extension_mm: float = Field(60.0, ge=0.0)  # seam beyond the end, seen by the sensors
+    length_mm: Number = _num(200.0, 1.0, 1e4, "mm")  # 1 mm .. 10 m (the seam is sampled every 0.5 mm)
+    amplitude_mm: Number | None = _num(None, 0.0, 1e3, "mm")  # 0 .. 1 m; None: 20 (xy), 100 (yz), 0 otherwise
+    period_mm: Number | None = _num(None, 1.0, 1e4, "mm")  # 1 mm .. 10 m; None: 100 (xy), 200 (yz)
+    corner_smoothing: Number = _num(0.1, 0.0, 0.5, hi_open=True)  # corner blend, fraction of the period, [0, 0.5)
+    steps: Integer = _num(500, 2, MAX_STEPS)  # 2 .. 100,000 samples
+    dt_s: Number = _num(0.01, 1e-5, 10.0, "s")  # 10 µs (100 kHz) .. 10 s
+    bend_at: Number = _num(0.5, 0.0, 1.0, lo_open=True, hi_open=True)  # fraction of length_mm, (0, 1)
+    bend_deg: Number = _num(30.0, -90.0, 90.0, "deg", lo_open=True, hi_open=True)  # (-90, 90) deg
+    start_mm: tuple[Coord_mm, Coord_mm, Coord_mm] = _num((450.0, -100.0, 0.0), unit="mm")  # seam start, base frame
+    seam_extension_mm: Number = _num(60.0, 0.0, 1e3, "mm")  # 0 .. 1 m of seam beyond the end, seen by the sensors
 
     def resolved_amplitude_mm(self) -> float:
         """The wave amplitude in mm (the paper's value for the kind when not given)."""
@@ -120,11 +191,12 @@ class RobotConfig(_Section):
     urdf: str | None = None
     base_link: str | None = None
     tip_link: str | None = None
-    ik_seed_deg: tuple[float, ...] | None = None
-    tool_length_mm: float = Field(150.0, gt=0.0)  # flange to TCP along the flange z axis
-    joint_noise_deg: float = Field(0.005, ge=0.0)
-    kinematic_error_mm: float = Field(0.3, ge=0.0)
-    kinematic_error_deg: float = Field(0.05, ge=0.0)
+    # at most 64 joints, each -10,000 .. 10,000 deg
+    ik_seed_deg: tuple[JointSeed_deg, ...] | None = _num(None, unit="deg", max_length=64)
+    tool_length_mm: Number = _num(150.0, 0.0, 1e4, "mm", lo_open=True)  # flange to TCP along flange z, (0, 10 m]
+    joint_noise_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
+    kinematic_error_mm: Number = _num(0.3, 0.0, 1e3, "mm")  # std, 0 .. 1 m
+    kinematic_error_deg: Number = _num(0.05, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
 
     @model_validator(mode="before")
     @classmethod
@@ -169,13 +241,13 @@ class ProcessConfig(_Section):
     rotation about ``z_tool × f``).
     """
 
-    force_n: tuple[float, float, float] = (100.0, -1000.0, -5000.0)
-    force_drift: float = Field(0.2, ge=0.0)
-    force_noise_n: float = Field(50.0, ge=0.0)
-    force_sensor_noise_n: float = Field(20.0, ge=0.0)
-    joint_compliance_rad_per_nm: float = Field(1e-6, ge=0.0)
-    cartesian_compliance_mm_per_n: float = Field(1e-4, ge=0.0)
-    cartesian_compliance_deg_per_n: float = Field(5e-4, ge=0.0)
+    force_n: tuple[Force_n, Force_n, Force_n] = _num((100.0, -1000.0, -5000.0), unit="N")  # each -100 .. 100 kN
+    force_drift: Number = _num(0.2, 0.0, 10.0)  # relative amplitude, 0 .. 10
+    force_noise_n: Number = _num(50.0, 0.0, 1e5, "N")  # std, 0 .. 100 kN
+    force_sensor_noise_n: Number = _num(20.0, 0.0, 1e5, "N")  # std, 0 .. 100 kN
+    joint_compliance_rad_per_nm: Number = _num(1e-6, 0.0, 1e-3, "rad/(N m)")  # 0 .. 1e-3
+    cartesian_compliance_mm_per_n: Number = _num(1e-4, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
+    cartesian_compliance_deg_per_n: Number = _num(5e-4, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
 
 
 class SensorsConfig(_Section):
@@ -188,13 +260,13 @@ class SensorsConfig(_Section):
     ``distances_mm`` defaults to the first ``count`` of 20, 40, 60, 80 mm.
     """
 
-    count: int = Field(2, ge=0, le=4)
-    distances_mm: tuple[float, ...] | None = None
-    noise_mm: float = Field(0.05, ge=0.0)
-    range_mm: float = Field(150.0, gt=0.0)
-    dropout: float = Field(0.0, ge=0.0, le=1.0)
+    count: Integer = _num(2, 0, 4)  # 0 .. 4 sensors
+    distances_mm: tuple[Distance_mm, ...] | None = _num(None, unit="mm", max_length=4)  # each (0, 1000] mm
+    noise_mm: Number = _num(0.05, 0.0, 1e3, "mm")  # std, 0 .. 1 m
+    range_mm: Number = _num(150.0, 0.0, 1e4, "mm", lo_open=True)  # (0, 10 m]
+    dropout: Number = _num(0.0, 0.0, 1.0)  # probability, 0 .. 1
     angle: bool = False
-    angle_noise_deg: float = Field(0.1, ge=0.0)
+    angle_noise_deg: Number = _num(0.1, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
 
     @field_validator("distances_mm")
     @classmethod
@@ -243,66 +315,165 @@ class FilterConfig(_Section):
     mean and covariance (0: plain resampling; see :mod:`posekit.seam.filter`).
     """
 
-    particles: int = Field(500, ge=1)
+    particles: Integer = _num(500, 1, MAX_PARTICLES)  # N, 1 .. 1,000,000
     resampler: Literal["systematic", "stratified", "residual"] = "systematic"
-    ess_threshold: float = Field(0.5, gt=0.0, le=1.0)  # fraction of the particle count
-    anneal_ess: float = Field(0.05, ge=0.0, le=1.0)  # temper an update leaving fewer (fraction of N)
-    anneal_stages: int = Field(20, ge=0)
-    anneal_jitter: float = Field(0.5, ge=0.0)  # kernel bandwidth, times the cloud's covariance
-    regularize_h: float = Field(0.1, ge=0.0, lt=1.0)  # kernel bandwidth of the resampling (0: plain)
-    sigma_t_mm: float = Field(0.02, ge=0.0)
-    sigma_r_deg: float = Field(0.005, ge=0.0)
-    k_force_t: float = Field(4e-6, ge=0.0)  # mm/N
-    k_force_r: float = Field(4e-7, ge=0.0)  # deg/N
-    d0_mm: float = Field(1.0, ge=0.0)
-    kd_mm_per_n: float = Field(4e-4, ge=0.0)
-    d0_deg: float = Field(0.2, ge=0.0)
-    kd_deg_per_n: float = Field(2e-4, ge=0.0)
+    ess_threshold: Number = _num(0.5, 0.0, 1.0, lo_open=True)  # fraction of the particle count, (0, 1]
+    anneal_ess: Number = _num(0.05, 0.0, 1.0)  # temper an update leaving fewer (fraction of N), 0 .. 1
+    anneal_stages: Integer = _num(20, 0, 100)  # 0 .. 100 tempering stages per update
+    anneal_jitter: Number = _num(0.5, 0.0, 10.0)  # kernel bandwidth, times the cloud's covariance, 0 .. 10
+    regularize_h: Number = _num(0.1, 0.0, 1.0, hi_open=True)  # resampling kernel bandwidth (0: plain), [0, 1)
+    sigma_t_mm: Number = _num(0.02, 0.0, 1e3, "mm")  # std per step, 0 .. 1 m
+    sigma_r_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std per step, 0 .. 180 deg
+    k_force_t: Number = _num(4e-6, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
+    k_force_r: Number = _num(4e-7, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
+    d0_mm: Number = _num(1.0, 0.0, 1e3, "mm")  # plateau radius, 0 .. 1 m
+    kd_mm_per_n: Number = _num(4e-4, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
+    d0_deg: Number = _num(0.2, 0.0, 180.0, "deg")  # plateau radius, 0 .. 180 deg
+    kd_deg_per_n: Number = _num(2e-4, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
     bending_plateau: bool = True  # rotation plateau: kd_deg_per_n ‖f‖ only across the force
-    joint_sigma_deg: float = Field(0.005, ge=0.0)
-    robot_floor_t_mm: float = Field(0.3, gt=0.0)
-    robot_floor_r_deg: float = Field(0.05, gt=0.0)
-    compliance_rad_per_nm: float = Field(0.0, ge=0.0)
-    laser_sigma_mm: float = Field(0.1, gt=0.0)
-    angle_sigma_deg: float = Field(0.2, gt=0.0)
-    search_window_mm: float = Field(10.0, gt=0.0)
-    init_sigma_t_mm: float = Field(1.0, ge=0.0)
-    init_sigma_r_deg: float = Field(0.4, ge=0.0)
-    trend_lambda: float = Field(100.0, ge=0.0)
-    trend_eps_mm: float = Field(0.02, gt=0.0)
+    joint_sigma_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
+    robot_floor_t_mm: Number = _num(0.3, 1e-9, 1e3, "mm")  # std, 1e-9 mm .. 1 m (it divides)
+    robot_floor_r_deg: Number = _num(0.05, 1e-9, 180.0, "deg")  # std, 1e-9 .. 180 deg (it divides)
+    compliance_rad_per_nm: Number = _num(0.0, 0.0, 1e-3, "rad/(N m)")  # 0 .. 1e-3
+    laser_sigma_mm: Number = _num(0.1, 1e-9, 1e3, "mm")  # std, 1e-9 mm .. 1 m (it divides)
+    angle_sigma_deg: Number = _num(0.2, 1e-9, 180.0, "deg")  # std, 1e-9 .. 180 deg (it divides)
+    search_window_mm: Number = _num(10.0, 0.0, 1e3, "mm", lo_open=True)  # (0, 1 m]
+    init_sigma_t_mm: Number = _num(1.0, 0.0, 1e3, "mm")  # std, 0 .. 1 m
+    init_sigma_r_deg: Number = _num(0.4, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
+    trend_lambda: Number = _num(100.0, 0.0, 1e6)  # weight of the l1 term, 0 .. 1e6
+    trend_eps_mm: Number = _num(0.02, 1e-6, 1e3, "mm")  # largest deviation, 1e-6 mm .. 1 m
 
 
 class SeamConfig(_Section):
-    """The whole configuration of a seam-tracking episode (see the module docstring)."""
+    """The whole configuration of a seam-tracking episode (see the module docstring).
 
-    seed: int = Field(0, ge=0)
+    Besides each key's own range, an episode's size is bounded:
+    ``trajectory.steps × filter.particles <= MAX_PARTICLE_STEPS`` (10⁹ particle-steps) and
+    ``trajectory.steps × seam points <= MAX_STEP_SEAM_POINTS`` (10⁷; the seam is sampled every
+    0.5 mm over ``length_mm + seam_extension_mm``).
+    """
+
+    seed: Integer = _num(0, 0, SEED_MAX)  # 0 .. 2**63 - 1
     trajectory: TrajectoryConfig = TrajectoryConfig()
     robot: RobotConfig = RobotConfig()
     process: ProcessConfig = ProcessConfig()
     sensors: SensorsConfig = SensorsConfig()
     filter: FilterConfig = FilterConfig()
 
+    @model_validator(mode="after")
+    def _episode_size(self):
+        from .trajectories import SEAM_SPACING_MM
+
+        steps, n = self.trajectory.steps, self.filter.particles
+        if steps * n > MAX_PARTICLE_STEPS:
+            raise ValueError(
+                f"trajectory.steps × filter.particles = {steps} × {n} = {steps * n:.3g} particle-steps; "
+                f"expected at most {MAX_PARTICLE_STEPS:.0e} (minutes of filtering per episode): lower one of them"
+            )
+        seam_mm = self.trajectory.length_mm + self.trajectory.seam_extension_mm
+        points = math.ceil(seam_mm / SEAM_SPACING_MM) + 2
+        if steps * points > MAX_STEP_SEAM_POINTS:
+            raise ValueError(
+                f"trajectory.steps × seam points = {steps} × {points} = {steps * points:.3g} (the seam, "
+                f"length_mm + seam_extension_mm = {seam_mm:g} mm, is sampled every {SEAM_SPACING_MM:g} mm); "
+                f"expected at most {MAX_STEP_SEAM_POINTS:.0e} (1 GiB of laser-plane intersections in the "
+                "simulator): lower trajectory.steps or trajectory.length_mm"
+            )
+        return self
+
 
 # --------------------------------------------------------------------------- errors
 
 
+def _show(value) -> str:
+    """An offending value for a message: its ``repr``, at most 80 characters."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _fmt(x) -> str:
+    """A bound for messages: ``100000`` (not ``100000.0``), ``1e-09``, ``0.5``."""
+    if isinstance(x, float):
+        return str(int(x)) if x.is_integer() and abs(x) < 1e16 else f"{x:g}"
+    return str(x)
+
+
+def _item_metadata(annotation) -> list:
+    """The constraints of one element of a tuple annotation (``tuple[X, ...] | None`` included)."""
+    for arg in get_args(annotation):
+        if get_origin(arg) is tuple:
+            return _item_metadata(arg)
+        if get_origin(arg) is Annotated:
+            out = []
+            for m in get_args(arg)[1:]:
+                out.extend(m.metadata if isinstance(m, FieldInfo) else [m])
+            return out
+    return []
+
+
+def _allowed(loc) -> tuple[str, bool] | None:
+    """``('0..1000 mm', is_integer)`` for the numeric key at ``loc``; None for other keys."""
+    model, field, item = SeamConfig, None, False
+    for part in loc:
+        if isinstance(part, int):
+            item = True
+        elif model is not None:
+            field = model.model_fields.get(str(part))
+            if field is None:
+                return None
+            ann = field.annotation
+            model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+        # a further string part is pydantic's name of a union member: the field is known
+    if field is None or model is not None:
+        return None
+    meta = _item_metadata(field.annotation) if item else field.metadata
+    lo = hi = None
+    lo_open = hi_open = False
+    for m in meta:
+        if isinstance(m, (annotated_types.Ge, annotated_types.Gt)):
+            lo, lo_open = (m.ge, False) if isinstance(m, annotated_types.Ge) else (m.gt, True)
+        elif isinstance(m, (annotated_types.Le, annotated_types.Lt)):
+            hi, hi_open = (m.le, False) if isinstance(m, annotated_types.Le) else (m.lt, True)
+    if lo is None and hi is None:
+        return None
+    if lo is not None and hi is not None and not lo_open and not hi_open:
+        text = f"{_fmt(lo)}..{_fmt(hi)}"
+    else:
+        parts = [f"{'>' if lo_open else '>='} {_fmt(lo)}"] if lo is not None else []
+        parts += [f"{'<' if hi_open else '<='} {_fmt(hi)}"] if hi is not None else []
+        text = " and ".join(parts)
+    unit = (field.json_schema_extra or {}).get("unit", "") if isinstance(field.json_schema_extra, dict) else ""
+    return (f"{text} {unit}" if unit else text), isinstance(lo if lo is not None else hi, int)
+
+
 def _describe(err: dict) -> str:
-    """One-line description of one pydantic error: ``key: what was expected, got what``."""
+    """One-line description of one pydantic error: ``key: what was expected, got what``.
+
+    A number out of its range also gets the key's whole range and unit,
+    ``filter.d0_mm: expected <= 1000.0, got 1e+308 (allowed 0..1000 mm)``, except an integer
+    under its lower bound, whose bound says it all (``filter.particles: expected >= 1, got 0``).
+    """
     loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
     kind = err["type"]
     ctx = err.get("ctx") or {}
     got = err.get("input")
+    allowed = _allowed(err["loc"])
+    tail = f" (allowed {allowed[0]})" if allowed else ""
     if kind == "extra_forbidden":
         return f"unknown key '{loc}'"
     if kind == "missing":
         *parent, last = err["loc"]
         if isinstance(last, int) and isinstance(got, (list, tuple)):  # a tuple with too few items
-            return f"{'.'.join(str(p) for p in parent)}: too few values (no item {last}), got {list(got)!r}"
+            return f"{'.'.join(str(p) for p in parent)}: too few values (no item {last}), got {_show(list(got))}"
         return f"missing key '{loc}'"
     if kind == "too_long":
-        return f"{loc}: expected at most {ctx.get('max_length', '?')} values, got {got!r}"
+        return f"{loc}: expected at most {ctx.get('max_length', '?')} values, got {_show(got)}"
     if kind == "finite_number":
-        return f"{loc}: expected a finite number, got {got!r}"
+        return f"{loc}: expected a finite number, got {_show(got)}{tail}"
+    if kind == "bool_not_number":
+        return f"{loc}: expected a number, got the boolean {str(got).lower()}{tail}"
+    if kind == "int_parsing_size":  # a float far beyond any integer key's range (1e30)
+        return f"{loc}: expected an integer, got {_show(got)}{tail}"
     bounds = {
         "greater_than": ">",
         "greater_than_equal": ">=",
@@ -311,9 +482,11 @@ def _describe(err: dict) -> str:
     }
     if kind in bounds:
         limit = next(iter(ctx.values())) if ctx else "?"
-        return f"{loc}: expected {bounds[kind]} {limit}, got {got!r}"
+        if kind.startswith("greater") and allowed and allowed[1]:
+            tail = ""  # an integer under its lower bound (a count, a seed): the bound says it all
+        return f"{loc}: expected {bounds[kind]} {limit}, got {_show(got)}{tail}"
     if kind == "literal_error":
-        return f"{loc}: expected one of {ctx.get('expected', '?')}, got {got!r}"
+        return f"{loc}: expected one of {ctx.get('expected', '?')}, got {_show(got)}"
     if kind == "value_error":
         return f"{loc}: {ctx.get('error', err['msg'])}" if loc != "(top level)" else str(
             ctx.get("error", err["msg"])
@@ -321,8 +494,8 @@ def _describe(err: dict) -> str:
     if kind in ("model_type", "dict_type"):
         return f"{loc}: expected a mapping, got {type(got).__name__}"
     if kind.endswith(("_type", "_parsing", "_from_float")):
-        return f"{loc}: {err['msg'][0].lower() + err['msg'][1:]} (got {got!r})"
-    return f"{loc}: {err['msg']}"
+        return f"{loc}: {err['msg'][0].lower() + err['msg'][1:]} (got {_show(got)}){tail}"
+    return f"{loc}: {err['msg']}{tail}"
 
 
 def config_from_dict(data: Any, source: str = "config") -> SeamConfig:
@@ -399,8 +572,9 @@ def apply_overrides(cfg: SeamConfig, overrides: dict[str, Any], source: str = "c
     data = cfg.model_dump(mode="python")
     count = overrides.get("sensors.count")
     dists = data["sensors"]["distances_mm"]
-    if (count is not None and overrides.get("sensors.distances_mm") is None and dists is not None
-            and 0 <= int(count) <= len(dists)):
+    whole = ((isinstance(count, int) and not isinstance(count, bool))
+             or (isinstance(count, float) and math.isfinite(count) and count.is_integer()))  # else: validation says
+    if whole and overrides.get("sensors.distances_mm") is None and dists is not None and 0 <= count <= len(dists):
         data["sensors"]["distances_mm"] = tuple(dists[: int(count)])  # fewer sensors: the nearest ones
     for key, value in overrides.items():
         if value is None:
