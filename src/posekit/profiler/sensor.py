@@ -8,6 +8,11 @@ edges meet at the apex). A profile is ``n_points`` rays evenly spaced across the
 width, each returning the first gauge face it hits (ray casting, so faces turned away
 from the emitter self-occlude) or NaN: no face, a face outside the block's footprint,
 or a hit outside the measuring range.
+
+``render_profiles(..., realism=RealismModel.realistic())`` adds what a real cell shows
+(rounded and chamfered ridges, the mounting plate and a fixture beside the gauge,
+multipath near valleys, machining error, scale error, dropouts on steep faces): see
+:mod:`~posekit.profiler.realism`.
 """
 
 from dataclasses import dataclass
@@ -19,9 +24,11 @@ from scipy.spatial.transform import Rotation
 from ..errors import ConfigError
 from ..geometry import transform_from
 from .gauge import Gauge
+from .realism import AsBuiltGauge, RealismModel, build_as_built, render_as_built, true_corners
 
 __all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose",
-           "sample_poses", "visible_mask", "render_profiles"]
+           "sample_poses", "visible_mask", "render_profiles", "RealismModel", "AsBuiltGauge",
+           "build_as_built", "true_corners"]
 
 
 @dataclass(frozen=True)
@@ -292,7 +299,8 @@ def _cast(gauge: Gauge, Ts_G_F: np.ndarray, model: ProfilerModel) -> np.ndarray:
 
 
 def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=None,
-                    model: ProfilerModel = LJ_X8400) -> np.ndarray:
+                    model: ProfilerModel = LJ_X8400,
+                    realism: RealismModel | AsBuiltGauge | None = None) -> np.ndarray:
     """Simulate the profiles the sensor measures at the given poses.
 
     Parameters
@@ -304,6 +312,15 @@ def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=
     rng : numpy.random.Generator or int or None
         Same seed, same profiles.
     model : ProfilerModel
+    realism : RealismModel or AsBuiltGauge, optional
+        None (default): the ideal gauge of the drawing, nothing else in view. A
+        :class:`~posekit.profiler.realism.RealismModel` draws one as-built gauge with its
+        surroundings from ``rng`` first (``RealismModel.realistic()`` for every defect of a
+        real cell; the options and their defaults are listed in
+        :mod:`~posekit.profiler.realism`), then renders it at every pose. An
+        :class:`~posekit.profiler.realism.AsBuiltGauge` (from
+        :func:`~posekit.profiler.realism.build_as_built`) renders that gauge again;
+        ``gauge`` must then be its drawing.
 
     Returns
     -------
@@ -314,7 +331,14 @@ def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=
     Ts = np.asarray(Ts_G_F, dtype=np.float64)
     single = Ts.ndim == 2
     Ts = Ts.reshape(-1, 4, 4)
-    out = _cast(gauge, Ts, model)
+    if realism is None:
+        out = _cast(gauge, Ts, model)
+    else:
+        scene = realism if isinstance(realism, AsBuiltGauge) else build_as_built(gauge, realism, rng)
+        if scene.nominal is not gauge and scene.nominal.name != gauge.name:
+            raise ConfigError(f"realism: the as-built gauge was drawn from '{scene.nominal.name}', "
+                              f"not from '{gauge.name}'")
+        out = render_as_built(scene, Ts, model, rng)
     valid = np.isfinite(out[..., 0])
     out[..., 0] += rng.normal(0.0, noise.sigma_x_um * 1e-3, valid.shape)
     out[..., 1] += rng.normal(0.0, noise.sigma_z_um * 1e-3, valid.shape)
