@@ -45,12 +45,52 @@ def test_yaml_round_trip(tmp_path):
 
 
 def test_design_reference_values():
-    """A symmetric roof: faces z = ±0.5 x + ..., ridges straight along y."""
-    g = gauge_from_design("roof", [-20, -10, 10, 20], [1.0, 0.5, 0.0, -0.5, -1.0], [0, 0, 0, 0])
+    """A roof: faces z = ±0.5 x + ..., ridges at x = ±10, ±20 on y = 0, skewed by u = dx/dy.
+
+    Its cross-section at y = 0 is symmetric, so it is only usable with a known mounting.
+    """
+    g = gauge_from_design("roof", [-20, -10, 10, 20], [1.0, 0.5, 0.0, -0.5, -1.0], [0.1, -0.1, 0.1, -0.1],
+                          mounting="normal")
     np.testing.assert_allclose(g.ridge_q[:, 0], [-20, -10, 10, 20])
-    np.testing.assert_allclose(g.ridge_s[:, [0, 2]], 0.0, atol=1e-12)
+    np.testing.assert_allclose(g.ridge_s[:, 0], [0.1, -0.1, 0.1, -0.1])
     assert g.beta_deg == pytest.approx(45.0)
     np.testing.assert_allclose(g.ridge_q[:, 2].mean(), 20.0)
+    assert g.tolerance_um == 0.0
+    assert g.ambiguity.startswith("its cross-section is symmetric under a 180° turn about the vertical")
+
+
+def test_parallel_ridges_are_refused():
+    """All ridges along y: a shift along them leaves every profile unchanged (no mounting helps)."""
+    msg = ("design: gauge 'roof': all 4 ridges are parallel (direction [u, 1, w] = [0.0, 1.0, 0.0]); a shift of the "
+           "sensor along them leaves every profile unchanged, so the profiles cannot tell those poses apart; "
+           "skew at least one ridge")
+    for mounting in ("auto", "normal"):
+        with pytest.raises(GaugeError) as exc:
+            gauge_from_design("roof", [-20, -10, 10, 20], [1.0, 0.5, 0.0, -0.5, -1.0], [0, 0, 0, 0],
+                              mounting=mounting)
+        assert str(exc.value) == msg
+
+
+def test_tolerance_round_trip_and_bad_values(tmp_path):
+    g = bundled_gauge("demo-5")
+    assert g.tolerance_um == 0.0
+    text = gauge_to_yaml(g)
+    assert "tolerance_um" not in text                  # an exact drawing writes no tolerance
+    path = tmp_path / "g.yaml"
+    path.write_text(text + "tolerance_um: 12.5\n")
+    h = load_gauge(path)
+    assert h.tolerance_um == 12.5
+    assert "tolerance_um: 12.5" in gauge_to_yaml(h)
+    path.write_text(text + "tolerance_um: -1\n")
+    with pytest.raises(GaugeError, match=r"g\.yaml: gauge 'demo-5': tolerance_um must be a finite number >= 0 "
+                                         r"\(µm\), got -1\.0$"):
+        load_gauge(path)
+    path.write_text(text + "tolerance_um: five\n")
+    with pytest.raises(GaugeError, match=r"g\.yaml: key 'tolerance_um': "):
+        load_gauge(path)
+    with pytest.raises(GaugeError, match=r"g\.yaml: unknown mounting 'upside'; expected one of auto, normal, "
+                                         r"reversed"):
+        load_gauge(path, mounting="upside")
 
 
 def test_design_rejects_crossing_ridges():

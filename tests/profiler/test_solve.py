@@ -178,3 +178,18 @@ def test_bad_method_and_mounting(gauge5):
         solve_pose(corners, gauge5, mounting="upside")
     with pytest.raises(EstimationError, match="expected 7 corners for gauge 'demo-7', got 5"):
         solve_pose(corners, bundled_gauge("demo-7"))
+
+
+def test_assumed_noise_changes_the_verdict_not_the_pose(gauge5):
+    """The fit is weighted by the line fits (as the real-time server); the assumed noise sets χ² and the std."""
+    T = sample_poses(gauge5, 1, rng=23)[0]
+    corners = detect_corners(render_profiles(gauge5, T, NoiseModel(), rng=23), 5)
+    plain = solve_pose(corners, gauge5)
+    model = solve_pose(corners, gauge5, noise=NoiseModel())
+    twice = solve_pose(corners, gauge5, noise=NoiseModel(20, 10))
+    np.testing.assert_array_equal(model.T_G_F, plain.T_G_F)
+    np.testing.assert_array_equal(twice.T_G_F, plain.T_G_F)
+    assert plain.chi2 == plain.cost and model.cost == plain.cost
+    assert twice.chi2 == pytest.approx(model.chi2 / 4, rel=1e-9)      # 2x the noise: 1/4 of chi2
+    np.testing.assert_allclose(twice.cov, 4 * model.cov, rtol=1e-9)
+    assert (plain.dof, plain.status, plain.reason) == (4, "ok", None)

@@ -48,6 +48,14 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
     Returns
     -------
     Gauge
+        Never an ambiguous one (:func:`~posekit.profiler.gauge.gauge_ambiguity`): a draw
+        whose reversed reading fits the ridges is drawn again.
+
+    Raises
+    ------
+    ConfigError
+        If no draw in ``max_tries`` meets the limits; the message counts the draws refused
+        as ambiguous.
     """
     if n_corners < 4:
         raise ConfigError(f"random_gauge: expected n_corners >= 4, got {n_corners}")
@@ -55,6 +63,7 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
         raise ConfigError(f"random_gauge: beta_min_deg must lie in (0, 90), got {beta_min_deg}")
     rng = np.random.default_rng(rng)
     max_slope = np.tan(np.radians(90.0 - beta_min_deg))
+    ambiguous = 0
     for _ in range(max_tries):
         width = width_mm if width_mm is not None else rng.uniform(0.6, 0.85) * model.width_near
         span = 0.8 * width
@@ -79,11 +88,15 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
         try:
             g = gauge_from_design(f"random-{n_corners}", ridge_x, slopes_x, ridge_u,
                                   y_slope0=rng.uniform(-0.1, 0.1) * max_slope,
-                                  extent=((-width / 2, width / 2), (-y_half, y_half)))
+                                  extent=((-width / 2, width / 2), (-y_half, y_half)), mounting="normal")
         except GaugeError:
+            continue
+        if g.ambiguity is not None:          # the design-rule check: profiles must tell the mounting
+            ambiguous += 1
             continue
         # skewed ridges (a spread of u) make y and the tilt about x observable
         if g.beta_deg >= beta_min_deg and np.ptp(g.ridge_s[:, 0]) >= 0.5 * u_spread:
             return g
+    note = f" ({ambiguous} refused as ambiguous: their reversed reading fits)" if ambiguous else ""
     raise ConfigError(f"random_gauge: no gauge with {n_corners} corners, beta >= {beta_min_deg} deg and "
-                      f"ridge gaps >= {min_gap_mm} mm in {max_tries} tries; relax the limits")
+                      f"ridge gaps >= {min_gap_mm} mm in {max_tries} tries{note}; relax the limits")

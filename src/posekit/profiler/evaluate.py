@@ -1,7 +1,7 @@
 """Accuracy of the estimator against simulated truth (the demo, tests and studies use it)."""
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from .sensor import (
     render_profiles,
     sample_poses,
 )
-from .solve import solve_pose
+from .solve import DEFAULT_SIGNIFICANCE, solve_pose
 
 __all__ = ["Evaluation", "pose_errors", "evaluate"]
 
@@ -50,6 +50,12 @@ class Evaluation:
         Index and reason of each failed profile.
     seconds : ndarray, shape (k,)
         Wall time of detection + pose per successful profile (Python API, checked path).
+    chi2 : ndarray, shape (k,)
+        Consistency statistic of each estimate (χ² with ``dof`` degrees of freedom on data
+        that match the model).
+    suspect : ndarray of bool, shape (k,)
+        Which estimates the consistency test called suspect.
+    dof : int
     """
 
     errors: np.ndarray
@@ -57,6 +63,9 @@ class Evaluation:
     reprojection_um: np.ndarray
     failures: list
     seconds: np.ndarray
+    chi2: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    suspect: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    dof: int = 0
 
     @property
     def rmse(self) -> np.ndarray:
@@ -76,7 +85,8 @@ class Evaluation:
 
 def evaluate(gauge: Gauge, count: int, noise: NoiseModel = NoiseModel(), seed=0, method: str = "mle",
              workspace: Workspace = Workspace(), model: ProfilerModel = LJ_X8400,
-             params: CornerParams = CornerParams(), progress=None) -> Evaluation:
+             params: CornerParams = CornerParams(), progress=None, assumed_noise: NoiseModel | None = None,
+             significance: float = DEFAULT_SIGNIFICANCE) -> Evaluation:
     """Simulate ``count`` profiles at random poses, estimate each, compare with the truth.
 
     Parameters
@@ -92,6 +102,11 @@ def evaluate(gauge: Gauge, count: int, noise: NoiseModel = NoiseModel(), seed=0,
     params : CornerParams
     progress : callable, optional
         Wraps the loop over profiles (e.g. a progress bar).
+    assumed_noise : NoiseModel, optional
+        The noise the estimator assumes (its corner covariance and noise test); None: the
+        line fits' own residuals (:func:`~posekit.profiler.solve.solve_pose`).
+    significance : float
+        α of the consistency test.
 
     Returns
     -------
@@ -100,13 +115,13 @@ def evaluate(gauge: Gauge, count: int, noise: NoiseModel = NoiseModel(), seed=0,
     rng = np.random.default_rng(seed)
     Ts = sample_poses(gauge, count, rng, workspace, model)
     profiles = render_profiles(gauge, Ts, noise, rng, model)
-    errors, stds, reproj, secs, failures = [], [], [], [], []
+    errors, stds, reproj, secs, failures, chi2, suspect = [], [], [], [], [], [], []
     indices = range(count) if progress is None else progress(range(count))
     for k in indices:
         t0 = time.perf_counter()
         try:
-            corners = detect_corners(profiles[k], gauge.n_corners, params, gauge.name)
-            est = solve_pose(corners, gauge, method=method)
+            corners = detect_corners(profiles[k], gauge, params)
+            est = solve_pose(corners, gauge, method=method, noise=assumed_noise, significance=significance)
         except PosekitError as exc:
             failures.append((k, str(exc)))
             continue
@@ -114,5 +129,9 @@ def evaluate(gauge: Gauge, count: int, noise: NoiseModel = NoiseModel(), seed=0,
         errors.append(pose_errors(est.T_G_F, Ts[k]))
         stds.append(np.sqrt(np.diag(est.cov)))
         reproj.append(est.reprojection_um)
+        chi2.append(est.chi2)
+        suspect.append(est.status != "ok")
     return Evaluation(errors=np.reshape(errors, (-1, 6)), predicted_std=np.reshape(stds, (-1, 6)),
-                      reprojection_um=np.asarray(reproj), failures=failures, seconds=np.asarray(secs))
+                      reprojection_um=np.asarray(reproj), failures=failures, seconds=np.asarray(secs),
+                      chi2=np.asarray(chi2, dtype=np.float64), suspect=np.asarray(suspect, dtype=bool),
+                      dof=2 * gauge.n_corners - 6)
