@@ -14,13 +14,17 @@ import pytest
 
 from posekit.cli.profiler_study import add_study_parser, parse_numbers
 from posekit.errors import ConfigError, PosekitError
+from posekit.geometry import matrix_from_rotation_vector
+from posekit.profiler.gauge import bundled_gauge
 from posekit.profiler.study import (
+    GAP_COLUMNS,
     PAPER_TABLE1,
     TABLE1_COLUMNS,
     CornersConfig,
     NoiseConfig,
     corners_study,
     noise_study,
+    ridge_direction_error,
 )
 from posekit.profiler.study_limits import (
     LimitsConfig,
@@ -76,6 +80,13 @@ def test_corners_study_table1(corners_small, tmp_path):
         assert float(mle5["t_err_mean_um"]) < float(cf5["t_err_mean_um"])
         assert float(mle5["rot_err_mean_deg"]) < float(cf5["rot_err_mean_deg"])
         assert float(mle5["reproj_mean_um"]) < 0.2 * float(cf5["reproj_mean_um"])
+        # the paper's eq. (17) × 10³: CF-Opt below 1 (its '*'), CF of the paper's order (10/10), far
+        # below the same estimates' reprojection error in µm
+        for n in (4, 5):
+            assert 0 < float(row[("mle", n, m)]["eq17_mean_um_per_mm"]) < 1.0
+        assert 1.0 < float(cf5["eq17_mean_um_per_mm"]) < 30.0
+        assert float(cf5["eq17_mean_um_per_mm"]) < 0.3 * float(cf5["reproj_mean_um"])
+        assert math.isnan(float(row[("cf", 4, m)]["eq17_mean_um_per_mm"]))
     # nested subsets: the m = 2 row is the first 2 gauges of the m = 3 sample
     s = corners_small.samples[5]
     assert s["status"].shape == (3, 10, 2)
@@ -85,7 +96,41 @@ def test_corners_study_table1(corners_small, tmp_path):
     assert {"table1_reprojection.png", "table1_pose_error.png"} <= {p.name for p in tmp_path.glob("*.png")}
     assert "<th>ours m=3</th>" in text and "<th>paper m=150</th>" in text   # the paper's Table I beside ours
     assert f"<td>{PAPER_TABLE1[('cf', 5)][1]}</td>" in text
+    assert "<td>eq. (17) × 10³</td>" in text and "<td>reprojection (µm)</td>" in text
     assert "the closed form needs at least 5 corners" in text
+    # the closed-form gap: measured, with F's origin moved to the stand-off as one of its causes
+    header, gap = _read_csv(tmp_path / "table1_gap.csv")
+    assert tuple(header) == GAP_COLUMNS and [int(r["n"]) for r in gap] == [4, 5]
+    g5 = gap[1]
+    assert g5["paper_cf"] == PAPER_TABLE1[("cf", 5)][-1]
+    assert float(g5["standoff_reproj_mean_um"]) < 0.3 * float(g5["reproj_mean_um"])   # a smaller residual ...
+    assert float(g5["standoff_t_err_mean_um"]) > 0.5 * float(g5["t_err_mean_um"])     # ... not a better pose
+    assert float(g5["eq17_mid_median_um_per_mm"]) > float(g5["eq17_mean_um_per_mm"])  # q mid-block: |y| → 0
+    assert 0.2 < float(g5["corner_std_um"]) < 5.0
+    assert "<b>The metric.</b>" in text and "<b>Where F's origin is.</b>" in text
+
+
+def test_ridge_direction_error_hand_case():
+    """Eq. (17) by hand: a corner 10 µm off its ridge, 5 mm from q along the ridge, gives
+    ‖s - ŝ‖ = 0.010 / 5 = 0.002 whatever the rotation about G's y (which keeps the laser plane)."""
+    g = bundled_gauge("demo-5")
+    for angle_deg in (0.0, 30.0):
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_rotation_vector([0.0, np.radians(angle_deg), 0.0])
+        T[1, 3] = 5.0                                       # the laser plane is G's y = 5 mm
+        p_G = g.ridge_q + 5.0 * g.ridge_s                   # where the ridges cross it
+        c = ((p_G - T[:3, 3]) @ T[:3, :3])[:, [0, 2]]       # exact corners (x, z) in F
+        np.testing.assert_allclose(ridge_direction_error(T, c, g), 0.0, atol=1e-12)
+        c[2, 0] += 0.010                                    # corner 2: 10 µm along F's x
+        np.testing.assert_allclose(ridge_direction_error(T, c, g), [0, 0, 0.002, 0, 0], atol=1e-12)
+        # q at the block's end, y = -20: 25 mm from the corner
+        np.testing.assert_allclose(ridge_direction_error(T, c, g, y_q=-20.0)[2], 0.010 / 25.0, rtol=1e-12)
+    # batched, and a corner in the plane of q (y = y_q): eq. (17) divides by zero
+    Ts = np.stack([T, T])
+    Ts[1, 1, 3] = 0.0
+    c0 = ((g.ridge_q - Ts[1, :3, 3]) @ Ts[1, :3, :3])[:, [0, 2]]
+    out = ridge_direction_error(Ts, np.stack([c, c0]), g)
+    assert out.shape == (2, 5) and out[0, 2] == pytest.approx(0.002) and not np.any(np.isfinite(out[1]))
 
 
 def test_corners_study_same_gauges_as_noise_study(corners_small):
