@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import ConfigError
 from .robotsim import PERIOD_S
 
-__all__ = ["OpenLoop", "PDController", "DEFAULT_KP", "DEFAULT_KD"]
+__all__ = ["OpenLoop", "PDController", "TargetCompensator", "DEFAULT_KP", "DEFAULT_KD"]
 
 DEFAULT_KP = (-0.275, -0.60, -0.325)
 """Default proportional gains on (x, y, z), dimensionless; negative on purpose, see
@@ -176,3 +176,61 @@ class PDController:
     def __repr__(self) -> str:
         return (f"PDController(kp={self.kp.tolist()}, kd={self.kd.tolist()}, period_s={self.period_s}, "
                 f"limit_mm={self.limit_mm.tolist()}, derivative_filter_hz={self.derivative_filter_hz})")
+
+
+class TargetCompensator:
+    """The pose server's controller: hold the flange at a target pose (``serve --controller``).
+
+    The loop's compensation (:class:`~posekit.profiler.loop.FlangeCompensator`) for a real
+    cell: each estimated pose ``T_G_F`` gives the flange's displacement from the target as
+    the displacement of the laser spot (the point at ``standoff_mm`` on F's z axis, free of
+    the weakly observable y-shift / x-tilt combination), ``measured = spot(T_G_F) -
+    spot(T_target)``, and the controller is asked to hold a zero displacement:
+    ``command = controller(t_s, 0, measured)``. The robot interface adds ``command_mm`` to
+    its programmed target (G's axes taken as the robot's; rotate it otherwise) and holds it
+    for the next cycle, as in the loop.
+
+    Parameters
+    ----------
+    controller : PDController or OpenLoop
+        Called once per good pose with ``t_s`` the sensor's time stamp (s; the PD's Δt
+        comes from consecutive stamps).
+    T_target_G_F : array_like, shape (4, 4)
+        The target pose of F in G, mm.
+    standoff_mm : float
+        Depth of the laser spot on F's z axis, mm.
+
+    A call ``hold(seq, t_s, T_G_F, cov)`` (the server's controller interface) returns
+    ``{"command_mm": [3], "measured_mm": [3]}``, mm in G.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> hold = TargetCompensator(PDController(kp=-0.5, kd=0.0), np.eye(4), standoff_mm=400.0)
+    >>> T = np.eye(4); T[:3, 3] = [0.2, 0.0, 0.0]                     # 0.2 mm off along x
+    >>> hold(0, 0.0, T, None)
+    {'command_mm': [0.1, 0.0, 0.0], 'measured_mm': [0.2, 0.0, 0.0]}
+    """
+
+    def __init__(self, controller, T_target_G_F, standoff_mm: float):
+        if not callable(controller) or not hasattr(controller, "reset"):
+            raise ConfigError("TargetCompensator: controller must be a PDController or OpenLoop")
+        T = np.asarray(T_target_G_F, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ConfigError(f"TargetCompensator: T_target_G_F must be a finite (4, 4) pose in mm, got shape {T.shape}")
+        if not (np.isfinite(standoff_mm) and standoff_mm > 0):
+            raise ConfigError(f"TargetCompensator: standoff_mm must be > 0, got {standoff_mm!r}")
+        self.controller = controller
+        self.T_target = T
+        self.spot_F = np.array([0.0, 0.0, float(standoff_mm), 1.0])
+        self.spot_target = (T @ self.spot_F)[:3]
+        self._zero = np.zeros(3)
+        controller.reset()
+
+    def __call__(self, seq, t_s, T_G_F, cov) -> dict:
+        m = (np.asarray(T_G_F, dtype=float) @ self.spot_F)[:3] - self.spot_target
+        u = self.controller(float(t_s), self._zero, m)
+        return {"command_mm": [float(v) for v in u], "measured_mm": [float(v) for v in m]}
+
+    def __repr__(self) -> str:
+        return f"TargetCompensator({self.controller!r}, standoff_mm={self.spot_F[2]:g})"

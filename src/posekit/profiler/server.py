@@ -45,11 +45,18 @@ Record sent to the robot (one JSON line per processed frame, and for a NaN storm
 
     {"seq", "t_sensor_ns", "status": "ok"|"error", "t_mm": [3], "q_wxyz": [4],
      "std_t_um": [3], "std_rot_deg": [3], "reprojection_um", "reversed",
-     "command": <controller dict or null>, "timing_ms": {"DT" (null: stamp not trusted), "QW", "CD", "PC"},
-     "error": str|null}
+     "command": <controller dict or null>, "filter": <filtered pose or null>,
+     "timing_ms": {"DT" (null: stamp not trusted), "QW", "CD", "PC"}, "error": str|null}
 
 Pose fields are null when the profile failed; the standard deviations are null for the
-closed form (``method="cf"``), which has no error model.
+closed form (``method="cf"``), which has no error model. ``filter`` is the output of the
+``pose_filter`` (:meth:`~posekit.profiler.pose_filter.FilteredPose.to_record`: the filtered
+pose with its 6×6 covariance), null without one or when the profile failed. The same
+records go to the ``record_sink`` (files, stdout), from a thread of its own.
+
+Frames can also come from the same process: :meth:`PoseServer.submit` queues a profile (from
+any :class:`~posekit.profiler.sources.ProfileSource`, e.g. a vendor SDK) as if it had
+arrived over TCP.
 """
 
 import gc
@@ -65,9 +72,9 @@ import numpy as np
 
 from ..errors import ConfigError, ProfileError
 from ..geometry import quaternion_from_matrix
-from .corners import CornerParams, detect_corners_unchecked, raise_for_status
+from .corners import CornerParams, detect_corners_unchecked, gauge_turns, raise_for_status
 from .gauge import Gauge
-from .protocol import MAX_FRAME_BYTES, Frame, encode_command, encode_hello
+from .protocol import MAX_FRAME_BYTES, MAX_POINTS, Frame, encode_command, encode_hello
 from .refine import pose_covariance_and_reprojection
 from .server_support import (
     Counts,
@@ -87,6 +94,7 @@ from .solve import (
     status_message,
     warm_start_buffers,
 )
+from .sources import units_hint
 
 __all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
 
@@ -101,7 +109,7 @@ def _error_record(frame, error):
     """The robot record of a frame without a pose (its fields are filled in on success)."""
     return {"seq": frame.seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
             "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
-            "command": None, "timing_ms": None, "error": error}
+            "command": None, "filter": None, "timing_ms": None, "error": error}
 
 
 class PoseServer:
@@ -119,7 +127,17 @@ class PoseServer:
         ``controller(seq, t_s, T_G_F, cov) -> dict | None`` called for each good pose:
         ``t_s`` the sensor stamp in s, ``T_G_F`` (4, 4) mm, ``cov`` (6, 6) the pose
         covariance ``[mm, rad]`` in G (NaN for the closed form). Its dict goes out as the
-        record's ``command``; an exception makes the record an error.
+        record's ``command``; an exception makes the record an error. It gets the pose of
+        this profile, not the filtered one (e.g.
+        :class:`~posekit.profiler.control.TargetCompensator`).
+    pose_filter : object, optional
+        ``pose_filter.update(t_s, T_G_F, cov) -> FilteredPose`` called for each good pose
+        (:class:`~posekit.profiler.pose_filter.ConstantVelocityFilter` or
+        :class:`~posekit.profiler.pose_filter.WindowFusion`); its output is the record's
+        ``filter``. Needs ``method='mle'`` (the closed form has no covariance).
+    record_sink : object, optional
+        ``record_sink.put(record)`` gets every record (e.g.
+        :class:`~posekit.profiler.server_records.RecordSink`); it must not block.
     queue_size : int
         Frames buffered between receiver and worker; when full the oldest is dropped.
     method : {'mle', 'cf'}
@@ -170,7 +188,7 @@ class PoseServer:
                  params: CornerParams = CornerParams(), nan_storm_fraction: float = 0.95,
                  history: int = 100_000, freeze_gc: bool = True, token: str | bytes | None = None,
                  idle_timeout_s: float = 30.0, read_timeout_s: float = 2.0, max_dt_s: float = 10.0,
-                 max_connections: int = 16):
+                 max_connections: int = 16, pose_filter=None, record_sink=None):
         if not isinstance(gauge, Gauge):
             raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
         if method not in METHODS:
@@ -188,6 +206,13 @@ class PoseServer:
             raise ConfigError(f"PoseServer: nan_storm_fraction must be in [0, 1), got {nan_storm_fraction}")
         if controller is not None and not callable(controller):
             raise ConfigError("PoseServer: controller must be callable(seq, t_s, T_G_F, cov) -> dict | None")
+        if pose_filter is not None and not callable(getattr(pose_filter, "update", None)):
+            raise ConfigError("PoseServer: pose_filter must have update(t_s, T_G_F, cov) -> FilteredPose")
+        if pose_filter is not None and method == "cf":
+            raise ConfigError("PoseServer: a pose filter needs method 'mle' (the closed form 'cf' gives no "
+                              "covariance to filter with)")
+        if record_sink is not None and not callable(getattr(record_sink, "put", None)):
+            raise ConfigError("PoseServer: record_sink must have put(record)")
         lo, hi = _SECONDS_RANGE
         for name, value in (("idle_timeout_s", idle_timeout_s), ("read_timeout_s", read_timeout_s),
                             ("max_dt_s", max_dt_s)):
@@ -205,7 +230,10 @@ class PoseServer:
         self.method = method
         self.mounting = mounting
         self.params = params
+        self._turns = gauge_turns(gauge)  # the model-based corner detector's view of the section
         self.controller = controller
+        self.pose_filter = pose_filter
+        self.record_sink = record_sink
         self.queue_size = queue_size
         self.nan_storm_fraction = float(nan_storm_fraction)
         self.allow_remote = bool(allow_remote)
@@ -243,6 +271,9 @@ class PoseServer:
         self._last_T = None
         self._last_rev = False
         self._init = warm_start_buffers()
+        self._submit_lock = threading.Lock()
+        self._submit_seq = 0
+        self._submit_last_ns = None
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -299,7 +330,7 @@ class PoseServer:
 
         prof = render_profiles(self.gauge, nominal_pose(self.gauge), NoiseModel(), rng=0)
         n = self.gauge.n_corners
-        status, _, corners, ccov, *_ = detect_corners_unchecked(prof, n, self.params)
+        status, _, corners, ccov, *_ = detect_corners_unchecked(prof, n, self.params, self._turns)
         if status != 0:         # the nominal pose always sees the gauge; be safe anyway
             return
         for T_init in (None, nominal_pose(self.gauge)):
@@ -389,6 +420,67 @@ class PoseServer:
                 i = n % h
                 arr = np.concatenate([self._tim[i:], self._tim[:i]])
         return {k: arr[:, j] for j, k in enumerate(_TIMING_KEYS)}
+
+    # ------------------------------------------------------------------ frames from this process
+
+    def submit(self, points_xz, t_sensor_ns: int | None = None) -> int:
+        """Queue one profile from this process (e.g. a vendor SDK), as if it had arrived over TCP.
+
+        It takes the same path as a received frame: the buffer (drop-oldest), the worker,
+        the record to the robot and the sink. Thread-safe.
+
+        Parameters
+        ----------
+        points_xz : array_like, shape (N, 2)
+            Points (x, z) in F, mm, scan order; NaN = no return; ``N <= MAX_POINTS``.
+        t_sensor_ns : int, optional
+            The profile's stamp on the clock of :func:`time.perf_counter_ns`; default now
+            (DT 0). A stamp that cannot be believed (see ``max_dt_s``) leaves DT unknown.
+
+        Returns
+        -------
+        int
+            The frame's ``seq``: 0, 1, 2, ... over the submitted frames (mod 2³²).
+
+        Raises
+        ------
+        ConfigError
+            If the server is not running.
+        ProfileError
+            If the points are not an (N, 2) numeric array of at most ``MAX_POINTS`` rows.
+
+        Examples
+        --------
+        >>> from posekit.profiler import bundled_gauge, nominal_pose, render_profiles
+        >>> g = bundled_gauge("demo-5")
+        >>> with PoseServer(g, freeze_gc=False) as server:                 # doctest: +SKIP
+        ...     seq = server.submit(render_profiles(g, nominal_pose(g), rng=0))
+        """
+        if not self.running:
+            raise ConfigError("PoseServer.submit: the server is not running (call start() first)")
+        try:
+            pts = np.array(points_xz, dtype=np.float64, order="C")
+        except (TypeError, ValueError):
+            raise ProfileError("PoseServer.submit: expected an (N, 2) array of (x, z) in mm, got non-numeric data") \
+                from None
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] > MAX_POINTS:
+            raise ProfileError(f"PoseServer.submit: expected an (N, 2) array of (x, z) in mm with N <= {MAX_POINTS}, "
+                               f"got shape {pts.shape}")
+        now = time.perf_counter_ns()
+        stamp = now if t_sensor_ns is None else int(t_sensor_ns)
+        with self._submit_lock:
+            seq = self._submit_seq
+            self._submit_seq = (seq + 1) % 2**32
+            dt_ns = now - stamp
+            if 0 <= dt_ns <= self.max_dt_s * 1e9 and (self._submit_last_ns is None or stamp >= self._submit_last_ns):
+                self._submit_last_ns = stamp
+            else:
+                dt_ns = None
+        if dt_ns is None:
+            with self._stats_lock:
+                self._counts.bad_stamps += 1
+        self._enqueue(Frame(seq, stamp, pts, now), dt_ns)
+        return seq
 
     def _reject(self, reason: str, detail: str) -> None:
         with self._stats_lock:
@@ -555,6 +647,8 @@ class PoseServer:
                         self._counts.processed += 1
                         self._counts.errors += 1
                     record = _error_record(frame, f"seq {frame.seq}: internal error: {type(exc).__name__}: {exc}")
+                if self.record_sink is not None:
+                    self.record_sink.put(record)
                 if link is None:
                     continue
                 sent = link.send(encode_command(record))
@@ -593,7 +687,7 @@ class PoseServer:
         n = self.gauge.n_corners
         # The kernel counts the valid returns (info[1]) before anything else; a NaN storm
         # costs it one pass over the points, and the count is exact (x and z finite).
-        status, info, corners, ccov, _, _, npts, cand = detect_corners_unchecked(pts, n, self.params)
+        status, info, corners, ccov, _, _, npts, cand = detect_corners_unchecked(pts, n, self.params, self._turns)
         n_pts = pts.shape[0]
         n_nan = n_pts - int(info[1])
         if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
@@ -609,6 +703,9 @@ class PoseServer:
                 raise_for_status(status, info, npts, cand, n, self.gauge.name)
             except ProfileError as exc:
                 error = f"seq {seq}: {exc}"
+                hint = units_hint(pts)         # only on failure: free on the good path
+                if hint is not None:
+                    error += f"; the profile {hint}"
         else:
             st, rev, R, t, H, _ = self._solve(corners, ccov)
             if st != 0:
@@ -628,6 +725,11 @@ class PoseServer:
                            std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
                            std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
                            reprojection_um=float(reproj_mm) * 1e3, reversed=bool(rev))
+                if self.pose_filter is not None and finite:
+                    try:
+                        rec["filter"] = self.pose_filter.update(frame.t_sensor_ns * 1e-9, T, cov).to_record()
+                    except ConfigError:         # a covariance the filter cannot use: no filtered pose
+                        rec["filter"] = None
                 if self.controller is not None:
                     try:
                         command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)

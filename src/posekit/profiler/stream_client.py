@@ -2,11 +2,14 @@
 
 :class:`SensorClient` plays the profiler controller: it connects to the server and sends
 frames (:func:`~posekit.profiler.protocol.encode_frame`), one at a time or paced at a
-fixed rate by :meth:`SensorClient.stream`. :class:`RobotInterfaceStub` plays the robot
+fixed rate by :meth:`SensorClient.stream`, or as they come from any
+:class:`~posekit.profiler.sources.ProfileSource` (a vendor SDK, a file, the simulator) by
+:meth:`SensorClient.send_source`. :class:`RobotInterfaceStub` plays the robot
 interface: a TCP server that accepts the pose server's connection and stores the JSON
 records it receives. Both are for simulations and tests.
 """
 
+import select
 import socket
 import threading
 import time
@@ -154,6 +157,50 @@ class SensorClient:
         elapsed = t_last - t0
         rate = (total - 1) / elapsed if total > 1 and elapsed > 0 else float("nan")
         return StreamReport(sent=total, elapsed_s=elapsed, rate_hz=rate, late_ms=late)
+
+    def send_source(self, source, *, count: int | None = None, first_seq: int = 0) -> int:
+        """Send the profiles of a source as they come (no pacing: the source sets the pace).
+
+        Parameters
+        ----------
+        source : ProfileSource
+            Yields ``(t_s, points (N, 2) mm)``; each frame is stamped when it is sent (the
+            server's clock on this machine), its ``t_s`` is not sent.
+        count : int, optional
+            Stop after this many frames; default: until the source ends.
+        first_seq : int
+
+        Returns
+        -------
+        int
+            Frames sent.
+        """
+        sent = 0
+        for _, points in source:
+            if count is not None and sent >= count:
+                break
+            self.send_profile((first_seq + sent) % 2**32, points)
+            sent += 1
+        return sent
+
+    def peer_closed(self, wait_s: float = 0.0) -> bool:
+        """True if the server has closed the connection (it answers nothing otherwise).
+
+        A server that refuses the hello (wrong token) closes the connection, but sends
+        that are already under way may still succeed: call this after the last frame.
+
+        Parameters
+        ----------
+        wait_s : float
+            How long to wait for the close, s.
+        """
+        try:
+            readable, _, _ = select.select([self._sock], [], [], max(0.0, wait_s))
+            if readable:
+                return self._sock.recv(1, socket.MSG_PEEK) == b""
+        except OSError:
+            return True
+        return False
 
     def close(self) -> None:
         """Close the connection (the server sees a disconnect)."""
