@@ -3,6 +3,7 @@
 import numpy as np
 
 from ._common import progress
+from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_parser"]
 
@@ -17,9 +18,11 @@ def add_parser(sub):
 
 def add_accuracy_arguments(p):
     p.add_argument("--gauge", default="demo-5", help="bundled gauge name or YAML file (default demo-5)")
-    p.add_argument("--count", type=int, default=1000, help="number of profiles (default 1000)")
-    p.add_argument("--noise-um", type=float, default=5.0, help="noise in z, µm (x: twice that); default 5")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--count", type=bounded_int(1, MAX_PROFILES, "profiles"), default=1000,
+                   help=f"number of profiles, 1..{MAX_PROFILES} (default 1000)")
+    p.add_argument("--noise-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=5.0,
+                   help="noise in z, 0..10000 µm (x: twice that); default 5")
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
 
 
 def run_accuracy(args) -> int:
@@ -30,6 +33,7 @@ def run_accuracy(args) -> int:
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
+    check_flags(args)
     gauge = resolve_gauge(args.gauge)
     noise = NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um)
     print(f"posekit profiler accuracy: {args.count} simulated LJ-X8400-like profiles of gauge '{gauge.name}' "

@@ -1,10 +1,11 @@
-"""``posekit profiler estimate|simulate``."""
+"""``posekit profiler estimate|simulate|calibrate-gauge``."""
 
 import sys
 from pathlib import Path
 
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, parse_triplet, progress, resolve_gauge, staged
+from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed
 
 __all__ = ["add_parser"]
 
@@ -20,31 +21,69 @@ def add_parser(sub):
     e.add_argument("--method", choices=["cf", "mle"], default="mle",
                    help="cf: closed form eq. (9)-(14); mle: refined (default)")
     e.add_argument("--mounting", choices=["auto", "normal", "reversed"], default="auto",
-                   help="scan order of the corners vs the ridges (default: auto-detect)")
+                   help="scan order of the corners vs the ridges (default: auto-detect; a gauge whose "
+                        "profiles cannot tell the two apart needs normal or reversed)")
+    e.add_argument("--rotation", choices=["quat", "matrix", "euler-zyx", "euler-xyz"], default="quat",
+                   help="extra rotation output besides q_wxyz (whose sign is continuous along a batch): "
+                        "matrix R_G_F; euler-zyx [A,B,C] deg, intrinsic Z-Y'-X'' R = Rz(A) Ry(B) Rx(C) "
+                        "(KUKA A,B,C); euler-xyz [W,P,R] deg, fixed axes X-Y-Z R = Rz(R) Ry(P) Rx(W) "
+                        "(Fanuc/ABB W,P,R). Default quat: q_wxyz only")
+    e.add_argument("--noise-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=5.0,
+                   help="noise the estimator assumes in z, µm (default 5, the LJ-X8400's repeatability)")
+    e.add_argument("--noise-x-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=None,
+                   help="noise assumed in x, µm (default: twice --noise-um, the LJ-X8400's 10/5 µm)")
+    e.add_argument("--significance", type=bounded_float(0.0, 1.0, lo_open=True, hi_open=True), default=None,
+                   help="significance of the consistency test: the rate at which good data are called "
+                        "suspect (default 0.001)")
     e.add_argument("--out", help="FILE.jsonl or FILE.csv (default: JSON lines on stdout)")
+    from .profiler_replay import add_read_arguments
+    add_read_arguments(e)               # --columns, --delimiter, --roi-x, --roi-z (shared with replay)
     e.set_defaults(func=run_estimate)
 
     s = verbs.add_parser("simulate", help="simulate profiles of a gauge at random poses")
     s.add_argument("--gauge", required=True, help="gauge YAML file (or a bundled name)")
-    s.add_argument("--count", type=int, default=100, help="number of profiles (default 100)")
-    s.add_argument("--noise-um", type=float, default=5.0, help="Gaussian noise in z, µm (default 5)")
-    s.add_argument("--noise-x-um", type=float, default=None,
+    s.add_argument("--count", type=bounded_int(1, MAX_PROFILES, "profiles"), default=100,
+                   help=f"number of profiles, 1..{MAX_PROFILES} (default 100)")
+    s.add_argument("--noise-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=5.0,
+                   help="Gaussian noise in z, 0..10000 µm (default 5)")
+    s.add_argument("--noise-x-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=None,
                    help="Gaussian noise in x, µm (default: twice --noise-um, as the LJ-X8400's 10/5 µm)")
-    s.add_argument("--outliers", type=float, default=0.0, help="fraction of returns that are spikes")
-    s.add_argument("--dropouts", type=float, default=0.0, help="mean number of dropout runs per profile")
-    s.add_argument("--translation-mm", default="10,10,40", help="workspace half-ranges x,y,z in G, mm")
-    s.add_argument("--rotation-deg", default="4,4,8", help="workspace half-ranges of rotation about F's x,y,z, deg")
-    s.add_argument("--standoff-mm", type=float, default=None, help="nominal depth of the gauge, mm (mid-range)")
-    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same profiles)")
+    # >= 0 is checked with the other noise values (run_simulate)
+    s.add_argument("--outliers", type=bounded_float(None, 0.5), default=0.0,
+                   help="fraction of returns that are spikes, 0..0.5")
+    s.add_argument("--dropouts", type=bounded_float(0.0, 100.0, "runs per profile"), default=0.0,
+                   help="mean number of dropout runs per profile, 0..100")
+    s.add_argument("--translation-mm", default="10,10,40", help="workspace half-ranges x,y,z in G, 0..1000 mm")
+    s.add_argument("--rotation-deg", default="4,4,8",
+                   help="workspace half-ranges of rotation about F's x,y,z, 0..180 deg")
+    s.add_argument("--standoff-mm", type=bounded_float(1.0, 1e4, "mm"), default=None,
+                   help="nominal depth of the gauge, 1..10000 mm (default: mid-range)")
+    s.add_argument("--realistic", action="store_true",
+                   help="simulate a real cell: one as-built gauge with rounded and chamfered ridges and "
+                        "machining error, its mounting plate and a fixture in view, multipath near valleys, "
+                        "scale error and dropouts on steep faces (RealismModel.realistic())")
+    s.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same profiles)")
     s.add_argument("--out", required=True, help="output folder: profiles.npz and truth.csv")
     add_overwrite(s)
     s.set_defaults(func=run_simulate)
 
+    cg = verbs.add_parser("calibrate-gauge", help="the as-built gauge (every face plane) from profiles taken at "
+                          "unknown, varied poses")
+    cg.add_argument("input", help="profiles: .npz with 'profiles' (K, N, 2), K >= 50, the laser line turned and "
+                    "tilted by several degrees between them")
+    cg.add_argument("--gauge", required=True, help="the nominal gauge YAML file (the drawing; or a bundled name)")
+    cg.add_argument("--mounting", choices=["auto", "normal", "reversed"], default="auto",
+                    help="scan order of the corners vs the ridges (default: auto-detect)")
+    cg.add_argument("--out", required=True, help="ASBUILT.yaml: the as-built gauge, with tolerance_um")
+    cg.set_defaults(func=run_calibrate_gauge)
+
     from .profiler_loop import add_loop_parser
+    from .profiler_replay import add_replay_parser
     from .profiler_serve import add_serve_parser
     from .profiler_study import add_study_parser
     add_study_parser(verbs)
     add_serve_parser(verbs)
+    add_replay_parser(verbs)
     add_loop_parser(verbs)
 
     a = verbs.add_parser("accuracy", help="accuracy of the estimator on simulated profiles of a gauge")
@@ -55,29 +94,66 @@ def add_parser(sub):
 
 def run_estimate(args) -> int:
     from ..profiler.estimate import estimate_batch
-    from ..profiler.io import RecordWriter, read_profiles
+    from ..profiler.io import RecordWriter
+    from ..profiler.sources import read_profile_file
+    from .profiler_replay import read_options
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
         raise ConfigError(f"--out {args.out}: unknown suffix '{Path(args.out).suffix[:20]}'; expected FILE.jsonl "
                           "(JSON lines) or FILE.csv")
-    gauge = resolve_gauge(args.gauge)
-    profiles = read_profiles(args.input)
-    failed = 0
+    check_flags(args)
+    noise, significance = _estimator_noise(args)
+    gauge = _estimate_gauge(args)        # the mounting goes to the load: an ambiguous gauge needs it
+    profiles = read_profile_file(args.input, read_options(args))
+    counts = {"ok": 0, "suspect": 0, "error": 0}
     reversed_count = 0
-    with RecordWriter(args.out, stream=sys.stdout) as writer:
-        for rec, est in progress(estimate_batch(profiles, gauge, args.method, args.mounting),
+    with RecordWriter(args.out, stream=sys.stdout, rotation=args.rotation) as writer:
+        for rec, est in progress(estimate_batch(profiles, gauge, args.method, args.mounting, noise=noise,
+                                                significance=significance, rotation=args.rotation),
                                  total=len(profiles), desc="estimate"):
             writer.write(rec)
-            failed += rec["status"] != "ok"
-            reversed_count += bool(est is not None and est.reversed)
+            counts[rec["status"]] += 1
+            reversed_count += bool(est is not None and est.reversed and rec["status"] == "ok")
     if reversed_count:
         print(f"posekit: note: {reversed_count} of {len(profiles)} profiles had their corners in reverse "
               "order (sensor mounted the other way round?)", file=sys.stderr)
-    if failed:
-        print(f"posekit: {failed} of {len(profiles)} profiles failed; their records have status 'error'",
+    if counts["error"]:
+        print(f"posekit: {counts['error']} of {len(profiles)} profiles failed; their records have status 'error'",
               file=sys.stderr)
-        return 1
-    return 0
+    if counts["suspect"]:
+        print(f"posekit: {counts['suspect']} of {len(profiles)} profiles are suspect (the data disagree with the "
+              "gauge or the assumed noise); their records have status 'suspect' and the reason", file=sys.stderr)
+    return 0 if counts["ok"] == len(profiles) else 1
+
+
+def _estimator_noise(args):
+    """The noise model and significance the estimate assumes (``--noise-um``, ``--noise-x-um``, ``--significance``)."""
+    from ..profiler.sensor import NoiseModel
+    from ..profiler.solve import DEFAULT_SIGNIFICANCE
+
+    noise_x = 2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um
+    if noise_x + args.noise_um <= 0:
+        raise ConfigError("--noise-um, --noise-x-um: the assumed noise must not be zero in both x and z")
+    significance = DEFAULT_SIGNIFICANCE if args.significance is None else args.significance
+    return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um), significance
+
+
+def _estimate_gauge(args):
+    """The gauge of ``--gauge`` (a path or a bundled name) loaded for ``--mounting``."""
+    from ..profiler.gauge import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
+
+    path = Path(args.gauge)
+    if not path.exists() and args.gauge in BUNDLED_GAUGES:
+        path = bundled_gauge_path(args.gauge)
+    return load_gauge(path, mounting=args.mounting)
+
+
+def check_workspace(ws, args) -> None:
+    """The workspace half-ranges within 0..1000 mm and 0..180 deg (``Workspace`` checks >= 0)."""
+    for flag, text, values, hi, unit in (("--translation-mm", args.translation_mm, ws.translation_mm, 1e3, "mm"),
+                                         ("--rotation-deg", args.rotation_deg, ws.rotation_deg, 180.0, "deg")):
+        for v in values:
+            check_range(flag, v, 0.0, hi, unit, what="three numbers", shown=repr(text))
 
 
 def run_simulate(args) -> int:
@@ -86,7 +162,7 @@ def run_simulate(args) -> int:
     from ..errors import ConfigError
     from ..geometry import quaternion_from_matrix
     from ..profiler.io import write_truth_csv
-    from ..profiler.sensor import NoiseModel, Workspace, render_profiles, sample_poses
+    from ..profiler.sensor import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
@@ -94,21 +170,51 @@ def run_simulate(args) -> int:
                         ("--outliers", args.outliers), ("--dropouts", args.dropouts)):
         if value is not None and not (np.isfinite(value) and value >= 0):
             raise ConfigError(f"{flag} must be a finite number >= 0, got {value:g}")
+    check_flags(args)
     gauge = resolve_gauge(args.gauge)
     noise = NoiseModel(
         sigma_x_um=2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um,
         sigma_z_um=args.noise_um, outlier_rate=args.outliers, dropouts_per_profile=args.dropouts)
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"), standoff_mm=args.standoff_mm)
+    check_workspace(ws, args)
     out_folder(args)
     rng = np.random.default_rng(args.seed)
     Ts = sample_poses(gauge, args.count, rng, ws)
-    profiles = render_profiles(gauge, Ts, noise, rng)
+    realism = RealismModel.realistic() if args.realistic else None
+    profiles = render_profiles(gauge, Ts, noise, rng, realism=realism)
     out = Path(args.out)
     with staged(args) as tmp:
         np.savez_compressed(tmp / "profiles.npz", profiles=profiles.astype(np.float64), T_G_F=Ts)
         write_truth_csv(tmp / "truth.csv", Ts, quaternion_from_matrix(Ts[:, :3, :3]))
     valid = np.isfinite(profiles[..., 0]).mean()
-    print(f"wrote {args.count} profiles of gauge '{gauge.name}' ({profiles.shape[1]} points each, "
-          f"{100 * valid:.1f} % returns) to {out / 'profiles.npz'} and the poses to {out / 'truth.csv'}")
+    print(f"wrote {args.count} {'realistic ' if args.realistic else ''}profiles of gauge '{gauge.name}' "
+          f"({profiles.shape[1]} points each, {100 * valid:.1f} % returns) to {out / 'profiles.npz'} and the poses "
+          f"to {out / 'truth.csv'}")
+    return 0
+
+
+def run_calibrate_gauge(args) -> int:
+    from ..io import write_text_atomic
+    from ..profiler.gauge_calibration import as_built_yaml, calibrate_gauge
+    from ..profiler.io import read_profiles
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".yaml", ".yml"):
+        raise ConfigError(f"--out {args.out}: expected a gauge file ASBUILT.yaml")
+    if Path(args.gauge).exists() and out.exists() and out.resolve() == Path(args.gauge).resolve():
+        raise ConfigError(f"--out {args.out}: is the nominal gauge file; write the as-built gauge to another file")
+    nominal = _estimate_gauge(args)      # loaded for --mounting, as estimate loads it
+    cal = calibrate_gauge(read_profiles(args.input), nominal, mounting=args.mounting, source=str(args.input))
+    write_text_atomic(out, as_built_yaml(cal, Path(args.input).name))
+    for index, reason in cal.skipped[:5]:
+        print(f"posekit: note: profile {index} left out: {reason}", file=sys.stderr)
+    if len(cal.skipped) > 5:
+        print(f"posekit: note: {len(cal.skipped) - 5} more profiles left out", file=sys.stderr)
+    print(f"as-built gauge '{cal.gauge.name}' from {len(cal.used)} of {len(cal.used) + len(cal.skipped)} profiles "
+          f"in {cal.seconds:.2f} s: faces {cal.face_shift_um.min():.1f}-{cal.face_shift_um.max():.1f} µm and "
+          f"{cal.face_tilt_deg.min():.4f}-{cal.face_tilt_deg.max():.4f}° off the drawing; 1σ face position "
+          f"{cal.face_sigma_um.min():.2f}-{cal.face_sigma_um.max():.2f} µm (tolerance_um); corner residual RMS "
+          f"{cal.rms_um:.2f} µm, χ²/dof {cal.chi2 / max(cal.dof, 1):.2f}")
+    print(f"wrote {out}")
     return 0

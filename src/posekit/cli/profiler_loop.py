@@ -5,6 +5,14 @@ import sys
 from pathlib import Path
 
 from ._common import add_deprecated, add_overwrite, out_folder, progress, resolve_gauge, staged
+from ._flags import MAX_NOISE_UM, bounded_float, bounded_int, check_flags, seed
+
+#: Most runs per axis, step and mode; most step sizes and axes; most closed-loop runs in all
+#: (axes × steps × 2 modes × runs: about 0.4 s each in lock-step, so at most about 15 minutes).
+MAX_RUNS, MAX_STEPS, MAX_AXES, MAX_TOTAL_RUNS = 100, 10, 10, 2000
+#: Largest step size, mm (the gauge must stay in the profiler's view).
+MAX_STEP_MM = 50.0
+_RUNS = bounded_int(1, MAX_RUNS, flag="--runs")
 
 __all__ = ["add_loop_parser", "run_loop"]
 
@@ -21,12 +29,15 @@ def add_loop_arguments(p, out_default=None):
                    help="output folder: table3.csv, table4.csv, figures, report.html"
                         + (f" (default {out_default}, replaced on each run)" if out_default else ""))
     add_overwrite(p, out_default)
-    p.add_argument("--runs", dest="repeats", type=int, default=3, help="runs per axis, step and mode (default 3)")
-    add_deprecated(p, "--repeats", "--runs", "repeats", int)
-    p.add_argument("--axes", default="x,y,z,xyz", help="step directions (default x,y,z,xyz)")
-    p.add_argument("--steps-mm", default="1,2", help="step sizes, mm (default 1,2)")
-    p.add_argument("--noise-um", type=float, default=5.0, help="profiler noise in z, µm (x: twice); default 5")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--runs", dest="repeats", type=_RUNS, default=3,
+                   help=f"runs per axis, step and mode, 1..{MAX_RUNS} (default 3)")
+    add_deprecated(p, "--repeats", "--runs", "repeats", _RUNS)
+    p.add_argument("--axes", default="x,y,z,xyz", help=f"step directions, at most {MAX_AXES} (default x,y,z,xyz)")
+    p.add_argument("--steps-mm", default="1,2",
+                   help=f"step sizes, at most {MAX_STEPS}, each non-zero within ±{MAX_STEP_MM:g} mm (default 1,2)")
+    p.add_argument("--noise-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=5.0,
+                   help="profiler noise in z, 0..10000 µm (x: twice); default 5")
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     p.add_argument("--realtime", action="store_true", help="pace the cycles at 83.3 Hz instead of lock-step")
     p.add_argument("--linear", action="store_true", help="linear robot model (no amplitude-dependent damping)")
     p.add_argument("--no-camera", action="store_true", help="skip timing the camera pipeline for Table III")
@@ -48,6 +59,18 @@ def run_loop(args) -> int:
         raise ConfigError(f"--steps-mm: steps must be finite and non-zero, got '{args.steps_mm}'")
     if not (np.isfinite(args.noise_um) and args.noise_um >= 0):
         raise ConfigError(f"--noise-um must be a finite number >= 0, got {args.noise_um:g}")
+    if any(abs(s) > MAX_STEP_MM for s in steps):
+        raise ConfigError(f"--steps-mm: expected non-zero step sizes in -{MAX_STEP_MM:g}..{MAX_STEP_MM:g} mm, "
+                          f"got '{args.steps_mm[:80]}'")
+    axes = tuple(a.strip() for a in args.axes.split(","))
+    for flag, n, most in (("--steps-mm", len(steps), MAX_STEPS), ("--axes", len(axes), MAX_AXES)):
+        if n > most:
+            raise ConfigError(f"{flag}: expected 1..{most} comma-separated values, got {n}")
+    check_flags(args)
+    total = len(axes) * len(steps) * 2 * args.repeats
+    if total > MAX_TOTAL_RUNS:
+        raise ConfigError(f"--runs {args.repeats} × {len(steps)} step sizes × {len(axes)} axes × 2 modes = {total} "
+                          f"closed-loop runs; expected at most {MAX_TOTAL_RUNS} (about 15 minutes)")
     gauge = resolve_gauge(args.gauge)
     out_folder(args)
     camera = not args.no_camera
@@ -55,7 +78,6 @@ def run_loop(args) -> int:
         print("posekit: note: Table III without the OpenCV camera pipeline, which needs the 'vision' extra: "
               'pip install "posekit[vision]"', file=sys.stderr)
         camera = False
-    axes = tuple(a.strip() for a in args.axes.split(","))
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "
           f"{'real time (83.3 Hz)' if args.realtime else 'lock-step'} over loopback TCP")
