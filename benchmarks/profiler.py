@@ -33,8 +33,8 @@ SENSOR_PERIOD_MS = 1.0       # LJ-X8400 at its maximum rate, 1 kHz
 
 
 def _time_ours(profiles, gauge):
-    from posekit.profiler.corners import CornerParams, detect_corners_unchecked
-    from posekit.profiler.solve import solve_pose_unchecked
+    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked
+    from posekit.profiler.estimate.solve import solve_pose_unchecked
 
     params = CornerParams()
     n = gauge.n_corners
@@ -59,7 +59,7 @@ def _time_ours(profiles, gauge):
 
 def _time_cd(profiles, gauge, model: bool):
     """Corner detection alone (unchecked path), per profile; ``(ms, failures)``."""
-    from posekit.profiler.corners import CornerParams, detect_corners_unchecked, gauge_turns
+    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
 
     params = CornerParams()
     turns = gauge_turns(gauge) if model else None
@@ -117,7 +117,7 @@ def _stats(a):
 def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-    from posekit.profiler.realism import RealismModel
+    from posekit.profiler.estimate.realism import RealismModel
 
     count = 2000 if count is None else max(int(count), 100)
     gauge = bundled_gauge("demo-5")
@@ -141,7 +141,7 @@ def run(count=None, verbose=True):
     total = cd + pc
     api = _time_api(profiles, gauge)
     sp = _time_scipy(profiles, gauge)
-    from posekit.profiler.camera_peer import time_camera_pipeline  # OpenCV only after our timing
+    from posekit.profiler.loop.camera_peer import time_camera_pipeline  # OpenCV only after our timing
     cam = time_camera_pipeline(n_images=10, repeats=3, seed=0)
     cam_cd, cam_pc = np.asarray(cam["cd_ms"]), np.asarray(cam["pc_ms"])
     cam_total = cam_cd + cam_pc

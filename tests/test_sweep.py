@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError, GaugeError
-from posekit.profiler.study import CornersConfig, corners_study
+from posekit.profiler.studies.study import CornersConfig, corners_study
 from posekit.sweep import SERIAL, run_tasks, task_seed
 
 # Task functions defined here travel to the workers by value (tests/ is not installed).

@@ -1,4 +1,4 @@
-"""The camera peer of the profiler benchmark (posekit.profiler.camera_peer): rendering and accuracy.
+"""The camera peer of the profiler benchmark (posekit.profiler.loop.camera_peer): rendering and accuracy.
 
 No timing is asserted here; timings live in benchmarks/.
 """
@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.profiler import camera_peer as camera
+from posekit.profiler.loop import camera_peer as camera
 
 INNER = (3, 4)
 SQUARE_MM = 20.0

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError
-from posekit.profiler.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController
-from posekit.profiler.loop_sim import format_table4, run_table4, simulate_step, table4
-from posekit.profiler.response import (
+from posekit.profiler.loop.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController
+from posekit.profiler.loop.loop_sim import format_table4, run_table4, simulate_step, table4
+from posekit.profiler.loop.response import (
     amplitude_spectrum,
     damping_ratio,
     overshoot_pct,
@@ -15,7 +15,7 @@ from posekit.profiler.response import (
     step_metrics,
     zeta_from_overshoot,
 )
-from posekit.profiler.robotsim import RobotSimulator
+from posekit.profiler.loop.robotsim import RobotSimulator
 
 # Every (Mp %, zeta) pair of Table IV, open and closed loop, 1 mm and 2 mm.
 TABLE4_MP_ZETA = [(5.39, 0.68), (4.86, 0.70), (65.88, 0.13), (39.48, 0.28), (13.98, 0.53), (8.06, 0.63),

@@ -18,9 +18,9 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.corners import CornerParams, detect_corners_unchecked, gauge_turns
-from posekit.profiler.realism import RealismModel, true_corners
-from posekit.profiler.segments import expected_turns
+from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
+from posekit.profiler.estimate.realism import RealismModel, true_corners
+from posekit.profiler.estimate.segments import expected_turns
 
 NOISELESS = NoiseModel(0.0, 0.0)
 

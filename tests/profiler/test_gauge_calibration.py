@@ -28,9 +28,9 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.gauge import bundled_gauge_path
-from posekit.profiler.gauge_bundle import bundle_residuals, plane_params
-from posekit.profiler.gauge_calibration import (
+from posekit.profiler.estimate.gauge import bundled_gauge_path
+from posekit.profiler.estimate.gauge_bundle import bundle_residuals, plane_params
+from posekit.profiler.estimate.gauge_calibration import (
     NEEDED,
     as_built_yaml,
     calibrate_gauge,

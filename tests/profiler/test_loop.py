@@ -7,8 +7,8 @@ import pytest
 
 from posekit.cli.main import main
 from posekit.profiler import bundled_gauge
-from posekit.profiler.loop import TABLE4_COLUMNS, run_experiment, transfer_times
-from posekit.profiler.loop_report import write_loop_report
+from posekit.profiler.loop.loop import TABLE4_COLUMNS, run_experiment, transfer_times
+from posekit.profiler.loop.loop_report import write_loop_report
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from posekit.errors import ConfigError, ProfileError
-from posekit.profiler.protocol import (
+from posekit.profiler.stream.protocol import (
     BAD_MAGIC,
     HEADER,
     HEADER_SIZE,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from posekit.errors import PosekitError
-from posekit.profiler.corners import CornerParams, detect_corners
+from posekit.profiler.estimate.corners import CornerParams, detect_corners
 from tests.profiler.test_realistic import Measured, estimate_one, in_scan_order
 from tests.profiler.test_realistic_generator import (
     ONE_EACH,

@@ -17,10 +17,10 @@ from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_quaternion, rotation_vector_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, nominal_pose, render_profiles
-from posekit.profiler.io import read_truth_csv
-from posekit.profiler.pose_filter import ConstantVelocityFilter
-from posekit.profiler.server import PoseServer
-from posekit.profiler.server_records import SERVE_CSV_COLUMNS
+from posekit.profiler.estimate.io import read_truth_csv
+from posekit.profiler.stream.pose_filter import ConstantVelocityFilter
+from posekit.profiler.stream.server import PoseServer
+from posekit.profiler.stream.server_records import SERVE_CSV_COLUMNS
 
 CAP_S = "60"              # --duration-s of every server: an upper bound, the runs end by --count
 
@@ -243,7 +243,7 @@ def test_submit_in_process_with_filter_and_the_metres_hint():
 
 
 def test_record_sink_files_and_an_error_record(tmp_path):
-    from posekit.profiler.server_records import RecordOutput, RecordSink
+    from posekit.profiler.stream.server_records import RecordOutput, RecordSink
 
     err = {"seq": 3, "t_sensor_ns": 10, "status": "error", "t_mm": None, "q_wxyz": None, "std_t_um": None,
            "std_rot_deg": None, "reprojection_um": None, "reversed": None, "command": None, "filter": None,

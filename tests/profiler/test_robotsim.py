@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError
-from posekit.profiler.control import OpenLoop
-from posekit.profiler.loop_sim import simulate_impulse, simulate_step, table4
-from posekit.profiler.response import impulse_resonance, peak_frequency_magnitude
-from posekit.profiler.robotsim import GP12_LINEAR, RobotSimulator
+from posekit.profiler.loop.control import OpenLoop
+from posekit.profiler.loop.loop_sim import simulate_impulse, simulate_step, table4
+from posekit.profiler.loop.response import impulse_resonance, peak_frequency_magnitude
+from posekit.profiler.loop.robotsim import GP12_LINEAR, RobotSimulator
 
 # Table IV, open loop (paper §IV-C): Mp (%) mean and std, zeta mean and std, 1 mm and 2 mm steps.
 TABLE4_OPEN = {

@@ -20,11 +20,11 @@ from scipy.spatial.transform import Rotation
 from posekit.errors import ConfigError
 from posekit.geometry import transform_from
 from posekit.profiler import LJ_X8400, NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
-from posekit.profiler.evaluate import pose_errors
-from posekit.profiler.protocol import MAGIC, MAX_POINTS, encode_frame
-from posekit.profiler.sensor import sample_poses, visible_mask
-from posekit.profiler.server import PoseServer, check_address, parse_address
-from posekit.profiler.stream_client import RobotInterfaceStub, SensorClient
+from posekit.profiler.estimate.evaluate import pose_errors
+from posekit.profiler.estimate.sensor import sample_poses, visible_mask
+from posekit.profiler.stream.protocol import MAGIC, MAX_POINTS, encode_frame
+from posekit.profiler.stream.server import PoseServer, check_address, parse_address
+from posekit.profiler.stream.stream_client import RobotInterfaceStub, SensorClient
 
 SOAK_RATE_HZ = 1000.0
 SOAK_SECONDS = 10.0
@@ -108,7 +108,7 @@ def _check_pose(rec, T_true, k_sigma=5.0):
 SENDER = """
 import gc, json, sys
 import numpy as np
-from posekit.profiler.stream_client import SensorClient
+from posekit.profiler.stream.stream_client import SensorClient
 host, port, rate, seconds, path = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), sys.argv[5]
 profiles = np.load(path)
 gc.freeze()     # a full collection over numpy/scipy/numba objects would stall the sender for ~10-70 ms

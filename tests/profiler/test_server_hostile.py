@@ -15,7 +15,7 @@ import pytest
 
 from posekit.errors import ConfigError, InputFileError
 from posekit.profiler import NoiseModel, bundled_gauge, nominal_pose, render_profiles
-from posekit.profiler.protocol import (
+from posekit.profiler.stream.protocol import (
     HELLO_HEADER,
     HELLO_MAGIC,
     MAX_TOKEN_BYTES,
@@ -27,8 +27,8 @@ from posekit.profiler.protocol import (
     encode_frame,
     encode_hello,
 )
-from posekit.profiler.server import PoseServer, read_token_file
-from posekit.profiler.stream_client import RobotInterfaceStub, SensorClient
+from posekit.profiler.stream.server import PoseServer, read_token_file
+from posekit.profiler.stream.stream_client import RobotInterfaceStub, SensorClient
 
 SERVE_WITHIN_S = 1.0           # a new sensor's first record, with a stalled client connected
 IDLE_S = 2.5                   # the timeouts of these tests (the defaults are 30 s and 2 s)

@@ -10,7 +10,7 @@ import pytest
 from posekit.cli.main import main
 from posekit.errors import ConfigError, InputFileError, ProfileError
 from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
-from posekit.profiler.sources import (
+from posekit.profiler.stream.sources import (
     ArraySource,
     FileSource,
     ProfileSource,
@@ -25,7 +25,7 @@ from posekit.profiler.sources import (
     read_profile_file,
     units_hint,
 )
-from posekit.profiler.stream_client import SensorClient
+from posekit.profiler.stream.stream_client import SensorClient
 
 
 @pytest.fixture(scope="module")

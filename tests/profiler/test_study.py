@@ -15,8 +15,8 @@ import pytest
 from posekit.cli.profiler_study import add_study_parser, parse_numbers
 from posekit.errors import ConfigError, PosekitError
 from posekit.geometry import matrix_from_rotation_vector
-from posekit.profiler.gauge import bundled_gauge
-from posekit.profiler.study import (
+from posekit.profiler.estimate.gauge import bundled_gauge
+from posekit.profiler.studies.study import (
     GAP_COLUMNS,
     PAPER_TABLE1,
     TABLE1_COLUMNS,
@@ -26,13 +26,13 @@ from posekit.profiler.study import (
     noise_study,
     ridge_direction_error,
 )
-from posekit.profiler.study_limits import (
+from posekit.profiler.studies.study_limits import (
     LimitsConfig,
     limits_study,
     range_summary,
     tilt_summary,
 )
-from posekit.profiler.study_report import write_report
+from posekit.profiler.studies.study_report import write_report
 
 SERIAL = "serial"
 

@@ -27,8 +27,8 @@ def add_accuracy_arguments(p):
 
 def run_accuracy(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.evaluate import evaluate
-    from ..profiler.sensor import NoiseModel
+    from ..profiler.estimate.evaluate import evaluate
+    from ..profiler.estimate.sensor import NoiseModel
     from ._common import resolve_gauge
 
     if args.count < 1:

@@ -93,9 +93,9 @@ def add_parser(sub):
 
 
 def run_estimate(args) -> int:
-    from ..profiler.estimate import estimate_batch
-    from ..profiler.io import RecordWriter
-    from ..profiler.sources import read_profile_file
+    from ..profiler.estimate.io import RecordWriter
+    from ..profiler.estimate.pipeline import estimate_batch
+    from ..profiler.stream.sources import read_profile_file
     from .profiler_replay import read_options
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
@@ -128,8 +128,8 @@ def run_estimate(args) -> int:
 
 def _estimator_noise(args):
     """The noise model and significance the estimate assumes (``--noise-um``, ``--noise-x-um``, ``--significance``)."""
-    from ..profiler.sensor import NoiseModel
-    from ..profiler.solve import DEFAULT_SIGNIFICANCE
+    from ..profiler.estimate.sensor import NoiseModel
+    from ..profiler.estimate.solve import DEFAULT_SIGNIFICANCE
 
     noise_x = 2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um
     if noise_x + args.noise_um <= 0:
@@ -140,7 +140,7 @@ def _estimator_noise(args):
 
 def _estimate_gauge(args):
     """The gauge of ``--gauge`` (a path or a bundled name) loaded for ``--mounting``."""
-    from ..profiler.gauge import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
+    from ..profiler.estimate.gauge import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
 
     path = Path(args.gauge)
     if not path.exists() and args.gauge in BUNDLED_GAUGES:
@@ -161,8 +161,8 @@ def run_simulate(args) -> int:
 
     from ..errors import ConfigError
     from ..geometry import quaternion_from_matrix
-    from ..profiler.io import write_truth_csv
-    from ..profiler.sensor import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
+    from ..profiler.estimate.io import write_truth_csv
+    from ..profiler.estimate.sensor import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
@@ -196,8 +196,8 @@ def run_simulate(args) -> int:
 
 def run_calibrate_gauge(args) -> int:
     from ..io import write_text_atomic
-    from ..profiler.gauge_calibration import as_built_yaml, calibrate_gauge
-    from ..profiler.io import read_profiles
+    from ..profiler.estimate.gauge_calibration import as_built_yaml, calibrate_gauge
+    from ..profiler.estimate.io import read_profiles
 
     out = Path(args.out)
     if out.suffix.lower() not in (".yaml", ".yml"):

@@ -2,7 +2,7 @@
 
 Also the profile-reading flags shared with ``posekit profiler estimate``
 (:func:`add_read_arguments`, :func:`read_options`): ``--columns``, ``--delimiter``,
-``--roi-x``, ``--roi-z``, turned into one :class:`~posekit.profiler.sources.ReadOptions`.
+``--roi-x``, ``--roi-z``, turned into one :class:`~posekit.profiler.stream.sources.ReadOptions`.
 """
 
 import time
@@ -30,8 +30,8 @@ def add_read_arguments(p) -> None:
 
 
 def read_options(args):
-    """The :class:`~posekit.profiler.sources.ReadOptions` of the reading flags (one-line errors)."""
-    from ..profiler.sources import ReadOptions, parse_columns, parse_delimiter, parse_roi
+    """The :class:`~posekit.profiler.stream.sources.ReadOptions` of the reading flags (one-line errors)."""
+    from ..profiler.stream.sources import ReadOptions, parse_columns, parse_delimiter, parse_roi
 
     return ReadOptions(columns=parse_columns(args.columns), delimiter=parse_delimiter(args.delimiter),
                        roi_x_mm=parse_roi(args.roi_x, "--roi-x"), roi_z_mm=parse_roi(args.roi_z, "--roi-z"))
@@ -62,7 +62,7 @@ def add_replay_parser(verbs):
 
 def _connect(host: str, port: int, token, wait_s: float):
     from ..errors import ConfigError
-    from ..profiler.stream_client import SensorClient
+    from ..profiler.stream.stream_client import SensorClient
 
     deadline = time.monotonic() + wait_s
     while True:
@@ -84,9 +84,9 @@ def run_replay(args) -> int:
     import numpy as np
 
     from ..errors import ConfigError, InputFileError
-    from ..profiler.protocol import MAX_POINTS
-    from ..profiler.server_support import parse_address, read_token_file
-    from ..profiler.sources import FileSource
+    from ..profiler.stream.protocol import MAX_POINTS
+    from ..profiler.stream.server_support import parse_address, read_token_file
+    from ..profiler.stream.sources import FileSource
 
     check_flags(args)
     host, port = parse_address(args.to, "--to")
@@ -98,7 +98,7 @@ def run_replay(args) -> int:
     profiles = source.profiles
     if profiles.shape[1] > MAX_POINTS:
         raise InputFileError(f"{args.input}: profiles of {profiles.shape[1]} points; a stream frame carries at most "
-                             f"{MAX_POINTS} (posekit.profiler.protocol.MAX_POINTS)")
+                             f"{MAX_POINTS} (posekit.profiler.stream.protocol.MAX_POINTS)")
     count = len(profiles) if args.count is None else args.count
     client = _connect(host, port, token, args.wait_s)
     refused = (f"--to {host}:{port}: the server closed the connection at once: it wants a token and this one "

@@ -30,7 +30,7 @@ def add_serve_parser(verbs):
     """Add the ``serve`` verb to the ``posekit profiler`` sub-parsers ``verbs``."""
     p = verbs.add_parser(
         "serve", help="real-time pose server: profile frames in over TCP, pose records out to a robot",
-        description="Accept sensors on --listen (binary frames, see posekit.profiler.protocol; each connection "
+        description="Accept sensors on --listen (binary frames, see posekit.profiler.stream.protocol; each connection "
                     "is served on its own, with idle and read timeouts), estimate the pose of every frame and "
                     "send one JSON line per frame to the robot interface at --robot. Runs until Ctrl-C or "
                     "--duration.")
@@ -70,7 +70,7 @@ def add_serve_parser(verbs):
     rec.add_argument("--jsonl", metavar="FILE|-",
                      help="write every record as a JSON line to FILE ('-': stdout, the status lines then go to "
                           "stderr), flushed as it is produced")
-    ctl = p.add_argument_group("controller (the PD compensation of the closed loop, posekit.profiler.control)")
+    ctl = p.add_argument_group("controller (the PD compensation of the closed loop, posekit.profiler.loop.control)")
     ctl.add_argument("--controller", choices=["none", "open", "pd"], default="none",
                      help="pd: PD compensation towards the target pose, one command per pose in the record's "
                           "'command' (command_mm, measured_mm; mm in G); open: command 0 (the open-loop "
@@ -125,8 +125,8 @@ def _controller(args, gauge):
 
     from ..errors import ConfigError
     from ..geometry import matrix_from_quaternion
-    from ..profiler.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController, TargetCompensator
-    from ..profiler.sensor import LJ_X8400, nominal_pose
+    from ..profiler.estimate.sensor import LJ_X8400, nominal_pose
+    from ..profiler.loop.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController, TargetCompensator
 
     given = [f for f in _CONTROL_FLAGS if getattr(args, f) is not None]
     if given and args.controller != "pd":
@@ -161,7 +161,7 @@ def _controller(args, gauge):
 def _pose_filter(args):
     """The server's pose filter from the flags (None for --filter none)."""
     from ..errors import ConfigError
-    from ..profiler.pose_filter import ConstantVelocityFilter, WindowFusion
+    from ..profiler.stream.pose_filter import ConstantVelocityFilter, WindowFusion
 
     for flag, kind in _FILTER_FLAGS.items():
         if getattr(args, flag) is not None and args.filter != kind:
@@ -180,7 +180,7 @@ def _pose_filter(args):
 
 def _record_sink(args):
     """The record outputs of --out / --jsonl (None without either); files are opened here."""
-    from ..profiler.server_records import RecordOutput, RecordSink, output_format
+    from ..profiler.stream.server_records import RecordOutput, RecordSink, output_format
 
     outputs = []
     if args.out is not None:
@@ -246,7 +246,7 @@ def _describe(args, controller, pose_filter) -> str:
 
 def run_serve(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.server import PoseServer, parse_address, read_token_file
+    from ..profiler.stream.server import PoseServer, parse_address, read_token_file
 
     check_flags(args)
     listen = parse_address(args.listen, "--listen")
@@ -262,7 +262,7 @@ def run_serve(args) -> int:
         raise ConfigError("--allow-remote needs --token-file FILE (a shared secret every sensor must present); "
                           "refusing to accept remote sensors without one")
     if args.out is not None:
-        from ..profiler.server_records import output_format
+        from ..profiler.stream.server_records import output_format
         output_format(args.out, "--out")
     token = read_token_file(args.token_file) if args.token_file else None
     gauge = resolve_gauge(args.gauge)

@@ -134,7 +134,7 @@ def add_study_parser(verbs):
 
 
 def _noise_model(z_um, x_um):
-    from ..profiler.sensor import NoiseModel
+    from ..profiler.estimate.sensor import NoiseModel
     for flag, v in (("--noise-um", z_um), ("--noise-x-um", x_um)):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise ConfigError(f"{flag} must be a finite number >= 0, got {v:g}")
@@ -143,9 +143,9 @@ def _noise_model(z_um, x_um):
 
 def _build(args):
     """The study function and its configuration from the parsed flags."""
-    from ..profiler.sensor import Workspace
+    from ..profiler.estimate.sensor import Workspace
     if args.study == "limits":
-        from ..profiler.study_limits import LimitsConfig, limits_study
+        from ..profiler.studies.study_limits import LimitsConfig, limits_study
         cfg = LimitsConfig(n_corners=args.corners, gauges=args.gauges,
                            widths_mm=parse_numbers(args.widths_mm, "widths-mm", lo=1.0, hi=1e3, unit="mm"),
                            lengths_mm=parse_numbers(args.lengths_mm, "lengths-mm", lo=1.0, hi=1e3, unit="mm"),
@@ -153,7 +153,7 @@ def _build(args):
                            tilts_deg=parse_numbers(args.tilts_deg, "tilts-deg", lo=-89.0, hi=89.0, unit="deg"),
                            tilt_poses=args.tilt_poses, noise=_noise_model(args.noise_um, None), seed=args.seed)
         return limits_study, cfg
-    from ..profiler.study import CornersConfig, NoiseConfig, corners_study, noise_study
+    from ..profiler.studies.study import CornersConfig, NoiseConfig, corners_study, noise_study
     from .profiler import check_workspace
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"))
@@ -187,7 +187,7 @@ def _check_size(args, cfg) -> None:
 
 
 def _print_summary(study, out):
-    from ..profiler.study import CornersStudy, NoiseStudy
+    from ..profiler.studies.study import CornersStudy, NoiseStudy
     if isinstance(study, CornersStudy):
         print("method    n     m  reproj mean/std (µm)   eq.17 ×10³ mean/std   t_err (µm)  rot_err (deg)  failures")
         for r in study.table:
@@ -203,7 +203,7 @@ def _print_summary(study, out):
 
 
 def run_study(args) -> int:
-    from ..profiler.study_report import write_report
+    from ..profiler.studies.study_report import write_report
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
     check_flags(args)

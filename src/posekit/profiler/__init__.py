@@ -2,14 +2,14 @@
 
 Pipeline: :func:`detect_corners` (paper §II-D) → :func:`solve_pose` (closed form eq. 9–14
 and maximum-likelihood refinement, with the pose covariance). :func:`estimate_pose` does
-both. :mod:`~posekit.profiler.sensor` simulates an LJ-X8400-like sensor.
+both. :mod:`~posekit.profiler.estimate.sensor` simulates an LJ-X8400-like sensor.
 """
 
-from .corners import CornerParams, Corners, detect_corners
-from .estimate import estimate_batch, estimate_pose
-from .evaluate import Evaluation, evaluate, pose_errors
-from .gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
-from .sensor import (
+from .estimate.corners import CornerParams, Corners, detect_corners
+from .estimate.evaluate import Evaluation, evaluate, pose_errors
+from .estimate.gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
+from .estimate.pipeline import estimate_batch, estimate_pose
+from .estimate.sensor import (
     LJ_X8400,
     NoiseModel,
     ProfilerModel,
@@ -18,7 +18,7 @@ from .sensor import (
     render_profiles,
     sample_poses,
 )
-from .solve import PoseEstimate, closed_form, solve_pose
+from .estimate.solve import PoseEstimate, closed_form, solve_pose
 
 __all__ = [
     "Gauge", "load_gauge", "bundled_gauge", "gauge_from_design", "BUNDLED_GAUGES",

@@ -1,0 +1,242 @@
+"""Reading laser profiles and writing pose records (the files of ``posekit profiler estimate``).
+
+Inputs: CSV with header ``x,z`` (mm, scan order, an empty cell or ``nan`` = no return),
+``.npy`` of shape (N, 2), or ``.npz`` with ``profiles`` of shape (K, N, 2) for batches.
+"""
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import InputFileError
+from ...io import atomic_file, check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
+
+__all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json", "read_truth_csv",
+           "write_truth_csv", "TRUTH_COLUMNS"]
+
+RECORD_CSV_COLUMNS = ["index", "status", "tx", "ty", "tz", "qw", "qx", "qy", "qz", "reprojection_um", "error",
+                      "std_tx_um", "std_ty_um", "std_tz_um", "std_rx_deg", "std_ry_deg", "std_rz_deg",
+                      "chi2", "dof", "reason"]
+#: Extra CSV columns (after ``reason``) and the record field they come from, per rotation format.
+ROTATION_CSV_COLUMNS = {
+    "quat": ([], None),
+    "matrix": (["r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33"], "R"),
+    "euler-zyx": (["a_deg", "b_deg", "c_deg"], "euler_zyx_deg"),
+    "euler-xyz": (["w_deg", "p_deg", "r_deg"], "euler_xyz_deg"),
+}
+TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
+
+
+_CSV = "a profile CSV with header 'x,z' and rows of mm values"
+
+
+def _read_csv(path: Path) -> np.ndarray:
+    text = read_text(path, expected=_CSV)
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""))
+        numbered = [(reader.line_num, r) for r in reader]
+    except csv.Error as exc:
+        raise InputFileError(f"{path}: line {reader.line_num}: {str(exc)[:80]}; expected {_CSV}") from None
+    # Blank lines are skipped; a row of empty cells (",") is a point with no return.
+    numbered = [(line, r) for line, r in numbered if r and not (len(r) == 1 and not r[0].strip())]
+    if not numbered:
+        raise InputFileError(f"{path}: file is empty; expected a CSV with header 'x,z'")
+    first_line, first = numbered[0]
+    if [c.strip().lower() for c in first] != ["x", "z"]:
+        raise InputFileError(f"{path}: line {first_line}: expected header 'x,z', got {quote(','.join(first))}")
+    if len(numbered) == 1:
+        raise InputFileError(f"{path}: no data rows after the header 'x,z'")
+    out = np.empty((len(numbered) - 1, 2))
+    for i, (line, row) in enumerate(numbered[1:]):
+        if len(row) != 2:
+            raise InputFileError(f"{path}: line {line}: expected 2 values (x,z), got {len(row)}")
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell == "" or cell.lower() == "nan":
+                out[i, j] = np.nan
+                continue
+            try:
+                out[i, j] = float(cell)
+            except ValueError:
+                raise InputFileError(f"{path}: line {line}: {quote(cell)} is not a number (mm) or empty/nan") from None
+            if math.isinf(out[i, j]):
+                raise InputFileError(f"{path}: line {line}: infinite value; use an empty cell or nan for no return")
+    return out[None]
+
+
+def _check_array(arr, path: Path, what: str) -> np.ndarray:
+    if not np.issubdtype(arr.dtype, np.number):
+        raise InputFileError(f"{path}: {what} must hold numbers, got dtype {arr.dtype}")
+    arr = np.asarray(arr, dtype=np.float64)
+    if np.any(np.isinf(arr)):
+        raise InputFileError(f"{path}: {what} holds infinite values; use NaN for no return")
+    return arr
+
+
+def read_profiles(path) -> np.ndarray:
+    """Read one profile or a batch from a CSV, .npy or .npz file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    profiles : ndarray, shape (K, N, 2)
+        Points (x, z) in the profiler frame F, mm; NaN = no return. K = 1 for a CSV or
+        .npy file.
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing, empty, malformed or has the wrong shape; the message
+        names the file (and line for a CSV).
+    """
+    path = Path(path)
+    expected = "a .csv (header 'x,z'), .npy or .npz profile file"
+    size = check_input_file(path, expected=expected)
+    suffix = path.suffix.lower()
+    if size == 0:
+        raise InputFileError(f"{path}: file is empty; expected {expected}")
+    if suffix == ".csv":
+        return _read_csv(path)
+    if suffix == ".npy":
+        arr = load_npy(path)
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise InputFileError(f"{path}: expected an array of shape (N, 2) of (x, z) in mm, got {arr.shape}")
+        return _check_array(arr, path, "profile")[None]
+    if suffix == ".npz":
+        arr = load_npz_member(path, "profiles")
+        if arr is None:
+            files = npz_members(path)
+            raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
+                                 f"found {', '.join(files) or 'no arrays'}")
+        if arr.ndim != 3 or arr.shape[2] != 2:
+            raise InputFileError(f"{path}: expected 'profiles' of shape (K, N, 2), got {arr.shape}")
+        if arr.shape[0] == 0:
+            raise InputFileError(f"{path}: 'profiles' holds no profile (K = 0)")
+        return _check_array(arr, path, "'profiles'")
+    raise InputFileError(f"{path}: unknown file type {quote(path.suffix, 20)}; expected .csv, .npy or .npz")
+
+
+def _num(v):
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def _cell(v) -> str:
+    """A float CSV cell: exact round trip, empty for NaN/inf (as JSON writes null)."""
+    return repr(float(v)) if np.isfinite(v) else ""
+
+
+def record_to_json(rec: dict) -> str:
+    """One JSON line of a pose record (NaN written as null)."""
+    def clean(v):
+        if isinstance(v, float):
+            return _num(v)
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    return json.dumps({k: clean(v) for k, v in rec.items()})
+
+
+class RecordWriter:
+    """Streams pose records as JSON lines or CSV (columns: :data:`RECORD_CSV_COLUMNS`).
+
+    Parameters
+    ----------
+    out : path or None
+        File to write; None writes to ``stream``.
+    fmt : {'jsonl', 'csv'} or None
+        None: from the suffix of ``out`` (``.csv`` → CSV), JSON lines otherwise.
+    stream : text stream, optional
+        Where to write when ``out`` is None (e.g. ``sys.stdout``).
+    rotation : {'quat', 'matrix', 'euler-zyx', 'euler-xyz'}
+        CSV only: the extra rotation columns after ``reason``
+        (:data:`ROTATION_CSV_COLUMNS`: ``r11..r33`` row-major, ``a_deg,b_deg,c_deg`` or
+        ``w_deg,p_deg,r_deg``). JSON lines write whatever fields the record has.
+
+    Records are dicts with keys ``index, status, t_mm, q_wxyz, reprojection_um,
+    corners_mm, std_t_um, std_rot_deg, chi2, dof, reason, error`` (and the rotation field);
+    see :mod:`posekit.profiler.estimate.pipeline`.
+    """
+
+    def __init__(self, out=None, fmt=None, stream=None, rotation: str = "quat"):
+        if fmt is None:
+            fmt = "csv" if out is not None and str(out).lower().endswith(".csv") else "jsonl"
+        if fmt not in ("jsonl", "csv"):
+            raise InputFileError(f"unknown output format '{fmt}'; expected jsonl or csv")
+        if rotation not in ROTATION_CSV_COLUMNS:
+            raise InputFileError(f"unknown rotation format '{rotation}'; expected one of "
+                                 f"{', '.join(ROTATION_CSV_COLUMNS)}")
+        self.fmt = fmt
+        self._rot_columns, self._rot_key = ROTATION_CSV_COLUMNS[rotation]
+        self._own = out is not None
+        self._atomic = None
+        if out is not None:  # a temporary file renamed into place on a clean close
+            self._atomic = atomic_file(out, "w", newline="")
+            try:
+                self._fh = self._atomic.__enter__()
+            except OSError as exc:
+                raise InputFileError(f"{out}: cannot write ({exc.strerror or exc})") from None
+        else:
+            self._fh = stream
+        self._csv = csv.writer(self._fh) if fmt == "csv" else None
+        if self._csv is not None:
+            self._csv.writerow(RECORD_CSV_COLUMNS + self._rot_columns)
+
+    def write(self, rec: dict) -> None:
+        if self._csv is None:
+            self._fh.write(record_to_json(rec) + "\n")
+            self._fh.flush()
+            return
+        t = rec["t_mm"] or [None] * 3
+        q = rec["q_wxyz"] or [None] * 4
+        std = (rec.get("std_t_um") or [None] * 3) + (rec.get("std_rot_deg") or [None] * 3)
+        vals = [rec["index"], rec["status"], *t, *q, rec["reprojection_um"], rec["error"] or "",
+                *std, rec.get("chi2"), rec.get("dof"), rec.get("reason") or ""]
+        if self._rot_key is not None:
+            rot = rec.get(self._rot_key)
+            vals += list(np.ravel(rot)) if rot is not None else [None] * len(self._rot_columns)
+        self._csv.writerow(["" if v is None else (_cell(v) if isinstance(v, (float, np.floating)) else v)
+                            for v in vals])
+
+    def close(self, exc_info=(None, None, None)) -> None:
+        """Finish the output: rename the file into place, or (after an exception) drop it."""
+        if self._atomic is not None:
+            atomic, self._atomic = self._atomic, None
+            atomic.__exit__(*exc_info)
+        elif not self._own:
+            self._fh.flush()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close(exc)
+
+
+def write_truth_csv(path, Ts_G_F, q_wxyz):
+    """Write ``index,tx,ty,tz,qw,qx,qy,qz`` for poses ``T_G_F`` (mm)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(TRUTH_COLUMNS)
+        for i, (T, q) in enumerate(zip(Ts_G_F, q_wxyz)):
+            w.writerow([i, *(repr(float(v)) for v in T[:3, 3]), *(repr(float(v)) for v in q)])
+
+
+def read_truth_csv(path):
+    """Read a truth CSV; returns (index (K,), t (K, 3) mm, q_wxyz (K, 4))."""
+    path = Path(path)
+    try:
+        data = np.genfromtxt(path, delimiter=",", names=True)
+    except (OSError, ValueError) as exc:
+        raise InputFileError(f"{path}: cannot read truth CSV ({exc})") from None
+    if data.dtype.names is None or list(data.dtype.names) != TRUTH_COLUMNS:
+        raise InputFileError(f"{path}: expected columns {','.join(TRUTH_COLUMNS)}")
+    data = np.atleast_1d(data)
+    return (data["index"].astype(int), np.stack([data["tx"], data["ty"], data["tz"]], 1),
+            np.stack([data["qw"], data["qx"], data["qy"], data["qz"]], 1))

@@ -1,0 +1,762 @@
+"""Real-time pose server: profile frames in over TCP, one pose record per frame out.
+
+The processing unit of the paper's architecture (§II-A, Fig. 1a): the profiler
+controller pushes each triggered profile over TCP; the server detects the corners,
+solves the pose, optionally asks a controller for a correction, and sends one JSON line
+per frame to the robot interface over TCP.
+
+Threads and buffers::
+
+    sensors ──TCP──▶ receiver ──▶ deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
+                     (hello, decode, drop-oldest, never blocks     CD → PC → controller → send
+                      timeouts)
+
+- The **receiver** serves every sensor connection at once from one thread (non-blocking
+  sockets, :mod:`selectors`) and decodes frames
+  (:class:`~posekit.profiler.stream.protocol.FrameDecoder`), so one stalled client never blocks
+  another. Each connection has a read timeout (a frame, or the hello, once begun must be
+  complete within ``read_timeout_s``) and an idle timeout (no complete frame for
+  ``idle_timeout_s``); a connection that exceeds one is closed and logged. With a
+  ``token``, a client must first send a hello carrying it
+  (:func:`~posekit.profiler.stream.protocol.encode_hello`), compared in constant time; a wrong
+  or missing one closes the connection. The receiver never waits for the worker: when the
+  buffer is full the *oldest* frame is dropped (and counted), so the pose that goes out
+  is always from the newest profile and the sensor is never blocked. After a disconnect
+  (also mid-frame) it logs it and discards the partial frame.
+- The **worker** takes one frame at a time: NaN-storm check, corner detection
+  (:func:`~posekit.profiler.estimate.corners.detect_corners_unchecked`), pose
+  (:func:`~posekit.profiler.estimate.solve.solve_pose_unchecked`, warm-started from the previous
+  pose and falling back to the closed form when that fails or lands in a poor minimum),
+  the controller, and the record to the robot. A bad profile becomes a record with
+  ``status: "error"``, never an exception.
+
+Timing of each processed frame, ms, on the clock of :func:`time.perf_counter_ns` (on
+Linux ``CLOCK_MONOTONIC``, system-wide; a sensor process on the same machine stamps its
+frames with it, so DT is meaningful): **DT** = receive time of the frame's last byte −
+sensor stamp (the paper's data transmission, Table III); **CD** = NaN-storm check and
+corner detection; **PC** = pose computation, covariance and the controller. ``QW``, the
+time a frame waited in the buffer, is kept as well (it grows when the worker falls
+behind). The sensor stamp is not trusted: DT is only computed when the stamp lies within
+``max_dt_s`` before the receive time and not before the connection's previous believed
+stamp; otherwise DT is unknown (null in the record, NaN in :meth:`PoseServer.timings`)
+and the frame is counted in ``bad_stamps`` (it is still processed).
+
+Record sent to the robot (one JSON line per processed frame, and for a NaN storm)::
+
+    {"seq", "t_sensor_ns", "status": "ok"|"error", "t_mm": [3], "q_wxyz": [4],
+     "std_t_um": [3], "std_rot_deg": [3], "reprojection_um", "reversed",
+     "command": <controller dict or null>, "filter": <filtered pose or null>,
+     "timing_ms": {"DT" (null: stamp not trusted), "QW", "CD", "PC"}, "error": str|null}
+
+Pose fields are null when the profile failed; the standard deviations are null for the
+closed form (``method="cf"``), which has no error model. ``filter`` is the output of the
+``pose_filter`` (:meth:`~posekit.profiler.stream.pose_filter.FilteredPose.to_record`: the filtered
+pose with its 6×6 covariance), null without one or when the profile failed. The same
+records go to the ``record_sink`` (files, stdout), from a thread of its own.
+
+Frames can also come from the same process: :meth:`PoseServer.submit` queues a profile (from
+any :class:`~posekit.profiler.stream.sources.ProfileSource`, e.g. a vendor SDK) as if it had
+arrived over TCP.
+"""
+
+import gc
+import logging
+import math
+import selectors
+import socket
+import threading
+import time
+from collections import Counter, deque
+
+import numpy as np
+
+from ...errors import ConfigError, ProfileError
+from ...geometry import quaternion_from_matrix
+from ..estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns, raise_for_status
+from ..estimate.gauge import Gauge
+from ..estimate.refine import pose_covariance_and_reprojection
+from ..estimate.solve import (
+    METHODS,
+    MOUNTINGS,
+    solve_pose_unchecked,
+    solve_pose_warm,
+    status_message,
+    warm_start_buffers,
+)
+from .protocol import MAX_FRAME_BYTES, MAX_POINTS, Frame, encode_command, encode_hello
+from .server_support import (
+    Counts,
+    LogLimiter,
+    RobotLink,
+    SensorConnection,
+    check_address,
+    parse_address,
+    read_token_file,
+    token_digest,
+)
+from .sources import units_hint
+
+__all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
+
+#: Rejection reason of a frame whose points are (almost) all NaN.
+NAN_STORM = "nan_storm"
+_TIMING_KEYS = ("DT", "QW", "CD", "PC")
+_POLL_S = 0.05                 # how often blocked threads look at the stop flag
+_SECONDS_RANGE = (0.05, 86_400.0)   # accepted timeouts, s
+
+
+def _error_record(frame, error):
+    """The robot record of a frame without a pose (its fields are filled in on success)."""
+    return {"seq": frame.seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
+            "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
+            "command": None, "filter": None, "timing_ms": None, "error": error}
+
+
+class PoseServer:
+    """Streams profile frames in, sends one pose record per frame to the robot.
+
+    Parameters
+    ----------
+    gauge : Gauge
+        The gauge in view.
+    listen : (str, int)
+        Address to accept the sensor on; port 0 picks a free port (see :meth:`start`).
+    robot : (str, int), optional
+        Robot interface to send the JSON records to (a TCP server); None: no sending.
+    controller : callable, optional
+        ``controller(seq, t_s, T_G_F, cov) -> dict | None`` called for each good pose:
+        ``t_s`` the sensor stamp in s, ``T_G_F`` (4, 4) mm, ``cov`` (6, 6) the pose
+        covariance ``[mm, rad]`` in G (NaN for the closed form). Its dict goes out as the
+        record's ``command``; an exception makes the record an error. It gets the pose of
+        this profile, not the filtered one (e.g.
+        :class:`~posekit.profiler.loop.control.TargetCompensator`).
+    pose_filter : object, optional
+        ``pose_filter.update(t_s, T_G_F, cov) -> FilteredPose`` called for each good pose
+        (:class:`~posekit.profiler.stream.pose_filter.ConstantVelocityFilter` or
+        :class:`~posekit.profiler.stream.pose_filter.WindowFusion`); its output is the record's
+        ``filter``. Needs ``method='mle'`` (the closed form has no covariance).
+    record_sink : object, optional
+        ``record_sink.put(record)`` gets every record (e.g.
+        :class:`~posekit.profiler.stream.server_records.RecordSink`); it must not block.
+    queue_size : int
+        Frames buffered between receiver and worker; when full the oldest is dropped.
+    method : {'mle', 'cf'}
+    mounting : {'auto', 'normal', 'reversed'}
+    log : logging.Logger, optional
+        Default ``logging.getLogger("posekit.server")``. Rejections, disconnects and
+        failed profiles are logged at most once per second per kind, with a count of
+        the ones held back.
+    allow_remote : bool
+        Accept a non-loopback ``listen`` or ``robot`` address; needs a ``token``.
+    token : str or bytes, optional
+        Shared secret every sensor must present first (see
+        :func:`~posekit.profiler.stream.protocol.encode_hello`); required with ``allow_remote``.
+        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`read_token_file` reads one from a file.
+    idle_timeout_s : float
+        A connection that delivers no complete frame for this long is closed, s.
+    read_timeout_s : float
+        A frame (or the hello) whose first byte arrived must be complete within this, s.
+    max_dt_s : float
+        A sensor stamp older than this at receipt (or in the future, or earlier than the
+        previous one) is not believed: DT unknown, counted in ``bad_stamps``.
+    max_connections : int
+        Sensor connections served at once; a new one beyond it closes the connection
+        that has gone longest without a complete frame.
+    params : CornerParams
+    nan_storm_fraction : float
+        A frame with more than this fraction of NaN points (or no points) is rejected
+        as ``nan_storm``.
+    history : int
+        Timings kept for :meth:`timings` (the most recent ones).
+    freeze_gc : bool
+        :meth:`start` calls :func:`gc.freeze` after the warm-up, so that Python's full
+        garbage collections no longer scan the ~10⁵ objects of NumPy, SciPy and numba: a
+        full collection otherwise stops every thread for 50–150 ms on a 2-core machine,
+        which at 1 kHz drops frames. Process-wide; objects alive at that moment are never
+        collected afterwards.
+
+    Examples
+    --------
+    >>> from posekit.profiler import bundled_gauge
+    >>> with PoseServer(bundled_gauge("demo-5")) as server:   # doctest: +SKIP
+    ...     host, port = server.address                        # stream frames to it
+    """
+
+    def __init__(self, gauge: Gauge, *, listen=("127.0.0.1", 0), robot=None, controller=None,
+                 queue_size: int = 4, method: str = "mle", mounting: str = "auto",
+                 log: logging.Logger | None = None, allow_remote: bool = False,
+                 params: CornerParams = CornerParams(), nan_storm_fraction: float = 0.95,
+                 history: int = 100_000, freeze_gc: bool = True, token: str | bytes | None = None,
+                 idle_timeout_s: float = 30.0, read_timeout_s: float = 2.0, max_dt_s: float = 10.0,
+                 max_connections: int = 16, pose_filter=None, record_sink=None):
+        if not isinstance(gauge, Gauge):
+            raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
+        if method not in METHODS:
+            raise ConfigError(f"PoseServer: unknown method '{method}'; expected one of {', '.join(METHODS)}")
+        if mounting not in MOUNTINGS:
+            raise ConfigError(f"PoseServer: unknown mounting '{mounting}'; expected one of {', '.join(MOUNTINGS)}")
+        if method == "cf" and gauge.n_corners < 5:
+            raise ConfigError(f"PoseServer: method 'cf' needs a gauge with >= 5 corners; "
+                              f"'{gauge.name}' has {gauge.n_corners} (use 'mle')")
+        if not (isinstance(queue_size, int) and queue_size >= 1):
+            raise ConfigError(f"PoseServer: queue_size must be an integer >= 1, got {queue_size!r}")
+        if not (isinstance(history, int) and history >= 1):
+            raise ConfigError(f"PoseServer: history must be an integer >= 1, got {history!r}")
+        if not 0.0 <= nan_storm_fraction < 1.0:
+            raise ConfigError(f"PoseServer: nan_storm_fraction must be in [0, 1), got {nan_storm_fraction}")
+        if controller is not None and not callable(controller):
+            raise ConfigError("PoseServer: controller must be callable(seq, t_s, T_G_F, cov) -> dict | None")
+        if pose_filter is not None and not callable(getattr(pose_filter, "update", None)):
+            raise ConfigError("PoseServer: pose_filter must have update(t_s, T_G_F, cov) -> FilteredPose")
+        if pose_filter is not None and method == "cf":
+            raise ConfigError("PoseServer: a pose filter needs method 'mle' (the closed form 'cf' gives no "
+                              "covariance to filter with)")
+        if record_sink is not None and not callable(getattr(record_sink, "put", None)):
+            raise ConfigError("PoseServer: record_sink must have put(record)")
+        lo, hi = _SECONDS_RANGE
+        for name, value in (("idle_timeout_s", idle_timeout_s), ("read_timeout_s", read_timeout_s),
+                            ("max_dt_s", max_dt_s)):
+            if not (isinstance(value, int | float) and lo <= value <= hi):
+                raise ConfigError(f"PoseServer: {name} must be a number of seconds in [{lo:g}, {hi:g}], got {value!r}")
+        if not (isinstance(max_connections, int) and max_connections >= 1):
+            raise ConfigError(f"PoseServer: max_connections must be an integer >= 1, got {max_connections!r}")
+        if allow_remote and token is None:
+            raise ConfigError("PoseServer: allow_remote=True (--allow-remote) needs a token (--token-file FILE) "
+                              "that every sensor must present; refusing to accept remote sensors without one")
+        if token is not None:
+            encode_hello(token)              # validates it: str or bytes, 1..MAX_TOKEN_BYTES
+        self._digest = None if token is None else token_digest(token)
+        self.gauge = gauge
+        self.method = method
+        self.mounting = mounting
+        self.params = params
+        self._turns = gauge_turns(gauge)  # the model-based corner detector's view of the section
+        self.controller = controller
+        self.pose_filter = pose_filter
+        self.record_sink = record_sink
+        self.queue_size = queue_size
+        self.nan_storm_fraction = float(nan_storm_fraction)
+        self.allow_remote = bool(allow_remote)
+        self.freeze_gc = bool(freeze_gc)
+        self.idle_timeout_s = float(idle_timeout_s)
+        self.read_timeout_s = float(read_timeout_s)
+        self.max_dt_s = float(max_dt_s)
+        self.max_connections = max_connections
+        self._listen_family, self._listen_addr = check_address(listen, "listen address", self.allow_remote)
+        self._robot = None if robot is None else check_address(robot, "robot address", self.allow_remote)
+        self.log = log if log is not None else logging.getLogger("posekit.server")
+        self._limiter = LogLimiter(self.log)
+
+        self._method_code = METHODS.index(method)
+        self._mounting_code = MOUNTINGS.index(mounting)
+        n = gauge.n_corners
+        # A warm start whose χ² (2n - 6 dof) exceeds its 1e-6 tail went to a wrong minimum.
+        from scipy.stats import chi2
+        self._chi2_gate = float(chi2.isf(1e-6, 2 * n - 6))
+        self._ridge_q = gauge.ridge_q
+        self._ridge_s = gauge.ridge_s
+
+        self._queue: deque = deque(maxlen=queue_size)
+        self._cond = threading.Condition(threading.Lock())
+        self._stats_lock = threading.Lock()
+        self._counts = Counts()
+        self._reasons: Counter = Counter()
+        self._tim = np.zeros((history, len(_TIMING_KEYS)))
+        self._tim_n = 0
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._lsock = None
+        self._n_conns = 0
+        self._address = None
+        self._last_T = None
+        self._last_rev = False
+        self._init = warm_start_buffers()
+        self._submit_lock = threading.Lock()
+        self._submit_seq = 0
+        self._submit_last_ns = None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        """Bound ``(host, port)`` once started, else None."""
+        return self._address
+
+    def start(self) -> tuple[str, int]:
+        """Bind, listen and start the receiver and worker threads.
+
+        Returns
+        -------
+        (host, port)
+            The bound address (the actual port when ``listen`` asked for port 0).
+
+        Raises
+        ------
+        ConfigError
+            If the address cannot be bound, or the server was already started.
+        """
+        if self._threads:
+            raise ConfigError("PoseServer.start: the server is already running (one start per server)")
+        self._warm_up()
+        if self.freeze_gc:
+            gc.freeze()
+        sock = socket.socket(self._listen_family, socket.SOCK_STREAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(self._listen_addr)
+            sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
+            sock.setblocking(False)
+        except OSError as exc:
+            sock.close()
+            raise ConfigError(f"listen address {self._listen_addr[0]}:{self._listen_addr[1]}: "
+                              f"cannot bind ({exc.strerror or exc})") from None
+        self._lsock = sock
+        self._address = sock.getsockname()[:2]
+        self._stop.clear()
+        self._threads = [
+            threading.Thread(target=self._receive_loop, name="posekit-receiver", daemon=True),
+            threading.Thread(target=self._work_loop, name="posekit-worker", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+        self.log.info("listening for sensors on %s:%d (%s)", *self._address,
+                      "token required" if self._digest is not None else "no token")
+        return self._address
+
+    def _warm_up(self) -> None:
+        """Run the pipeline once on a simulated profile: load the compiled kernels now,
+        not on the first real frame (that costs 0.1-1 s and would drop frames)."""
+        from ..estimate.sensor import NoiseModel, nominal_pose, render_profiles
+
+        prof = render_profiles(self.gauge, nominal_pose(self.gauge), NoiseModel(), rng=0)
+        n = self.gauge.n_corners
+        status, _, corners, ccov, *_ = detect_corners_unchecked(prof, n, self.params, self._turns)
+        if status != 0:         # the nominal pose always sees the gauge; be safe anyway
+            return
+        for T_init in (None, nominal_pose(self.gauge)):
+            st, rev, R, t, H, _ = solve_pose_unchecked(corners, ccov, self.gauge, self._method_code,
+                                                       self._mounting_code, T_init=T_init)
+            if st == 0:
+                pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
+                quaternion_from_matrix(R, check=False)
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Stop both threads, close every socket; returns within about ``timeout_s``.
+
+        Frames still buffered are discarded. Held-back log lines are flushed.
+        """
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        deadline = time.monotonic() + timeout_s
+        for t in self._threads:
+            t.join(max(0.0, deadline - time.monotonic()))
+        if self._lsock is not None:
+            self._lsock.close()
+            self._lsock = None
+        self._limiter.flush()
+
+    @property
+    def running(self) -> bool:
+        """True while the receiver and worker threads are alive."""
+        return bool(self._threads) and all(t.is_alive() for t in self._threads) and not self._stop.is_set()
+
+    def __enter__(self):
+        if not self._threads:
+            self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    # ------------------------------------------------------------------ statistics
+
+    def stats(self) -> dict:
+        """Counters since :meth:`start`.
+
+        Returns
+        -------
+        dict
+            ``received`` (well-formed frames decoded), ``processed`` (frames that went
+            through detection and pose, ok or not), ``ok``, ``errors`` (processed frames
+            whose profile or controller failed), ``dropped`` (oldest frames pushed out of
+            the full buffer), ``rejected`` (malformed stretches of the stream and NaN
+            storms) with ``reasons`` (a :class:`collections.Counter` by reason),
+            ``disconnects`` (every close, by either side), ``connections`` (accepted),
+            ``connected`` (open now), ``timeouts`` (closed by the idle or read timeout),
+            ``auth_failures`` (closed for a missing, malformed or wrong hello),
+            ``evictions`` (closed to make room, see ``max_connections``), ``bad_stamps``
+            (frames whose sensor stamp was not believed: DT unknown), ``cold_restarts``
+            (warm starts that fell back to the closed form), ``sent``/``unsent`` records and
+            ``robot_connects``/``robot_failures``, and ``queued``. Once idle, ``received ==
+            processed + dropped + reasons['nan_storm']``.
+        """
+        with self._stats_lock:
+            c = self._counts
+            out = dict(vars(c))
+            out["reasons"] = Counter(self._reasons)
+            out["connected"] = self._n_conns
+        with self._cond:
+            out["queued"] = len(self._queue)
+        return out
+
+    def timings(self) -> dict:
+        """Per-stage times of the processed frames (the most recent ``history``), ms.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (k,)
+            ``DT`` (sensor stamp → last byte received; NaN where the stamp was not
+            believed, see ``max_dt_s``), ``QW`` (wait in the buffer),
+            ``CD`` (NaN check + corner detection), ``PC`` (pose + covariance +
+            controller), oldest first.
+        """
+        with self._stats_lock:
+            h = self._tim.shape[0]
+            n = self._tim_n
+            if n <= h:
+                arr = self._tim[:n].copy()
+            else:
+                i = n % h
+                arr = np.concatenate([self._tim[i:], self._tim[:i]])
+        return {k: arr[:, j] for j, k in enumerate(_TIMING_KEYS)}
+
+    # ------------------------------------------------------------------ frames from this process
+
+    def submit(self, points_xz, t_sensor_ns: int | None = None) -> int:
+        """Queue one profile from this process (e.g. a vendor SDK), as if it had arrived over TCP.
+
+        It takes the same path as a received frame: the buffer (drop-oldest), the worker,
+        the record to the robot and the sink. Thread-safe.
+
+        Parameters
+        ----------
+        points_xz : array_like, shape (N, 2)
+            Points (x, z) in F, mm, scan order; NaN = no return; ``N <= MAX_POINTS``.
+        t_sensor_ns : int, optional
+            The profile's stamp on the clock of :func:`time.perf_counter_ns`; default now
+            (DT 0). A stamp that cannot be believed (see ``max_dt_s``) leaves DT unknown.
+
+        Returns
+        -------
+        int
+            The frame's ``seq``: 0, 1, 2, ... over the submitted frames (mod 2³²).
+
+        Raises
+        ------
+        ConfigError
+            If the server is not running.
+        ProfileError
+            If the points are not an (N, 2) numeric array of at most ``MAX_POINTS`` rows.
+
+        Examples
+        --------
+        >>> from posekit.profiler import bundled_gauge, nominal_pose, render_profiles
+        >>> g = bundled_gauge("demo-5")
+        >>> with PoseServer(g, freeze_gc=False) as server:                 # doctest: +SKIP
+        ...     seq = server.submit(render_profiles(g, nominal_pose(g), rng=0))
+        """
+        if not self.running:
+            raise ConfigError("PoseServer.submit: the server is not running (call start() first)")
+        try:
+            pts = np.array(points_xz, dtype=np.float64, order="C")
+        except (TypeError, ValueError):
+            raise ProfileError("PoseServer.submit: expected an (N, 2) array of (x, z) in mm, got non-numeric data") \
+                from None
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] > MAX_POINTS:
+            raise ProfileError(f"PoseServer.submit: expected an (N, 2) array of (x, z) in mm with N <= {MAX_POINTS}, "
+                               f"got shape {pts.shape}")
+        now = time.perf_counter_ns()
+        stamp = now if t_sensor_ns is None else int(t_sensor_ns)
+        with self._submit_lock:
+            seq = self._submit_seq
+            self._submit_seq = (seq + 1) % 2**32
+            dt_ns = now - stamp
+            if 0 <= dt_ns <= self.max_dt_s * 1e9 and (self._submit_last_ns is None or stamp >= self._submit_last_ns):
+                self._submit_last_ns = stamp
+            else:
+                dt_ns = None
+        if dt_ns is None:
+            with self._stats_lock:
+                self._counts.bad_stamps += 1
+        self._enqueue(Frame(seq, stamp, pts, now), dt_ns)
+        return seq
+
+    def _reject(self, reason: str, detail: str) -> None:
+        with self._stats_lock:
+            self._counts.rejected += 1
+            self._reasons[reason] += 1
+        self._limiter.event(reason, logging.WARNING, f"rejected frame ({reason}): {detail}")
+
+    # ------------------------------------------------------------------ receiver
+
+    def _receive_loop(self) -> None:
+        buf = bytearray(4 * MAX_FRAME_BYTES)
+        view = memoryview(buf)
+        sel = selectors.DefaultSelector()
+        sel.register(self._lsock, selectors.EVENT_READ, None)
+        conns: dict = {}
+        idle_ns = int(self.idle_timeout_s * 1e9)
+        read_ns = int(self.read_timeout_s * 1e9)
+        next_check = 0
+        try:
+            while not self._stop.is_set():
+                try:
+                    events = sel.select(_POLL_S)
+                except OSError:                     # e.g. EINTR storms; look at the stop flag
+                    events = []
+                for key, _ in events:
+                    c = key.data
+                    if c is None:
+                        self._accept(sel, conns)
+                    elif c.sock in conns:           # not closed earlier in this round
+                        try:
+                            self._read(c, view, sel, conns)
+                        except Exception as exc:    # a bug, never bad input (the decoders take any bytes)
+                            self.log.exception("receiver: internal error, dropping the connection")
+                            self._close(c, sel, conns, f"internal error ({type(exc).__name__}: {exc})")
+                now = time.perf_counter_ns()
+                if now >= next_check:               # deadlines: ~20 times a second is enough
+                    next_check = now + 50_000_000
+                    expired = [(c, c.expired(now, idle_ns, read_ns)) for c in conns.values()]
+                    for c, why in expired:
+                        if why is not None:
+                            with self._stats_lock:
+                                self._counts.timeouts += 1
+                            self._close(c, sel, conns, why, "timeout", logging.WARNING)
+                    self._limiter.flush_due()
+        finally:
+            for c in list(conns.values()):
+                c.close()
+            conns.clear()
+            with self._stats_lock:
+                self._n_conns = 0
+            sel.close()
+
+    def _accept(self, sel, conns: dict) -> None:
+        """Accept every pending connection (the listening socket is non-blocking)."""
+        for _ in range(64):
+            try:
+                sock, addr = self._lsock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:        # e.g. out of file descriptors: try again later
+                self._limiter.event("accept_failed", logging.WARNING, f"cannot accept a sensor connection ({exc})")
+                time.sleep(_POLL_S)
+                return
+            now = time.perf_counter_ns()
+            if len(conns) >= self.max_connections:
+                oldest = min(conns.values(), key=lambda c: c.t_progress_ns)
+                with self._stats_lock:
+                    self._counts.evictions += 1
+                self._close(oldest, sel, conns, f"evicted: {self.max_connections} connections open and it had "
+                            f"the oldest complete frame", "evicted", logging.WARNING)
+            sock.setblocking(False)
+            try:
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            except OSError:
+                pass
+            peer = f"{addr[0]}:{addr[1]}"
+            c = SensorConnection(sock, peer, now, self._digest)
+            conns[sock] = c
+            sel.register(sock, selectors.EVENT_READ, c)
+            with self._stats_lock:
+                self._counts.connections += 1
+                self._n_conns = len(conns)
+            self._limiter.event("connect", logging.INFO, f"sensor connected from {peer}")
+
+    def _read(self, c: SensorConnection, view, sel, conns: dict) -> None:
+        """One ``recv`` on a readable connection; decode, enqueue, or close it."""
+        try:
+            n = c.sock.recv_into(view)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            self._close(c, sel, conns, f"connection error ({exc})")
+            return
+        t_recv = time.perf_counter_ns()
+        if n == 0:
+            self._close(c, sel, conns, "closed by the sensor")
+            return
+        items, refused = c.feed(view[:n], t_recv)
+        if refused is not None:
+            with self._stats_lock:
+                self._counts.auth_failures += 1
+            self._close(c, sel, conns, f"refused: {refused}", "auth", logging.WARNING)
+            return
+        max_ns = int(self.max_dt_s * 1e9)
+        for item in items:
+            if isinstance(item, Frame):
+                dt_ns, why = c.transmission_ns(item.t_sensor_ns, item.t_recv_ns, max_ns)
+                if why is not None:
+                    with self._stats_lock:
+                        self._counts.bad_stamps += 1
+                    self._limiter.event("bad_stamp", logging.WARNING,
+                                        f"sensor {c.peer}: seq {item.seq}: {why}; DT not measured for this frame")
+                self._enqueue(item, dt_ns)
+            else:
+                self._reject(item.reason, item.detail)
+
+    def _close(self, c: SensorConnection, sel, conns: dict, why: str, key: str = "disconnect",
+               level: int = logging.INFO) -> None:
+        """Close one connection, count and log it (once, rate-limited by kind)."""
+        try:
+            sel.unregister(c.sock)
+        except (KeyError, ValueError, OSError):
+            pass
+        conns.pop(c.sock, None)
+        partial = c.close()
+        with self._stats_lock:
+            self._counts.disconnects += 1
+            self._n_conns = len(conns)
+        if partial is not None:
+            self._reject(partial.reason, partial.detail)
+            why += f", mid-frame: {partial.detail}; the partial frame was discarded"
+            level = max(level, logging.WARNING)
+        self._limiter.event(key, level, f"sensor {c.peer} disconnected ({why})")
+
+    def _enqueue(self, frame: Frame, dt_ns: int | None) -> None:
+        with self._cond:
+            dropped = len(self._queue) == self.queue_size
+            self._queue.append((frame, dt_ns))  # a full deque drops its oldest item
+            self._cond.notify()
+        with self._stats_lock:
+            self._counts.received += 1
+            self._counts.dropped += dropped
+        if dropped:
+            self._limiter.event("dropped", logging.WARNING,
+                                f"worker behind: dropped the oldest buffered frame (queue_size={self.queue_size})")
+
+    # ------------------------------------------------------------------ worker
+
+    def _work_loop(self) -> None:
+        link = None if self._robot is None else RobotLink(*self._robot, self._counts, self._stats_lock, self._limiter)
+        try:
+            while True:
+                with self._cond:
+                    while not self._queue and not self._stop.is_set():
+                        self._cond.wait(_POLL_S)
+                    if self._stop.is_set():
+                        break
+                    frame, dt_ns = self._queue.popleft()
+                try:
+                    record = self._process(frame, dt_ns)
+                except Exception as exc:  # a bug, never bad input: report it and go on
+                    self.log.exception("worker: internal error on frame seq %d", frame.seq)
+                    with self._stats_lock:
+                        self._counts.processed += 1
+                        self._counts.errors += 1
+                    record = _error_record(frame, f"seq {frame.seq}: internal error: {type(exc).__name__}: {exc}")
+                if self.record_sink is not None:
+                    self.record_sink.put(record)
+                if link is None:
+                    continue
+                sent = link.send(encode_command(record))
+                with self._stats_lock:
+                    if sent:
+                        self._counts.sent += 1
+                    else:
+                        self._counts.unsent += 1
+        finally:
+            if link is not None:
+                link.close()
+
+    def _solve(self, corners, ccov):
+        """Warm start from the previous pose; closed form if it fails or its χ² is implausible."""
+        g = self.gauge
+        if self._method_code == 1 and self._last_T is not None:
+            mount = self._mounting_code or (2 if self._last_rev else 1)
+            warm = solve_pose_warm(corners, ccov, g, self._last_T, mount, self._init)
+            if warm[0] == 0 and warm[5] <= self._chi2_gate:
+                return warm
+            with self._stats_lock:
+                self._counts.cold_restarts += 1
+            cold = solve_pose_unchecked(corners, ccov, g, 1, self._mounting_code)
+            if warm[0] == 0 and (cold[0] != 0 or warm[5] < cold[5]):
+                return warm
+            return cold
+        return solve_pose_unchecked(corners, ccov, g, self._method_code, self._mounting_code)
+
+    def _process(self, frame: Frame, dt_ns: int | None = None) -> dict:
+        t0 = time.perf_counter_ns()
+        seq = frame.seq
+        dt_ms = None if dt_ns is None else dt_ns * 1e-6
+        qw_ms = (t0 - frame.t_recv_ns) * 1e-6
+        rec = _error_record(frame, None)
+        pts = frame.points
+        n = self.gauge.n_corners
+        # The kernel counts the valid returns (info[1]) before anything else; a NaN storm
+        # costs it one pass over the points, and the count is exact (x and z finite).
+        status, info, corners, ccov, _, _, npts, cand = detect_corners_unchecked(pts, n, self.params, self._turns)
+        n_pts = pts.shape[0]
+        n_nan = n_pts - int(info[1])
+        if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
+            detail = (f"seq {seq}: {n_nan} of {n_pts} points have no return "
+                      f"(more than {100 * self.nan_storm_fraction:.0f} % NaN)")
+            self._reject(NAN_STORM, detail)
+            rec["error"] = f"rejected frame (nan_storm): {detail}"
+            return rec
+        t1 = time.perf_counter_ns()
+        error = None
+        if status != 0:
+            try:
+                raise_for_status(status, info, npts, cand, n, self.gauge.name)
+            except ProfileError as exc:
+                error = f"seq {seq}: {exc}"
+                hint = units_hint(pts)         # only on failure: free on the good path
+                if hint is not None:
+                    error += f"; the profile {hint}"
+        else:
+            st, rev, R, t, H, _ = self._solve(corners, ccov)
+            if st != 0:
+                error = f"seq {seq}: " + status_message(st, n)
+            else:
+                cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
+                if self._method_code == 0:
+                    cov = np.full((6, 6), np.nan)
+                T = np.eye(4)
+                T[:3, :3] = R
+                T[:3, 3] = t
+                self._last_T = T
+                self._last_rev = bool(rev)
+                var = cov.diagonal().tolist()
+                finite = all(map(math.isfinite, var))
+                rec.update(status="ok", t_mm=t.tolist(), q_wxyz=quaternion_from_matrix(R, check=False).tolist(),
+                           std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
+                           std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
+                           reprojection_um=float(reproj_mm) * 1e3, reversed=bool(rev))
+                if self.pose_filter is not None and finite:
+                    try:
+                        rec["filter"] = self.pose_filter.update(frame.t_sensor_ns * 1e-9, T, cov).to_record()
+                    except ConfigError:         # a covariance the filter cannot use: no filtered pose
+                        rec["filter"] = None
+                if self.controller is not None:
+                    try:
+                        command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)
+                        if command is not None:
+                            encode_command(command)     # a dict JSON can carry, or ConfigError
+                        rec["command"] = command
+                    except Exception as exc:   # user code: report, never kill the worker
+                        error = f"seq {seq}: controller failed: {type(exc).__name__}: {exc}"
+        t2 = time.perf_counter_ns()
+        cd_ms = (t1 - t0) * 1e-6
+        pc_ms = (t2 - t1) * 1e-6
+        rec["timing_ms"] = {"DT": dt_ms, "QW": qw_ms, "CD": cd_ms, "PC": pc_ms}
+        with self._stats_lock:
+            c = self._counts
+            c.processed += 1
+            if error is None:
+                c.ok += 1
+            else:
+                c.errors += 1
+            row = self._tim[self._tim_n % self._tim.shape[0]]
+            row[0] = math.nan if dt_ms is None else dt_ms
+            row[1] = qw_ms
+            row[2] = cd_ms
+            row[3] = pc_ms
+            self._tim_n += 1
+        if error is not None:
+            rec["status"] = "error"
+            rec["error"] = error
+            self._limiter.event("profile_error", logging.WARNING, f"profile failed: {error}")
+        return rec
