@@ -1,14 +1,22 @@
 """Laser profiler system: 6-DoF pose of a flange from one 2D profile of a multi-plane gauge.
 
-Pipeline: :func:`detect_corners` (paper §II-D) → :func:`solve_pose` (closed form eq. 9–14
-and maximum-likelihood refinement, with the pose covariance). :func:`estimate_pose` does
-both. :mod:`~posekit.profiler.estimate.sensor` simulates an LJ-X8400-like sensor.
+Pipeline: :func:`detect_corners` (paper §II-D; model-based when given the gauge) →
+:func:`solve_pose` (closed form eq. 9–14 and maximum-likelihood refinement, with the pose
+covariance and a χ² verdict). :func:`estimate_pose` does both.
+:mod:`~posekit.profiler.estimate.sensor` simulates an LJ-X8400-like sensor, ideal or with
+:class:`RealismModel`'s defects; :func:`calibrate_gauge` recovers the as-built gauge;
+:class:`ProfileSource` is the interface a sensor (or a vendor SDK) plugs into.
+
+Sub-packages: ``estimate/`` (the estimator), ``stream/`` (server, clients, sources, pose
+filter), ``loop/`` (the closed loop of §IV-C), ``studies/`` (Table I, Fig. 3, Fig. 4).
 """
 
 from .estimate.corners import CornerParams, Corners, detect_corners
 from .estimate.evaluate import Evaluation, evaluate, pose_errors
 from .estimate.gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
+from .estimate.gauge_calibration import GaugeCalibration, calibrate_gauge
 from .estimate.pipeline import estimate_batch, estimate_pose
+from .estimate.realism import RealismModel
 from .estimate.sensor import (
     LJ_X8400,
     NoiseModel,
@@ -19,6 +27,8 @@ from .estimate.sensor import (
     sample_poses,
 )
 from .estimate.solve import PoseEstimate, closed_form, solve_pose
+from .stream.pose_filter import ConstantVelocityFilter, WindowFusion
+from .stream.sources import ProfileSource, read_profile_file
 
 __all__ = [
     "Gauge", "load_gauge", "bundled_gauge", "gauge_from_design", "BUNDLED_GAUGES",
@@ -27,4 +37,6 @@ __all__ = [
     "PoseEstimate", "solve_pose", "closed_form",
     "estimate_pose", "estimate_batch",
     "Evaluation", "evaluate", "pose_errors",
+    "RealismModel", "GaugeCalibration", "calibrate_gauge",
+    "ProfileSource", "read_profile_file", "ConstantVelocityFilter", "WindowFusion",
 ]
