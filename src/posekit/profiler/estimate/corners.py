@@ -395,20 +395,7 @@ def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_
         pz = (ax * bc - bx * ac) / det
         corners[k, 0] = px
         corners[k, 1] = pz
-        ta = (px - cent[k, 0]) * az - (pz - cent[k, 1]) * ax          # direction of a line = (nz, -nx)
-        tb = (px - cent[k + 1, 0]) * bz - (pz - cent[k + 1, 1]) * bx
-        i00 = bz / det                                                 # N_k⁻¹
-        i01 = -az / det
-        i10 = -bx / det
-        i11 = ax / det
-        G[2 * k, 2 * k] = i00
-        G[2 * k, 2 * k + 1] = i00 * ta
-        G[2 * k, 2 * k + 2] = i01
-        G[2 * k, 2 * k + 3] = i01 * tb
-        G[2 * k + 1, 2 * k] = i10
-        G[2 * k + 1, 2 * k + 1] = i10 * ta
-        G[2 * k + 1, 2 * k + 2] = i11
-        G[2 * k + 1, 2 * k + 3] = i11 * tb
+        faces.corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
     var = np.empty(2 * (n + 1))
     for j in range(n + 1):
         var[2 * j] = sig[j] ** 2 / npts[j]

@@ -204,6 +204,27 @@ def _edge_leans(xs, zs, a, b, step, nx, nz, c, dx, dz, t_edge, sigma, t_far):
     return abs(acc / cnt) > _RUN_Z * sigma / np.sqrt(cnt), t_last
 
 
+@njit(cache=True, nogil=True, inline="always")
+def corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det):
+    """Rows 2k, 2k+1 of the corner Jacobian ``G``: how corner k = (px, pz), the crossing of
+    lines k (normal (ax, az)) and k+1 (normal (bx, bz), ``det`` their determinant), moves with
+    each line's offset and its turn about its centroid ``cent[j, :2]``."""
+    ta = (px - cent[k, 0]) * az - (pz - cent[k, 1]) * ax          # direction of a line = (nz, -nx)
+    tb = (px - cent[k + 1, 0]) * bz - (pz - cent[k + 1, 1]) * bx
+    i00 = bz / det                                                 # N_k⁻¹
+    i01 = -az / det
+    i10 = -bx / det
+    i11 = ax / det
+    G[2 * k, 2 * k] = i00
+    G[2 * k, 2 * k + 1] = i00 * ta
+    G[2 * k, 2 * k + 2] = i01
+    G[2 * k, 2 * k + 3] = i01 * tb
+    G[2 * k + 1, 2 * k] = i10
+    G[2 * k + 1, 2 * k + 1] = i10 * ta
+    G[2 * k + 1, 2 * k + 2] = i11
+    G[2 * k + 1, 2 * k + 3] = i11 * tb
+
+
 @njit(cache=True, nogil=True)
 def corner_covariance(lines, cent, sig, npts, corners, var_tilt, var_scale, z_center):
     """Joint covariance (2n, 2n) of corners that intersect consecutive fitted lines.
@@ -228,20 +249,7 @@ def corner_covariance(lines, cent, sig, npts, corners, var_tilt, var_scale, z_ce
             return False, cov, k
         px = corners[k, 0]
         pz = corners[k, 1]
-        ta = (px - cent[k, 0]) * az - (pz - cent[k, 1]) * ax
-        tb = (px - cent[k + 1, 0]) * bz - (pz - cent[k + 1, 1]) * bx
-        i00 = bz / det
-        i01 = -az / det
-        i10 = -bx / det
-        i11 = ax / det
-        G[2 * k, 2 * k] = i00
-        G[2 * k, 2 * k + 1] = i00 * ta
-        G[2 * k, 2 * k + 2] = i01
-        G[2 * k, 2 * k + 3] = i01 * tb
-        G[2 * k + 1, 2 * k] = i10
-        G[2 * k + 1, 2 * k + 1] = i10 * ta
-        G[2 * k + 1, 2 * k + 2] = i11
-        G[2 * k + 1, 2 * k + 3] = i11 * tb
+        corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
     var = np.empty(2 * (n + 1))
     for j in range(n + 1):
         var[2 * j] = sig[j] ** 2 / npts[j]
