@@ -5,15 +5,13 @@ Inputs: CSV with header ``x,z`` (mm, scan order, an empty cell or ``nan`` = no r
 """
 
 import csv
-import io
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import InputFileError
-from ...io import atomic_file, check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
+from ...io import atomic_file, check_input_file, load_npy, load_npz_member, npz_members, quote
 
 __all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json", "read_truth_csv",
            "write_truth_csv", "TRUTH_COLUMNS"]
@@ -29,43 +27,6 @@ ROTATION_CSV_COLUMNS = {
     "euler-xyz": (["w_deg", "p_deg", "r_deg"], "euler_xyz_deg"),
 }
 TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
-
-
-_CSV = "a profile CSV with header 'x,z' and rows of mm values"
-
-
-def _read_csv(path: Path) -> np.ndarray:
-    text = read_text(path, expected=_CSV)
-    try:
-        reader = csv.reader(io.StringIO(text, newline=""))
-        numbered = [(reader.line_num, r) for r in reader]
-    except csv.Error as exc:
-        raise InputFileError(f"{path}: line {reader.line_num}: {str(exc)[:80]}; expected {_CSV}") from None
-    # Blank lines are skipped; a row of empty cells (",") is a point with no return.
-    numbered = [(line, r) for line, r in numbered if r and not (len(r) == 1 and not r[0].strip())]
-    if not numbered:
-        raise InputFileError(f"{path}: file is empty; expected a CSV with header 'x,z'")
-    first_line, first = numbered[0]
-    if [c.strip().lower() for c in first] != ["x", "z"]:
-        raise InputFileError(f"{path}: line {first_line}: expected header 'x,z', got {quote(','.join(first))}")
-    if len(numbered) == 1:
-        raise InputFileError(f"{path}: no data rows after the header 'x,z'")
-    out = np.empty((len(numbered) - 1, 2))
-    for i, (line, row) in enumerate(numbered[1:]):
-        if len(row) != 2:
-            raise InputFileError(f"{path}: line {line}: expected 2 values (x,z), got {len(row)}")
-        for j, cell in enumerate(row):
-            cell = cell.strip()
-            if cell == "" or cell.lower() == "nan":
-                out[i, j] = np.nan
-                continue
-            try:
-                out[i, j] = float(cell)
-            except ValueError:
-                raise InputFileError(f"{path}: line {line}: {quote(cell)} is not a number (mm) or empty/nan") from None
-            if math.isinf(out[i, j]):
-                raise InputFileError(f"{path}: line {line}: infinite value; use an empty cell or nan for no return")
-    return out[None]
 
 
 def _check_array(arr, path: Path, what: str) -> np.ndarray:
@@ -103,7 +64,9 @@ def read_profiles(path) -> np.ndarray:
     if size == 0:
         raise InputFileError(f"{path}: file is empty; expected {expected}")
     if suffix == ".csv":
-        return _read_csv(path)
+        from .reading import ReadOptions, read_csv
+
+        return read_csv(path, ReadOptions(check_units=False))
     if suffix == ".npy":
         arr = load_npy(path)
         if arr.ndim != 2 or arr.shape[1] != 2:
