@@ -166,7 +166,7 @@ def test_soak_1khz_for_10s(gauge, loop_profiles, stub, tmp_path):
     assert st["sent"] == sent and st["disconnects"] == 1, summary
     recs = stub.records
     assert [r["seq"] for r in recs] == list(range(sent))
-    assert all(r["status"] == "ok" and r["error"] is None for r in recs)
+    assert all(r["status"] == "ok" and r["error"] is None and r["reason"] is None and r["dof"] == 4 for r in recs)
     for r in recs[:200] + recs[-200:] + recs[::97]:
         _check_pose(r, Ts[r["seq"] % len(Ts)])
     # The streamed estimate is the offline one (float32 transport, warm start: same minimum).
@@ -174,6 +174,10 @@ def test_soak_1khz_for_10s(gauge, loop_profiles, stub, tmp_path):
         k = r["seq"] % len(Ts)
         _, est = estimate_pose(profiles[k].astype(np.float32).astype(np.float64), gauge)
         np.testing.assert_allclose(r["t_mm"], est.t_mm, atol=1e-6)
+        # ... with the offline verdict: the same χ², dof and status
+        np.testing.assert_allclose(r["chi2"], est.chi2, rtol=1e-4, atol=1e-6)
+        assert (r["status"], r["dof"], r["reason"]) == (est.status, est.dof, est.reason)
+        np.testing.assert_allclose(r["std_t_um"], est.std_t_um, rtol=1e-4)
         assert set(r["timing_ms"]) >= {"DT", "CD", "PC"}
 
 
@@ -413,14 +417,14 @@ def test_controller_failures_are_error_records(gauge, loop_profiles, stub):
 def test_an_internal_error_is_an_error_record_and_the_worker_goes_on(gauge, loop_profiles, stub, caplog):
     _, profiles = loop_profiles
     server = PoseServer(gauge, robot=stub.address, queue_size=QUEUE)
-    solve = server._solve
-    server._solve = lambda corners, cov: (_ for _ in ()).throw(FloatingPointError("simulated bug"))
-    host, port = server.start()
+    host, port = server.start()                          # the warm-up runs the real estimator
+    solve = server._estimate
+    server._estimate = lambda pts, last=None: (_ for _ in ()).throw(FloatingPointError("simulated bug"))
     try:
         with caplog.at_level(logging.ERROR, logger="posekit.server"), SensorClient(host, port) as c:
             c.send_profile(0, profiles[0])
             assert stub.wait_for(1, WAIT_S)
-            server._solve = solve
+            server._estimate = solve
             c.send_profile(1, profiles[1])
             assert stub.wait_for(2, WAIT_S)
     finally:
@@ -431,7 +435,7 @@ def test_an_internal_error_is_an_error_record_and_the_worker_goes_on(gauge, loop
     assert any("internal error" in r.getMessage() for r in caplog.records)
 
 
-def test_closed_form_records_have_no_std(gauge, loop_profiles, stub):
+def test_closed_form_records_carry_the_closed_form_error_model(gauge, loop_profiles, stub):
     Ts, profiles = loop_profiles
     server = PoseServer(gauge, robot=stub.address, method="cf", queue_size=QUEUE)
     host, port = server.start()
@@ -442,7 +446,10 @@ def test_closed_form_records_have_no_std(gauge, loop_profiles, stub):
     finally:
         server.stop()
     (rec,) = stub.records
-    assert rec["status"] == "ok" and rec["std_t_um"] is None and rec["std_rot_deg"] is None
+    _, est = estimate_pose(profiles[0].astype(np.float32).astype(np.float64), gauge, method="cf")
+    assert rec["status"] == est.status and rec["chi2"] == pytest.approx(est.chi2, rel=1e-6)
+    np.testing.assert_allclose(rec["std_t_um"], est.std_t_um, rtol=1e-6)
+    np.testing.assert_allclose(rec["t_mm"], est.t_mm, atol=1e-9)
     assert np.abs(np.asarray(rec["t_mm"]) - Ts[0][:3, 3]).max() < 1.0
 
 

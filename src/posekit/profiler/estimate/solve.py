@@ -54,6 +54,7 @@ the corner covariance comes from the line fits' own residuals (the noise is esti
 so the test sees the geometry but not the noise level) — the behaviour of the studies.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,7 @@ from .refine import (
 
 __all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "solve_pose_warm", "warm_start_buffers",
            "status_message", "reprojection_residuals", "corner_covariance", "face_tolerance_covariance",
-           "closed_form", "METHODS", "MOUNTINGS", "DEFAULT_SIGNIFICANCE"]
+           "closed_form", "METHODS", "MOUNTINGS", "DEFAULT_SIGNIFICANCE", "estimate_from_corners", "chi2_critical"]
 
 METHODS = ("cf", "mle")
 MOUNTINGS = ("auto", "normal", "reversed")
@@ -279,7 +280,9 @@ def solve_pose_unchecked(corners, cov, gauge, method_code, mounting_code, max_it
     """
     if T_init is not None and method_code == 1:
         T = np.asarray(T_init, dtype=np.float64)
-        init = (np.ones(2, dtype=np.bool_), np.stack([T[:3, :3]] * 2), np.stack([T[:3, 3]] * 2))
+        init = (np.ones(2, dtype=np.bool_), np.empty((2, 3, 3)), np.empty((2, 3)))
+        init[1][:] = T[:3, :3]
+        init[2][:] = T[:3, 3]
     elif corners.shape[0] == 4 and method_code == 1:
         init = (np.zeros(2, dtype=np.bool_), np.tile(np.eye(3), (2, 1, 1)), np.zeros((2, 3)))
         for r, c in enumerate((corners, corners[::-1])):
@@ -347,15 +350,42 @@ def corner_covariance(corners: Corners, noise=None) -> np.ndarray:
     """
     if noise is None:
         return np.ascontiguousarray(corners.cov, dtype=np.float64)
-    sig_model = _face_sigma_mm(corners, noise)
-    f = sig_model / corners.sigma
-    n = corners.points.shape[0]
-    T = np.zeros((2 * n, 2 * n))
+    f = _face_sigma_mm(corners, noise) / corners.sigma
+    return _rescale_corner_cov(np.ascontiguousarray(corners.lines, dtype=np.float64), f,
+                               np.ascontiguousarray(corners.cov, dtype=np.float64))
+
+
+@njit(cache=True, nogil=True)
+def _rescale_corner_cov(lines, f, cov):
+    """``T C Tᵀ`` (symmetrised) with block-diagonal ``T_k = N_k⁻¹ diag(f_k, f_k+1) N_k``
+    (:func:`corner_covariance`)."""
+    m = cov.shape[0]
+    n = m // 2
+    T = np.zeros((m, m))
     for k in range(n):
-        N = corners.lines[k:k + 2, :2]
-        T[2 * k:2 * k + 2, 2 * k:2 * k + 2] = np.linalg.solve(N, f[k:k + 2, None] * N)
-    cov = T @ corners.cov @ T.T
-    return np.ascontiguousarray(0.5 * (cov + cov.T))
+        a, b = lines[k, 0], lines[k, 1]
+        c, d = lines[k + 1, 0], lines[k + 1, 1]
+        det = a * d - b * c
+        fa, fc = f[k], f[k + 1]
+        # N⁻¹ = [[d, -b], [-c, a]] / det;  M = diag(fa, fc) N = [[fa a, fa b], [fc c, fc d]]
+        T[2 * k, 2 * k] = (d * fa * a - b * fc * c) / det
+        T[2 * k, 2 * k + 1] = (d * fa * b - b * fc * d) / det
+        T[2 * k + 1, 2 * k] = (-c * fa * a + a * fc * c) / det
+        T[2 * k + 1, 2 * k + 1] = (-c * fa * b + a * fc * d) / det
+    out = np.zeros((m, m))
+    for i in range(m):
+        for j in range(m):
+            acc = 0.0
+            for p in range(2 * (i // 2), 2 * (i // 2) + 2):
+                for q in range(2 * (j // 2), 2 * (j // 2) + 2):
+                    acc += T[i, p] * cov[p, q] * T[j, q]
+            out[i, j] = acc
+    for i in range(m):
+        for j in range(i + 1, m):
+            v = 0.5 * (out[i, j] + out[j, i])
+            out[i, j] = v
+            out[j, i] = v
+    return out
 
 
 def _face_sigma_mm(corners: Corners, noise) -> np.ndarray:
@@ -409,18 +439,33 @@ def _reverse_index(n: int) -> np.ndarray:
 # --------------------------------------------------------------------------- verdict
 
 
-@dataclass(frozen=True)
 class _Candidate:
-    """One corner order's solution."""
+    """One corner order's solution; what only the verdict may need is computed on demand."""
 
-    rev: bool
-    T: np.ndarray
-    cov: np.ndarray
-    reprojection_mm: float
-    cost: float
-    chi2: float
-    resid_mm: np.ndarray          # |corner - predicted| per ridge, mm
-    possible: bool
+    __slots__ = ("rev", "T", "cov", "reprojection_mm", "cost", "chi2", "_c", "_gauge", "_resid", "_possible")
+
+    def __init__(self, rev, T, cov, reprojection_mm, cost, chi2, c, gauge):
+        self.rev, self.T, self.cov, self.reprojection_mm, self.cost, self.chi2 = rev, T, cov, reprojection_mm, cost, chi2
+        self._c = c                   # corners in ridge order
+        self._gauge = gauge
+        self._resid = None
+        self._possible = None
+
+    @property
+    def resid_mm(self) -> np.ndarray:
+        """|corner - predicted| per ridge, mm."""
+        if self._resid is None:
+            P = _piercing_points(self._gauge, self.T[:3, :3], self.T[:3, 3])
+            self._resid = (np.full(len(self._c), np.nan) if P is None
+                           else np.sqrt(np.sum((self._c - P) ** 2, axis=1)))
+        return self._resid
+
+    @property
+    def possible(self) -> bool:
+        """Whether the pose could have produced the corners (no face seen from behind)."""
+        if self._possible is None:
+            self._possible = bool(pose_is_possible(self._gauge, self.T, self._c, extent=False))
+        return self._possible
 
 
 def _as_T(R, t) -> np.ndarray:
@@ -484,18 +529,27 @@ def _cf_linearisation(c, C, gauge, T_cf):
     return 0.5 * (cov + cov.T), chi2
 
 
-def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter):
-    """Solve one corner order; a :class:`_Candidate` or a failed kernel status (int).
+def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter, gate=None):
+    """Solve one corner order; ``(candidate, cold_restart)`` with a :class:`_Candidate` or a
+    failed kernel status (int).
 
-    The fit is weighted by ``C_fit`` (the line fits' covariance, as the real-time server
-    weights it, so both give the same pose); χ² and the pose covariance use ``C_model``
-    (the assumed noise), both plus the gauge's tolerance at the solution.
+    The fit is weighted by ``C_fit`` (the line fits' covariance); χ² and the pose covariance
+    use ``C_model`` (the assumed noise), both plus the gauge's tolerance at the solution.
+    ``gate``: with a start pose ``T_init`` and method 'mle', a start that fails or ends with a
+    cost above the gate (a wrong minimum) is solved again from the closed form, and the lower
+    cost is kept (``cold_restart`` True).
     """
     code = 2 if rev else 1
     method_code = METHODS.index(method)
     status, _, R, t, H, cost = solve_pose_unchecked(pts, C_fit, gauge, method_code, code, max_iter, T_init)
+    cold = False
+    if gate is not None and T_init is not None and method_code == 1 and not (status == OK and cost <= gate):
+        cold = True
+        res = solve_pose_unchecked(pts, C_fit, gauge, 1, code, max_iter, None)
+        if not (status == OK and (res[0] != OK or cost < res[5])):
+            status, _, R, t, H, cost = res
     if status != OK:
-        return status
+        return status, cold
     C_tol = None
     if gauge.tolerance_um > 0:
         # The tolerance maps to the corners through the pose: add it at the solution, solve again from there.
@@ -504,33 +558,42 @@ def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter):
                                                           method_code, code, max_iter,
                                                           _as_T(R, t) if method == "mle" else None)
         if status != OK:
-            return status
+            return status, cold
         if method == "mle":
             R, t = R2, t2
     C_tot = C_model if C_tol is None else C_model + C_tol
     c = np.ascontiguousarray(pts[::-1]) if rev else pts
-    idx = _reverse_index(len(c))
-    C_ridge = C_tot[np.ix_(idx, idx)] if rev else C_tot
+    if rev:
+        idx = _reverse_index(len(c))
+        C_ridge = C_tot[np.ix_(idx, idx)]
+    else:
+        C_ridge = C_tot
     chi2 = float(cost)
     if C_model is not C_fit:
         # χ² and the information under the assumed noise, at the fitted pose
         ok, W = spd_inverse(np.ascontiguousarray(C_ridge))
         if not ok:
-            return DEGENERATE
+            return DEGENERATE, cold
         R_FG = np.ascontiguousarray(R.T)
         H = np.empty((6, 6))
         ok, chi2 = normal_equations(R_FG, -(R_FG @ t), c, W, gauge.ridge_q, gauge.ridge_s, H, np.empty(6))
         if not ok:
-            return RIDGE_IN_PLANE
+            return RIDGE_IN_PLANE, cold
         chi2 = float(chi2)
     cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, pts, rev, gauge.ridge_q, gauge.ridge_s)
     T = _as_T(R, t)
     if method == "cf":
         cov, chi2 = _cf_linearisation(c, C_ridge, gauge, T)
-    P = _piercing_points(gauge, R, t)
-    resid = np.full(len(c), np.nan) if P is None else np.linalg.norm(c - P, axis=1)
-    return _Candidate(rev=bool(rev), T=T, cov=cov, reprojection_mm=float(reproj_mm), cost=float(cost),
-                      chi2=chi2, resid_mm=resid, possible=pose_is_possible(gauge, T, c, extent=False))
+    return _Candidate(bool(rev), T, cov, float(reproj_mm), float(cost), chi2, c, gauge), cold
+
+
+@functools.lru_cache(maxsize=4096)
+def chi2_critical(alpha: float, dof: int) -> float:
+    """Critical value of the χ² test: ``chi2.isf(alpha, dof)`` (0 for ``dof <= 0``), cached.
+
+    The real-time path evaluates it per frame; SciPy's ``isf`` costs ~30 µs a call.
+    """
+    return float(_chi2.isf(alpha, dof)) if dof > 0 else 0.0
 
 
 def _noise_verdict(corners: Corners, noise, alpha: float) -> str | None:
@@ -539,7 +602,7 @@ def _noise_verdict(corners: Corners, noise, alpha: float) -> str | None:
     n_fit = corners.n_points.astype(np.float64)
     stat = float(np.sum((n_fit - 2.0) * corners.sigma**2 / sig**2))
     dof = int(np.sum(n_fit - 2))
-    crit = float(_chi2.isf(alpha, dof))
+    crit = chi2_critical(alpha, dof)
     if not stat > crit:
         return None
     ratio = corners.sigma / sig
@@ -609,31 +672,73 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
     if not (isinstance(significance, (float, int)) and 0 < significance < 1):
         raise EstimationError(f"significance must be a number in (0, 1), got {significance!r}")
     _check_noise(noise)
-    pts = np.ascontiguousarray(corners.points, dtype=np.float64)
     n = gauge.n_corners
-    if pts.shape != (n, 2):
-        raise EstimationError(f"expected {n} corners for gauge '{gauge.name}', got {pts.shape[0]}")
+    if np.shape(corners.points) != (n, 2):
+        raise EstimationError(f"expected {n} corners for gauge '{gauge.name}', got {np.shape(corners.points)[0]}")
     if mounting == "auto" and getattr(gauge, "ambiguity", None):
         raise EstimationError(f"gauge '{gauge.name}' is ambiguous ({gauge.ambiguity}); give the mounting "
                               "('normal' or 'reversed')")
+    orders = {"auto": (False, True), "normal": (False,), "reversed": (True,)}[mounting]
+    res, _ = estimate_from_corners(corners, gauge, method, orders, (T_init, T_init), max_iter, noise,
+                                   significance)
+    if not isinstance(res, PoseEstimate):
+        raise EstimationError(status_message(res, n))
+    return res
+
+
+def estimate_from_corners(corners: Corners, gauge, method: str, orders, T_inits, max_iter: int, noise,
+                          significance: float, gate: float | None = None):
+    """Pose and verdict of :func:`solve_pose` without its checks: the one path both the
+    checked estimator and the real-time one (:mod:`~posekit.profiler.estimate.fast`) take.
+
+    Parameters
+    ----------
+    corners : Corners
+        Corner count matching the gauge (not checked).
+    gauge, method, max_iter, noise, significance
+        As :func:`solve_pose` (valid values, not checked).
+    orders : tuple of bool
+        Corner orders to solve (False: normal, True: reversed): ``(False, True)`` is 'auto'.
+    T_inits : (T or None, T or None)
+        Start pose of the normal and of the reversed order (None: the closed form).
+    gate : float, optional
+        Cost above which a start from ``T_inits`` is retried from the closed form.
+
+    Returns
+    -------
+    (PoseEstimate or int, bool)
+        The estimate, or the failed kernel status of the first order tried (for
+        :func:`status_message`); and whether a start pose was retried from the closed form.
+    """
+    pts = np.ascontiguousarray(corners.points, dtype=np.float64)
     C_fit = np.ascontiguousarray(corners.cov, dtype=np.float64)
     C_model = C_fit if noise is None else corner_covariance(corners, noise)
-    orders = {"auto": (False, True), "normal": (False,), "reversed": (True,)}[mounting]
-    cands, failure = [], None
+    cands, failure, cold = [], None, False
     for rev in orders:
-        res = _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter)
+        res, c = _solve_order(pts, C_fit, C_model, gauge, method, rev, T_inits[int(rev)], max_iter, gate)
+        cold |= c
         if isinstance(res, _Candidate):
             cands.append(res)
         elif failure is None:
             failure = res
     if not cands:
-        raise EstimationError(status_message(failure, n))
-    cands.sort(key=lambda c: (not c.possible, c.chi2 if np.isfinite(c.chi2) else np.inf))
+        return failure, cold
+    return _verdict(cands, corners, gauge, method, noise, significance), cold
+
+
+def _verdict(cands, corners: Corners, gauge, method: str, noise, significance: float) -> PoseEstimate:
+    """The best candidate (a possible pose first, then the lower χ²) with its verdict (module docstring)."""
+    n = corners.points.shape[0]
+    # A possible pose first, then the lower χ²: the other candidate's possibility is only
+    # looked at when it matters (the lower χ² is impossible, or the other one fits too).
+    cands.sort(key=lambda c: c.chi2 if np.isfinite(c.chi2) else np.inf)
+    if len(cands) == 2 and not cands[0].possible and cands[1].possible:
+        cands.reverse()
     best = cands[0]
 
     dof = 2 * n - 6
     alpha = significance / (2 if noise is not None else 1)
-    crit = float(_chi2.isf(alpha, dof)) if dof > 0 else 0.0
+    crit = chi2_critical(alpha, dof)
     reasons = []
     if not best.chi2 <= crit:
         k = int(np.nanargmax(best.resid_mm)) if np.any(np.isfinite(best.resid_mm)) else 0
@@ -650,7 +755,7 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
     if not best.possible:
         reasons.append("at the fitted pose the sensor would see a face from behind (through the gauge): no real "
                        "pose gives these corners")
-    if len(cands) == 2 and cands[1].possible and cands[1].chi2 <= crit:
+    if len(cands) == 2 and cands[1].chi2 <= crit and cands[1].possible:
         reasons.append(f"the {'normal' if best.rev else 'reversed'} corner order fits too (chi2 = "
                        f"{cands[1].chi2:.1f} <= {crit:.1f}): the mounting cannot be told from this profile, "
                        "give it (--mounting normal|reversed)")

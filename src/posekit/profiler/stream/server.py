@@ -23,18 +23,19 @@ Threads and buffers::
   buffer is full the *oldest* frame is dropped (and counted), so the pose that goes out
   is always from the newest profile and the sensor is never blocked. After a disconnect
   (also mid-frame) it logs it and discards the partial frame.
-- The **worker** takes one frame at a time: NaN-storm check, corner detection
-  (:func:`~posekit.profiler.estimate.corners.detect_corners_unchecked`), pose
-  (:func:`~posekit.profiler.estimate.solve.solve_pose_unchecked`, warm-started from the previous
+- The **worker** takes one frame at a time: corners, pose and verdict
+  (:func:`~posekit.profiler.estimate.fast.estimate_profile_unchecked`, the estimator's own
+  path, so the pose, its covariance, χ² and status are those of the offline
+  :func:`~posekit.profiler.estimate.pipeline.estimate_pose`; warm-started from the previous
   pose and falling back to the closed form when that fails or lands in a poor minimum),
-  the controller, and the record to the robot. A bad profile becomes a record with
-  ``status: "error"``, never an exception.
+  the NaN-storm check, the controller, and the record to the robot. A bad profile becomes
+  a record with ``status: "error"``, never an exception.
 
 Timing of each processed frame, ms, on the clock of :func:`time.perf_counter_ns` (on
 Linux ``CLOCK_MONOTONIC``, system-wide; a sensor process on the same machine stamps its
 frames with it, so DT is meaningful): **DT** = receive time of the frame's last byte −
-sensor stamp (the paper's data transmission, Table III); **CD** = NaN-storm check and
-corner detection; **PC** = pose computation, covariance and the controller. ``QW``, the
+sensor stamp (the paper's data transmission, Table III); **CD** = corner detection; **PC** =
+pose computation, covariance, verdict, NaN-storm check and the controller. ``QW``, the
 time a frame waited in the buffer, is kept as well (it grows when the worker falls
 behind). The sensor stamp is not trusted: DT is only computed when the stamp lies within
 ``max_dt_s`` before the receive time and not before the connection's previous believed
@@ -43,13 +44,22 @@ and the frame is counted in ``bad_stamps`` (it is still processed).
 
 Record sent to the robot (one JSON line per processed frame, and for a NaN storm)::
 
-    {"seq", "t_sensor_ns", "status": "ok"|"error", "t_mm": [3], "q_wxyz": [4],
+    {"seq", "t_sensor_ns", "status": "ok"|"suspect"|"error", "t_mm": [3], "q_wxyz": [4],
      "std_t_um": [3], "std_rot_deg": [3], "reprojection_um", "reversed",
+     "chi2", "dof", "reason": str|null,
      "command": <controller dict or null>, "filter": <filtered pose or null>,
      "timing_ms": {"DT" (null: stamp not trusted), "QW", "CD", "PC"}, "error": str|null}
 
-Pose fields are null when the profile failed; the standard deviations are null for the
-closed form (``method="cf"``), which has no error model. ``filter`` is the output of the
+``status`` is the verdict of DESIGN.md "Trust", as in the offline records: ``ok`` when the
+corners fit the gauge within the assumed ``noise`` and the gauge's tolerance (χ² test of
+the fit, ``chi2`` against χ²(``dof`` = 2n - 6), and the noise test), ``suspect`` when a pose
+exists but a test failed (``reason`` says why: wrong gauge file, a face off its drawing, a
+noisier profile than the sensor model, an impossible pose, an ambiguous mounting) and
+``error`` when there is no pose (``error`` says why). Pose fields, ``chi2``, ``dof`` and
+``reason`` are null when the profile failed; the standard deviations are null when the
+covariance is not finite (for the closed form, ``method="cf"``, they come from its own
+linearisation, far larger than the refinement's). A suspect pose is still sent, filtered and
+given to the controller: the robot side decides what to do with it. ``filter`` is the output of the
 ``pose_filter`` (:meth:`~posekit.profiler.stream.pose_filter.FilteredPose.to_record`: the filtered
 pose with its 6×6 covariance), null without one or when the profile failed. The same
 records go to the ``record_sink`` (files, stdout), from a thread of its own.
@@ -70,19 +80,13 @@ from collections import Counter, deque
 
 import numpy as np
 
-from ...errors import ConfigError, ProfileError
+from ...errors import ConfigError, PosekitError, ProfileError
 from ...geometry import quaternion_from_matrix
-from ..estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns, raise_for_status
+from ..estimate.corners import CornerParams, gauge_turns
+from ..estimate.fast import estimate_profile_unchecked, warm_gate
 from ..estimate.gauge import Gauge
-from ..estimate.refine import pose_covariance_and_reprojection
-from ..estimate.solve import (
-    METHODS,
-    MOUNTINGS,
-    solve_pose_unchecked,
-    solve_pose_warm,
-    status_message,
-    warm_start_buffers,
-)
+from ..estimate.pipeline import DEFAULT_NOISE
+from ..estimate.solve import DEFAULT_SIGNIFICANCE, METHODS, MOUNTINGS, _check_noise
 from .protocol import MAX_FRAME_BYTES, MAX_POINTS, Frame, encode_command, encode_hello
 from .server_support import (
     Counts,
@@ -109,7 +113,7 @@ def _error_record(frame, error):
     """The robot record of a frame without a pose (its fields are filled in on success)."""
     return {"seq": frame.seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
             "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
-            "command": None, "filter": None, "timing_ms": None, "error": error}
+            "chi2": None, "dof": None, "reason": None, "command": None, "filter": None, "timing_ms": None, "error": error}
 
 
 class PoseServer:
@@ -163,6 +167,12 @@ class PoseServer:
         Sensor connections served at once; a new one beyond it closes the connection
         that has gone longest without a complete frame.
     params : CornerParams
+    noise : NoiseModel or None
+        The sensor noise the verdict assumes (default the LJ-X8400's 10/5 µm, as
+        :func:`~posekit.profiler.estimate.pipeline.estimate_pose`); None: the line fits' own
+        residuals (no noise test).
+    significance : float
+        α of the consistency test (:data:`~posekit.profiler.estimate.solve.DEFAULT_SIGNIFICANCE`).
     nan_storm_fraction : float
         A frame with more than this fraction of NaN points (or no points) is rejected
         as ``nan_storm``.
@@ -188,13 +198,23 @@ class PoseServer:
                  params: CornerParams = CornerParams(), nan_storm_fraction: float = 0.95,
                  history: int = 100_000, freeze_gc: bool = True, token: str | bytes | None = None,
                  idle_timeout_s: float = 30.0, read_timeout_s: float = 2.0, max_dt_s: float = 10.0,
-                 max_connections: int = 16, pose_filter=None, record_sink=None):
+                 max_connections: int = 16, pose_filter=None, record_sink=None, noise=DEFAULT_NOISE,
+                 significance: float = DEFAULT_SIGNIFICANCE):
         if not isinstance(gauge, Gauge):
             raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
         if method not in METHODS:
             raise ConfigError(f"PoseServer: unknown method '{method}'; expected one of {', '.join(METHODS)}")
         if mounting not in MOUNTINGS:
             raise ConfigError(f"PoseServer: unknown mounting '{mounting}'; expected one of {', '.join(MOUNTINGS)}")
+        if mounting == "auto" and getattr(gauge, "ambiguity", None):
+            raise ConfigError(f"PoseServer: gauge '{gauge.name}' is ambiguous ({gauge.ambiguity}); give the "
+                              "mounting ('normal' or 'reversed')")
+        if not (isinstance(significance, float | int) and 0 < significance < 1):
+            raise ConfigError(f"PoseServer: significance must be a number in (0, 1), got {significance!r}")
+        try:
+            _check_noise(noise)
+        except PosekitError as exc:
+            raise ConfigError(f"PoseServer: {exc}") from None
         if method == "cf" and gauge.n_corners < 5:
             raise ConfigError(f"PoseServer: method 'cf' needs a gauge with >= 5 corners; "
                               f"'{gauge.name}' has {gauge.n_corners} (use 'mle')")
@@ -230,6 +250,8 @@ class PoseServer:
         self.method = method
         self.mounting = mounting
         self.params = params
+        self.noise = noise
+        self.significance = float(significance)
         self._turns = gauge_turns(gauge)  # the model-based corner detector's view of the section
         self.controller = controller
         self.pose_filter = pose_filter
@@ -249,12 +271,8 @@ class PoseServer:
 
         self._method_code = METHODS.index(method)
         self._mounting_code = MOUNTINGS.index(mounting)
-        n = gauge.n_corners
         # A warm start whose χ² (2n - 6 dof) exceeds its 1e-6 tail went to a wrong minimum.
-        from scipy.stats import chi2
-        self._chi2_gate = float(chi2.isf(1e-6, 2 * n - 6))
-        self._ridge_q = gauge.ridge_q
-        self._ridge_s = gauge.ridge_s
+        self._chi2_gate = warm_gate(gauge.n_corners)
 
         self._queue: deque = deque(maxlen=queue_size)
         self._cond = threading.Condition(threading.Lock())
@@ -270,7 +288,7 @@ class PoseServer:
         self._address = None
         self._last_T = None
         self._last_rev = False
-        self._init = warm_start_buffers()
+        self._n_suspect = 0
         self._submit_lock = threading.Lock()
         self._submit_seq = 0
         self._submit_last_ns = None
@@ -329,16 +347,13 @@ class PoseServer:
         from ..estimate.sensor import NoiseModel, nominal_pose, render_profiles
 
         prof = render_profiles(self.gauge, nominal_pose(self.gauge), NoiseModel(), rng=0)
-        n = self.gauge.n_corners
-        status, _, corners, ccov, *_ = detect_corners_unchecked(prof, n, self.params, self._turns)
-        if status != 0:         # the nominal pose always sees the gauge; be safe anyway
-            return
-        for T_init in (None, nominal_pose(self.gauge)):
-            st, rev, R, t, H, _ = solve_pose_unchecked(corners, ccov, self.gauge, self._method_code,
-                                                       self._mounting_code, T_init=T_init)
-            if st == 0:
-                pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
-                quaternion_from_matrix(R, check=False)
+        last = None
+        for _ in range(2):                      # cold, then warm from the first pose
+            res = self._estimate(np.ascontiguousarray(prof), last)
+            if res.T_G_F is None:               # the nominal pose always sees the gauge; be safe anyway
+                return
+            quaternion_from_matrix(res.T_G_F[:3, :3], check=False)
+            last = (res.T_G_F, res.reversed)
 
     def stop(self, timeout_s: float = 1.0) -> None:
         """Stop both threads, close every socket; returns within about ``timeout_s``.
@@ -378,8 +393,9 @@ class PoseServer:
         -------
         dict
             ``received`` (well-formed frames decoded), ``processed`` (frames that went
-            through detection and pose, ok or not), ``ok``, ``errors`` (processed frames
-            whose profile or controller failed), ``dropped`` (oldest frames pushed out of
+            through detection and pose, ok or not), ``ok`` and ``suspect`` (processed frames
+            with a pose and that verdict), ``errors`` (processed frames whose profile or
+            controller failed; ``processed == ok + suspect + errors``), ``dropped`` (oldest frames pushed out of
             the full buffer), ``rejected`` (malformed stretches of the stream and NaN
             storms) with ``reasons`` (a :class:`collections.Counter` by reason),
             ``disconnects`` (every close, by either side), ``connections`` (accepted),
@@ -396,6 +412,7 @@ class PoseServer:
             out = dict(vars(c))
             out["reasons"] = Counter(self._reasons)
             out["connected"] = self._n_conns
+            out["suspect"] = self._n_suspect
         with self._cond:
             out["queued"] = len(self._queue)
         return out
@@ -661,21 +678,12 @@ class PoseServer:
             if link is not None:
                 link.close()
 
-    def _solve(self, corners, ccov):
-        """Warm start from the previous pose; closed form if it fails or its χ² is implausible."""
-        g = self.gauge
-        if self._method_code == 1 and self._last_T is not None:
-            mount = self._mounting_code or (2 if self._last_rev else 1)
-            warm = solve_pose_warm(corners, ccov, g, self._last_T, mount, self._init)
-            if warm[0] == 0 and warm[5] <= self._chi2_gate:
-                return warm
-            with self._stats_lock:
-                self._counts.cold_restarts += 1
-            cold = solve_pose_unchecked(corners, ccov, g, 1, self._mounting_code)
-            if warm[0] == 0 and (cold[0] != 0 or warm[5] < cold[5]):
-                return warm
-            return cold
-        return solve_pose_unchecked(corners, ccov, g, self._method_code, self._mounting_code)
+    def _estimate(self, pts, last=None):
+        """Corners, pose and verdict of one profile; warm start from ``last = (T_G_F, reversed)``."""
+        T_init, rev_init = (None, False) if last is None or self._method_code != 1 else last
+        return estimate_profile_unchecked(pts, self.gauge, self.params, self._turns, self._method_code,
+                                          self._mounting_code, T_init, rev_init, noise=self.noise,
+                                          significance=self.significance, gate=self._chi2_gate)
 
     def _process(self, frame: Frame, dt_ns: int | None = None) -> dict:
         t0 = time.perf_counter_ns()
@@ -684,71 +692,64 @@ class PoseServer:
         qw_ms = (t0 - frame.t_recv_ns) * 1e-6
         rec = _error_record(frame, None)
         pts = frame.points
-        n = self.gauge.n_corners
-        # The kernel counts the valid returns (info[1]) before anything else; a NaN storm
-        # costs it one pass over the points, and the count is exact (x and z finite).
-        status, info, corners, ccov, _, _, npts, cand = detect_corners_unchecked(pts, n, self.params, self._turns)
+        res = self._estimate(pts, None if self._last_T is None else (self._last_T, self._last_rev))
         n_pts = pts.shape[0]
-        n_nan = n_pts - int(info[1])
+        n_nan = n_pts - res.n_valid
         if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
             detail = (f"seq {seq}: {n_nan} of {n_pts} points have no return "
                       f"(more than {100 * self.nan_storm_fraction:.0f} % NaN)")
             self._reject(NAN_STORM, detail)
             rec["error"] = f"rejected frame (nan_storm): {detail}"
             return rec
-        t1 = time.perf_counter_ns()
+        if res.cold_restart:
+            with self._stats_lock:
+                self._counts.cold_restarts += 1
         error = None
-        if status != 0:
-            try:
-                raise_for_status(status, info, npts, cand, n, self.gauge.name)
-            except ProfileError as exc:
-                error = f"seq {seq}: {exc}"
+        T = res.T_G_F
+        if T is None:
+            error = f"seq {seq}: {res.error}"
+            if res.corners is None:
                 hint = units_hint(pts)         # only on failure: free on the good path
                 if hint is not None:
                     error += f"; the profile {hint}"
         else:
-            st, rev, R, t, H, _ = self._solve(corners, ccov)
-            if st != 0:
-                error = f"seq {seq}: " + status_message(st, n)
-            else:
-                cov, reproj_mm = pose_covariance_and_reprojection(R, t, H, corners, rev, self._ridge_q, self._ridge_s)
-                if self._method_code == 0:
-                    cov = np.full((6, 6), np.nan)
-                T = np.eye(4)
-                T[:3, :3] = R
-                T[:3, 3] = t
-                self._last_T = T
-                self._last_rev = bool(rev)
-                var = cov.diagonal().tolist()
-                finite = all(map(math.isfinite, var))
-                rec.update(status="ok", t_mm=t.tolist(), q_wxyz=quaternion_from_matrix(R, check=False).tolist(),
-                           std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
-                           std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
-                           reprojection_um=float(reproj_mm) * 1e3, reversed=bool(rev))
-                if self.pose_filter is not None and finite:
-                    try:
-                        rec["filter"] = self.pose_filter.update(frame.t_sensor_ns * 1e-9, T, cov).to_record()
-                    except ConfigError:         # a covariance the filter cannot use: no filtered pose
-                        rec["filter"] = None
-                if self.controller is not None:
-                    try:
-                        command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)
-                        if command is not None:
-                            encode_command(command)     # a dict JSON can carry, or ConfigError
-                        rec["command"] = command
-                    except Exception as exc:   # user code: report, never kill the worker
-                        error = f"seq {seq}: controller failed: {type(exc).__name__}: {exc}"
+            cov = res.cov
+            self._last_T = T
+            self._last_rev = bool(res.reversed)
+            var = cov.diagonal().tolist()
+            finite = all(map(math.isfinite, var))
+            rec.update(status=res.status, t_mm=T[:3, 3].tolist(),
+                       q_wxyz=quaternion_from_matrix(T[:3, :3], check=False).tolist(),
+                       std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
+                       std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
+                       reprojection_um=float(res.reprojection_um), reversed=bool(res.reversed),
+                       chi2=float(res.chi2), dof=int(res.dof), reason=res.reason)
+            if self.pose_filter is not None and finite:
+                try:
+                    rec["filter"] = self.pose_filter.update(frame.t_sensor_ns * 1e-9, T, cov).to_record()
+                except ConfigError:         # a covariance the filter cannot use: no filtered pose
+                    rec["filter"] = None
+            if self.controller is not None:
+                try:
+                    command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)
+                    if command is not None:
+                        encode_command(command)     # a dict JSON can carry, or ConfigError
+                    rec["command"] = command
+                except Exception as exc:   # user code: report, never kill the worker
+                    error = f"seq {seq}: controller failed: {type(exc).__name__}: {exc}"
         t2 = time.perf_counter_ns()
-        cd_ms = (t1 - t0) * 1e-6
-        pc_ms = (t2 - t1) * 1e-6
+        cd_ms = res.detect_ns * 1e-6
+        pc_ms = (t2 - t0 - res.detect_ns) * 1e-6
         rec["timing_ms"] = {"DT": dt_ms, "QW": qw_ms, "CD": cd_ms, "PC": pc_ms}
         with self._stats_lock:
             c = self._counts
             c.processed += 1
-            if error is None:
+            if error is not None:
+                c.errors += 1
+            elif rec["status"] == "ok":
                 c.ok += 1
             else:
-                c.errors += 1
+                self._n_suspect += 1
             row = self._tim[self._tim_n % self._tim.shape[0]]
             row[0] = math.nan if dt_ms is None else dt_ms
             row[1] = qw_ms
