@@ -1,7 +1,5 @@
 """``posekit demo`` (the closed-loop experiment) and ``posekit profiler accuracy``."""
 
-import numpy as np
-
 from ._common import progress
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, seed
 
@@ -27,7 +25,7 @@ def add_accuracy_arguments(p):
 
 def run_accuracy(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.estimate.evaluate import evaluate
+    from ..profiler.estimate.evaluate import accuracy_table, evaluate
     from ..profiler.estimate.sensor import NoiseModel
     from ._common import resolve_gauge
 
@@ -47,26 +45,5 @@ def run_accuracy(args) -> int:
                       progress=lambda it, m=method: progress(it, total=args.count, desc=m))
         rows.append((method, ev))
     print()
-    print("method  ok/total   reproj µm   RMSE tx   ty      tz µm    |  rx      ry      rz  mdeg  | ms/profile")
-    for method, ev in rows:
-        if len(ev.errors) == 0:
-            print(f"{method:<6}  0/{args.count}: every profile failed ({ev.failures[0][1]})")
-            continue
-        t = ev.rmse[:3] * 1e3
-        r = np.degrees(ev.rmse[3:]) * 1e3
-        print(f"{method:<6}  {len(ev.errors)}/{args.count:<6} {np.mean(ev.reprojection_um):8.3f}   "
-              f"{t[0]:7.2f} {t[1]:7.2f} {t[2]:7.2f}  |  {r[0]:6.3f} {r[1]:6.3f} {r[2]:6.3f}  | "
-              f"{np.median(ev.seconds) * 1e3:.3f}")
-    method, ev = rows[-1]
-    if len(ev.errors):
-        ps = ev.rms_predicted_std
-        print(f"mle predicted std (from the corner fit): t {np.round(ps[:3] * 1e3, 2).tolist()} µm, "
-              f"rot {np.round(np.degrees(ps[3:]) * 1e3, 3).tolist()} mdeg; "
-              f"empirical/predicted {np.round(ev.normalized_rms, 2).tolist()}")
-        print("note: y and the rotation about x are weakly observable (the laser plane's tilt about the gauge "
-              "is seen only through the gauge's height steps): the reprojection error stays ~1 µm while the "
-              "covariance above tells the real uncertainty.")
-    for method, ev in rows:
-        for k, why in ev.failures[:3]:
-            print(f"{method}: profile {k} failed: {why}")
+    print(accuracy_table(rows, args.count))
     return 0

@@ -64,7 +64,6 @@ from scipy.stats import chi2 as _chi2
 from ...errors import EstimationError
 from ...geometry import (
     matrix_from_rotation_vector,
-    point_line_distance,
     quaternion_from_matrix,
     rotation_vector_from_matrix,
 )
@@ -78,8 +77,8 @@ from .refine import (
     spd_inverse,
 )
 
-__all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked", "solve_pose_warm", "warm_start_buffers",
-           "status_message", "reprojection_residuals", "corner_covariance", "face_tolerance_covariance",
+__all__ = ["PoseEstimate", "solve_pose", "solve_pose_unchecked",
+           "status_message", "corner_covariance", "face_tolerance_covariance",
            "closed_form", "METHODS", "MOUNTINGS", "DEFAULT_SIGNIFICANCE", "estimate_from_corners", "chi2_critical"]
 
 METHODS = ("cf", "mle")
@@ -241,25 +240,6 @@ def _solve_kernel(corners, cov, q, s, method, mounting, max_iter, has_init, R_in
 # --------------------------------------------------------------------------- API
 
 
-def reprojection_residuals(T_G_F, corners_F, gauge):
-    """Distance of each corner, mapped into G by ``T_G_F``, from its ridge, mm, shape (n,).
-
-    Parameters
-    ----------
-    T_G_F : ndarray, shape (4, 4)
-    corners_F : ndarray, shape (n, 2)
-        Corners (x, z) in F, mm, in ridge order.
-    gauge : Gauge
-    """
-    c = np.asarray(corners_F, dtype=np.float64)
-    p_F = np.stack([c[:, 0], np.zeros(len(c)), c[:, 1]], axis=1)
-    p_G = p_F @ T_G_F[:3, :3].T + T_G_F[:3, 3]
-    return point_line_distance(p_G, gauge.ridge_q, gauge.ridge_s)
-
-
-_EYE3 = np.eye(3)
-_ZERO3 = np.zeros(3)
-
 _MESSAGES = {
     CF_UNDERDETERMINED: "the closed form needs at least 5 corners (with {n}, eq. (10) has {e} equations "
                         "for 9 unknowns); use method 'mle'",
@@ -296,25 +276,6 @@ def solve_pose_unchecked(corners, cov, gauge, method_code, mounting_code, max_it
         init = _NO_INIT
     return _solve_kernel(corners, cov, gauge.ridge_q, gauge.ridge_s, method_code, mounting_code,
                          max_iter, init[0], init[1], init[2])
-
-
-def warm_start_buffers():
-    """Reusable start arrays for :func:`solve_pose_warm`: ``(has_init (2,), R (2, 3, 3), t (2, 3))``."""
-    return np.ones(2, dtype=np.bool_), np.empty((2, 3, 3)), np.empty((2, 3))
-
-
-def solve_pose_warm(corners, cov, gauge, T_init, mounting_code, buffers, max_iter=20):
-    """ML refinement from a given start pose (a stream's previous pose), no allocation.
-
-    As :func:`solve_pose_unchecked` with ``method='mle'`` and ``T_init``, but the start is
-    written into ``buffers`` (from :func:`warm_start_buffers`) instead of new arrays: the
-    real-time path saves the NumPy overhead per frame.
-    """
-    has, R0, t0 = buffers
-    has[:] = True
-    R0[:] = T_init[:3, :3]
-    t0[:] = T_init[:3, 3]
-    return _solve_kernel(corners, cov, gauge.ridge_q, gauge.ridge_s, 1, mounting_code, max_iter, has, R0, t0)
 
 
 def status_message(status: int, n_corners: int) -> str:
