@@ -269,7 +269,7 @@ def _corner_data(profiles, nominal, mounting, params):
     corners, Linv, Ts, used, skipped = [], [], [], [], []
     for k in range(profiles.shape[0]):
         try:
-            c = detect_corners(profiles[k], n, params, nominal.name)
+            c = detect_corners(profiles[k], nominal, params)
             est = solve_pose(c, nominal, method="mle", mounting=mounting)
         except PosekitError as exc:
             skipped.append((k, str(exc)))
