@@ -24,7 +24,8 @@ from posekit.profiler.estimate.evaluate import pose_errors
 from posekit.profiler.estimate.sensor import sample_poses, visible_mask
 from posekit.profiler.stream.protocol import MAGIC, MAX_POINTS, encode_frame
 from posekit.profiler.stream.server import PoseServer, check_address, parse_address
-from posekit.profiler.stream.stream_client import RobotInterfaceStub, SensorClient
+from posekit.profiler.stream.stream_client import SensorClient
+from tests.profiler.server_helpers import wait_until
 
 SOAK_RATE_HZ = 1000.0
 SOAK_SECONDS = 10.0
@@ -67,21 +68,6 @@ def random_profiles(gauge):
     return Ts, render_profiles(gauge, Ts, NoiseModel(), rng=9)
 
 
-@pytest.fixture
-def stub():
-    s = RobotInterfaceStub()
-    s.start()
-    yield s
-    s.stop()
-
-
-def _wait(predicate, timeout_s=WAIT_S):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 def _idle(server, expected_received, timeout_s=WAIT_S):
@@ -90,7 +76,7 @@ def _idle(server, expected_received, timeout_s=WAIT_S):
         s = server.stats()
         settled = s["processed"] + s["dropped"] + s["reasons"]["nan_storm"]
         return s["received"] >= expected_received and settled == s["received"] and s["queued"] == 0
-    return _wait(done, timeout_s)
+    return wait_until(done, timeout_s)
 
 
 def _check_pose(rec, T_true, k_sigma=5.0):
@@ -245,7 +231,7 @@ def test_malformed_frames_are_counted_and_good_ones_processed(gauge, random_prof
                     client = SensorClient(host, port)
                     connections += 1
             client.close()
-            assert _wait(lambda: server.stats()["disconnects"] == connections)
+            assert wait_until(lambda: server.stats()["disconnects"] == connections)
             assert _idle(server, n_good + n_storm)
             assert stub.wait_for(n_good + n_storm, WAIT_S)
             assert server.running
@@ -308,12 +294,12 @@ def test_disconnect_mid_frame_then_next_client(gauge, random_profiles, stub):
         second = SensorClient(host, port)          # served beside the first one
         assert _idle(server, 3)
         first.close()
-        assert _wait(lambda: server.stats()["disconnects"] == 1)
+        assert wait_until(lambda: server.stats()["disconnects"] == 1)
         for k in range(100, 105):
             second.send_profile(k, profiles[k % len(profiles)])
         assert stub.wait_for(8, WAIT_S)
         second.close()
-        assert _wait(lambda: server.stats()["disconnects"] == 2)
+        assert wait_until(lambda: server.stats()["disconnects"] == 2)
     finally:
         server.stop()
     st = server.stats()
@@ -332,7 +318,7 @@ def test_robot_reconnects_after_a_drop(gauge, loop_profiles, stub):
                 c.send_profile(k, profiles[k])
             assert stub.wait_for(5, WAIT_S)
             stub.drop_connection()
-            assert _wait(lambda: stub.connections == 1 and not stub.connected, 2.0)
+            assert wait_until(lambda: stub.connections == 1 and not stub.connected, 2.0)
             k = 5
             deadline = time.monotonic() + WAIT_S       # keep streaming until records flow again
             while stub.connections < 2 or not any(r["seq"] >= 5 for r in stub.records):
@@ -366,7 +352,7 @@ def test_slow_controller_drops_the_oldest_frames(gauge, loop_profiles, stub):
             for k in range(n):
                 c.send_profile(k, profiles[k % len(profiles)])
             # The receiver read every frame while the worker was still busy with the first ones.
-            assert _wait(lambda: server.stats()["received"] == n, 5.0)
+            assert wait_until(lambda: server.stats()["received"] == n, 5.0)
             behind = server.stats()["processed"]
             assert behind < n // 2
             assert _idle(server, n)

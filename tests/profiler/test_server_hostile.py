@@ -28,7 +28,8 @@ from posekit.profiler.stream.protocol import (
     encode_hello,
 )
 from posekit.profiler.stream.server import PoseServer, read_token_file
-from posekit.profiler.stream.stream_client import RobotInterfaceStub, SensorClient
+from posekit.profiler.stream.stream_client import SensorClient
+from tests.profiler.server_helpers import wait_until
 
 SERVE_WITHIN_S = 1.0           # a new sensor's first record, with a stalled client connected
 IDLE_S = 2.5                   # the timeouts of these tests (the defaults are 30 s and 2 s)
@@ -48,21 +49,6 @@ def profiles(gauge):
     return render_profiles(gauge, T, NoiseModel(), rng=3)
 
 
-@pytest.fixture
-def stub():
-    s = RobotInterfaceStub()
-    s.start()
-    yield s
-    s.stop()
-
-
-def _wait(predicate, timeout_s=WAIT_S):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 class _Stalled:
@@ -136,7 +122,7 @@ def test_a_stalled_client_does_not_block_a_new_sensor(gauge, profiles, stub, cap
     stalled = _Stalled(kind, (host, port), encode_frame(99, time.perf_counter_ns(), profiles[0]))
     try:
         with caplog.at_level(logging.INFO, logger="posekit.server"):
-            assert _wait(lambda: server.stats()["connected"] == 1)
+            assert wait_until(lambda: server.stats()["connected"] == 1)
             time.sleep(0.3)                            # the stalled client has begun stalling
             with SensorClient(host, port) as good:
                 delay = _first_record_delay(stub, good, profiles[1])
@@ -149,7 +135,7 @@ def test_a_stalled_client_does_not_block_a_new_sensor(gauge, profiles, stub, cap
                 assert stub.wait_for(5, WAIT_S)
             # ... and the stalled one is closed by its timeout, logged once.
             assert stalled.closed_by_server(IDLE_S + 3.0)
-            assert _wait(lambda: server.stats()["timeouts"] == 1)
+            assert wait_until(lambda: server.stats()["timeouts"] == 1)
     finally:
         stalled.close()
         server.stop()
@@ -168,7 +154,7 @@ def test_many_stalled_clients_are_evicted_for_a_new_one(gauge, profiles, stub):
     host, port = server.start()
     stalled = [_Stalled("silent", (host, port), b"") for _ in range(6)]
     try:
-        assert _wait(lambda: server.stats()["connections"] == 6)
+        assert wait_until(lambda: server.stats()["connections"] == 6)
         with SensorClient(host, port) as good:
             assert _first_record_delay(stub, good, profiles[0]) <= SERVE_WITHIN_S
             st = server.stats()
@@ -224,7 +210,7 @@ def test_token_good_bad_missing(gauge, profiles, stub, caplog):
                 except OSError:
                     pass
                 refused.append(bad)
-            assert _wait(lambda: server.stats()["auth_failures"] == 4)
+            assert wait_until(lambda: server.stats()["auth_failures"] == 4)
             for bad in refused:
                 bad._sock.settimeout(2.0)
                 try:
@@ -235,7 +221,7 @@ def test_token_good_bad_missing(gauge, profiles, stub, caplog):
             # a malformed hello and a hello that never completes are refused too
             raw = socket.create_connection((host, port), timeout=2.0)
             raw.sendall(HELLO_HEADER.pack(HELLO_MAGIC, 1, 0, 10**9))
-            assert _wait(lambda: server.stats()["auth_failures"] == 5)
+            assert wait_until(lambda: server.stats()["auth_failures"] == 5)
             raw.close()
             slow = _Stalled("hello_trickle", (host, port), b"")
             assert slow.closed_by_server(READ_S + 3.0)
@@ -337,7 +323,7 @@ def test_wild_stamps_keep_dt_sane(gauge, profiles):
                 else:
                     wild += 1
                 c.send_profile(k, profiles[k % len(profiles)], t_sensor_ns=stamp)
-        assert _wait(lambda: server.stats()["processed"] == n)
+        assert wait_until(lambda: server.stats()["processed"] == n)
     finally:
         server.stop()
     wall_ms = (time.perf_counter_ns() - t_start) * 1e-6
