@@ -10,24 +10,9 @@ import pytest
 
 from posekit.ceiling.calibration import MAX_POINTS, calibrate, read_points_csv
 from posekit.cli._flags import bounded_float, bounded_int, check_flags, check_range
-from posekit.cli.main import build_parser, main
+from posekit.cli.main import build_parser
 from posekit.errors import CalibrationError, ConfigError
-
-
-def _run(capsys, *argv):
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def _one_line_error(rc, out, err, *needles):
-    assert rc == 1, err
-    assert out == ""
-    assert err.startswith("posekit: error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err and "internal error" not in err, err
-    for needle in needles:
-        assert needle in err, f"{needle!r} not in {err!r}"
-
+from tests.cli_helpers import assert_one_line_error, run_cli
 
 # --------------------------------------------------------------------------- the helper
 
@@ -68,7 +53,7 @@ def test_bounded_types_parse_in_range_and_mark_the_rest():
 
 
 def test_text_that_is_no_number_is_a_usage_error(capsys, tmp_path):
-    rc, _, err = _run(capsys, "seam", "simulate", "--particles", "many", "--out", tmp_path / "o")
+    rc, _, err = run_cli(capsys, "seam", "simulate", "--particles", "many", "--out", tmp_path / "o")
     assert rc == 2 and "argument --particles: expected an integer in 1..1000000, got 'many'" in err
     assert not (tmp_path / "o").exists()
 
@@ -145,9 +130,9 @@ def test_a_flag_out_of_its_range_is_one_line_exit_1_and_nothing_written(capsys, 
     out = tmp_path / "out"
     base = [a.format(out=out, tmp=tmp_path) for a in BASE[path]]
     lo, hi, unit = kind.bounds
-    rc, stdout, err = _run(capsys, *path, *base, flag, "1e30")
+    rc, stdout, err = run_cli(capsys, *path, *base, flag, "1e30")
     assert err == f"posekit: error: {flag}: {kind('1e30').message}\n"
-    _one_line_error(rc, stdout, err, "expected", "got 1e30", unit)
+    assert_one_line_error(rc, stdout, err, "expected", "got 1e30", unit)
     assert sorted(p.name for p in tmp_path.iterdir()) == []          # no output, no temporary folder
 
 
@@ -173,10 +158,10 @@ def points_csv(tmp_path):
 ])
 def test_calibrate_flags_that_crashed(capsys, tmp_path, points_csv, flags, needles):
     cal = tmp_path / "cal.json"
-    assert _run(capsys, "ceiling", "calibrate", points_csv, "--out", cal)[0] == 0       # the points are good
+    assert run_cli(capsys, "ceiling", "calibrate", points_csv, "--out", cal)[0] == 0       # the points are good
     cal.unlink()
-    rc, out, err = _run(capsys, "ceiling", "calibrate", points_csv, "--out", cal, *flags)
-    _one_line_error(rc, out, err, *needles)
+    rc, out, err = run_cli(capsys, "ceiling", "calibrate", points_csv, "--out", cal, *flags)
+    assert_one_line_error(rc, out, err, *needles)
     assert not cal.exists()
 
 
@@ -185,13 +170,13 @@ def test_calibrate_100000_duplicated_points_is_one_line(capsys, tmp_path, points
     big = tmp_path / "big.csv"
     big.write_text("\n".join([rows[0], *(rows[1 + k % (len(rows) - 1)] for k in range(100_000))]) + "\n")
     cal = tmp_path / "cal.json"
-    rc, out, err = _run(capsys, "ceiling", "calibrate", big, "--out", cal)
-    _one_line_error(rc, out, err, str(big), f"line {MAX_POINTS + 2}", f"more than {MAX_POINTS} calibration points")
+    rc, out, err = run_cli(capsys, "ceiling", "calibrate", big, "--out", cal)
+    assert_one_line_error(rc, out, err, str(big), f"line {MAX_POINTS + 2}", f"more than {MAX_POINTS} calibration points")
     assert not cal.exists()
     few = tmp_path / "few.csv"                                     # within the limit: the first repeat is named
     few.write_text("\n".join([rows[0], *(rows[1 + k % (len(rows) - 1)] for k in range(5_000))]) + "\n")
-    rc, out, err = _run(capsys, "ceiling", "calibrate", few, "--out", cal)
-    _one_line_error(rc, out, err, f"{few} line 22: world point X=0, Y=0 repeats line 2; expected each ceiling "
+    rc, out, err = run_cli(capsys, "ceiling", "calibrate", few, "--out", cal)
+    assert_one_line_error(rc, out, err, f"{few} line 22: world point X=0, Y=0 repeats line 2; expected each ceiling "
                                   "point once")
     assert not cal.exists()
 
@@ -250,6 +235,6 @@ def test_flags_that_together_would_be_absurd(capsys, tmp_path, argv, needles):
     if argv[:2] == ["ceiling", "calibrate"]:
         (tmp_path / "p.csv").write_text("X,Y,u,v\n0,0,0,0\n1,0,1,0\n0,1,0,1\n1,1,1,1\n")
         argv = [a if a not in ("p.csv",) else str(tmp_path / a) for a in argv]
-    rc, stdout, err = _run(capsys, *argv, "--out", out)
-    _one_line_error(rc, stdout, err, *needles)
+    rc, stdout, err = run_cli(capsys, *argv, "--out", out)
+    assert_one_line_error(rc, stdout, err, *needles)
     assert not out.exists()

@@ -16,7 +16,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel
 
-from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.seam.config import (
     MAX_PARTICLE_STEPS,
@@ -29,23 +28,11 @@ from posekit.seam.config import (
     load_config,
 )
 from posekit.seam.trajectories import SEAM_SPACING_MM
+from tests.cli_helpers import assert_one_line_error, run_cli
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "seam" / "default.yaml"
 
 
-def _run(capsys, *argv):
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def _one_line_error(rc, out, err, *needles):
-    assert rc == 1, err
-    assert out == ""
-    assert err.startswith("posekit: error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err and "internal error" not in err, err
-    for needle in needles:
-        assert needle in err, f"{needle!r} not in {err!r}"
 
 
 # --------------------------------------------------------------------------- the crashes of issue 11
@@ -74,9 +61,9 @@ def test_values_that_crashed_the_run_are_one_line_errors(capsys, tmp_path, secti
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text(f"{section}:\n  {key}: {value}\n")
     out = tmp_path / "out"
-    rc, stdout, err = _run(capsys, "seam", "simulate", "--config", cfg, "--steps", 20, "--particles", 20,
+    rc, stdout, err = run_cli(capsys, "seam", "simulate", "--config", cfg, "--steps", 20, "--particles", 20,
                            "--out", out)
-    _one_line_error(rc, stdout, err, str(cfg), *needles)
+    assert_one_line_error(rc, stdout, err, str(cfg), *needles)
     assert not out.exists()
     assert list(tmp_path.iterdir()) == [cfg]                     # no temporary folder left either
 
@@ -105,7 +92,7 @@ def test_yaml_booleans_are_never_numbers(tmp_path, key, yaml_value):
 
 def test_the_example_file_and_dump_config_still_load(capsys, tmp_path):
     assert load_config(EXAMPLE) == load_config(EXAMPLE)
-    rc, out, err = _run(capsys, "seam", "simulate", "--config", EXAMPLE, "--dump-config")
+    rc, out, err = run_cli(capsys, "seam", "simulate", "--config", EXAMPLE, "--dump-config")
     assert rc == 0 and err == ""
     dumped = tmp_path / "dumped.yaml"
     dumped.write_text(out)

@@ -148,7 +148,8 @@ def load_npz_member(path, name: str, *, error=InputFileError) -> np.ndarray | No
                 shape, fortran, dtype = _read_header(fh, source, error)
                 _check_size(shape, dtype, source, error, "the array")
                 return _read_body(fh, shape, fortran, dtype, source, error)
-        except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, NotImplementedError, RuntimeError) as exc:
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, RuntimeError) as exc:
+            # (the compression method and the encryption flag were checked above)
             raise error(f"{source}: cannot be decompressed ({type(exc).__name__}: {str(exc)[:60]})") from None
         except Exception as exc:  # zlib.error and friends from a corrupt stream
             if isinstance(exc, error):
