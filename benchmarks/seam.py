@@ -44,10 +44,10 @@ class Scenario:
     """
 
     def __init__(self, cfg, steps: int, seed: int = 0):
-        from posekit.seam.filter import StepInputs
-        from posekit.seam.seamline import SeamLine
-        from posekit.seam.simulate import seam_knots
-        from posekit.seam.trajectories import nominal_trajectory
+        from posekit.seam.engine.filter import StepInputs
+        from posekit.seam.engine.seamline import SeamLine
+        from posekit.seam.frontend.simulate import seam_knots
+        from posekit.seam.frontend.trajectories import nominal_trajectory
 
         rng = np.random.default_rng(seed)
         nom = nominal_trajectory(cfg.trajectory, cfg.robot)
@@ -79,13 +79,13 @@ class UserStepFilter:
     """The same filter step written with scipy ``Rotation`` objects and filterpy's resampling.
 
     State: ``R`` (a ``Rotation`` of N orientations) and ``p`` (N, 3) positions, mm. The
-    densities are those of :mod:`posekit.seam.densities` (eq. 3, 8, 9), written out here.
+    densities are those of :mod:`posekit.seam.engine.densities` (eq. 3, 8, 9), written out here.
     """
 
     def __init__(self, cfg, polyline, T_init, seed=0):
         from scipy.spatial.transform import Rotation
 
-        from posekit.seam.trajectories import tool_chain
+        from posekit.seam.frontend.trajectories import tool_chain
 
         self.Rotation = Rotation
         self.cfg = cfg
@@ -210,7 +210,7 @@ def bench_config(particles: int, *, shipped: bool = False, steps: int | None = N
     both sides run the same algorithm at its worst case; ``shipped``: the filter's own
     defaults (resampling below half the particles, tempered update when the ESS collapses).
     ``steps``: trajectory samples (default: the configuration's 500)."""
-    from posekit.seam.config import apply_overrides, config_from_dict
+    from posekit.seam.frontend.config import apply_overrides, config_from_dict
     over = {"filter.particles": int(particles), "trajectory.steps": steps}
     if not shipped:
         over.update({"filter.ess_threshold": 1.0, "filter.anneal_stages": 0})
@@ -241,7 +241,7 @@ def run(count=None, verbose=True, sizes=SIZES):
     ``count``: filter steps timed per particle count (default 300; the peer at N = 10,000 runs
     at most 100 of them). ``sizes``: the particle counts.
     """
-    from posekit.seam.filter import SeamParticleFilter
+    from posekit.seam.engine.filter import SeamParticleFilter
 
     steps = DEFAULT_STEPS if count is None else max(int(count), 3)
     rows = []

@@ -104,7 +104,7 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
     import importlib
 
     import posekit.ceiling.detect as detect
-    import posekit.localcal.camera as camera
+    import posekit.localcal.sim.camera as camera
 
     importlib.reload(detect)  # the module-level name is a lazy stand-in: importing works
     importlib.reload(camera)

@@ -8,7 +8,7 @@ shifted by an offset, with mm-level noise and gross position outliers.
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from posekit.localcal.tum import Trajectory
+from posekit.localcal.registration.tum import Trajectory
 
 
 def random_transform(rng, origin_mm=(0.0, 0.0, 0.0), *, t_scale_mm=200.0):

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError, GeometryError
-from posekit.localcal._arm_kernel import simulate_moves
-from posekit.localcal.arm import (
+from posekit.localcal.sim._arm_kernel import simulate_moves
+from posekit.localcal.sim.arm import (
     DEFAULT_Q0,
     LongReachArm,
     NonKinematicErrors,

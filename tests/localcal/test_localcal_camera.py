@@ -5,7 +5,7 @@ import pytest
 
 from posekit.errors import ConfigError, GeometryError, InputFileError
 from posekit.geometry import matrix_from_rotation_vector, rotation_angle_between
-from posekit.localcal.camera import (
+from posekit.localcal.sim.camera import (
     MarkerDetector,
     marker_corners,
     render_markers,

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError, EstimationError
-from posekit.localcal.episode import EpisodeConfig, run_episode
-from posekit.localcal.experiments import run_experiment, table_columns
+from posekit.localcal.sim.episode import EpisodeConfig, run_episode
+from posekit.localcal.sim.experiments import run_experiment, table_columns
 
 FAST = EpisodeConfig(camera_hz=2.0, plot_hz=0.0)
 # the OOI is hidden while the calibration path runs: the trajectory method does not need it

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from posekit.cli.main import main
-from posekit.localcal.alignment import umeyama
-from posekit.localcal.association import associate
-from posekit.localcal.tum import Trajectory, read_tum, write_tum
+from posekit.localcal.registration.alignment import umeyama
+from posekit.localcal.registration.association import associate
+from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
 from tests.localcal.synth_trajectories import (
     asymmetric_planar_path,
     make_pair,

@@ -11,19 +11,19 @@ from posekit.geometry import (
     rotation_angle_between,
     transform_from,
 )
-from posekit.localcal.line_method import (
+from posekit.localcal.methods.line_method import (
     circle_path,
     line_range_adjustment,
     line_reference,
     planar_distance_error,
 )
-from posekit.localcal.orientation import (
+from posekit.localcal.methods.orientation import (
     orientation_reference,
     rotation_difference,
     rotation_errors_deg,
 )
-from posekit.localcal.trajectory_method import asymmetric_path, trajectory_reference
-from posekit.localcal.vo import simulate_vo
+from posekit.localcal.methods.trajectory_method import asymmetric_path, trajectory_reference
+from posekit.localcal.sim.vo import simulate_vo
 
 # A TCP pose in the base frame, a camera mount (camera z along -z_F, like a camera looking out
 # along the torsion axis) and a tool marker in front of the camera, facing it.
@@ -266,8 +266,8 @@ def test_simulated_vo_rejects_too_few_poses():
 def test_calibration_from_tum_files_recovers_the_camera_rotation(tmp_path):
     """VO (noise, no drift) written to / read from TUM files (metres, qx qy qz qw) gives R_B_W
     within 0.2 degrees."""
-    from posekit.localcal.trajectory_method import calibrate_trajectories
-    from posekit.localcal.tum import Trajectory, write_tum
+    from posekit.localcal.methods.trajectory_method import calibrate_trajectories
+    from posekit.localcal.registration.tum import Trajectory, write_tum
 
     T_B_C, t = _camera_path(600)
     vo = simulate_vo(T_B_C, t, 3, stride=2, drift_mm_per_sqrt_m=0.0, drift_rad_per_sqrt_m=0.0)
@@ -283,8 +283,8 @@ def test_calibration_from_tum_files_recovers_the_camera_rotation(tmp_path):
 
 
 def test_calibration_of_a_straight_line_is_an_error():
-    from posekit.localcal.trajectory_method import calibrate_trajectories
-    from posekit.localcal.tum import Trajectory
+    from posekit.localcal.methods.trajectory_method import calibrate_trajectories
+    from posekit.localcal.registration.tum import Trajectory
 
     T = np.broadcast_to(T_B_F, (50, 4, 4)).copy()
     T[:, :3, 3] += np.linspace(0.0, 400.0, 50)[:, None] * T_B_F[:3, 0]

@@ -5,9 +5,9 @@ import pytest
 
 from posekit.errors import ConfigError, GeometryError
 from posekit.geometry import rotation_angle_between
-from posekit.localcal.arm import LongReachArm
-from posekit.localcal.camera import MarkerDetector, zed2_720p
-from posekit.localcal.scene import (
+from posekit.localcal.sim.arm import LongReachArm
+from posekit.localcal.sim.camera import MarkerDetector, zed2_720p
+from posekit.localcal.sim.scene import (
     Workcell,
     default_workcell,
     ground_truth_errors,

@@ -103,7 +103,7 @@ def test_an_unwritable_out_fails_before_any_run(tmp_path, capsys, verb):
 def test_a_failed_run_keeps_its_row_in_the_written_tables(tmp_path, capsys, monkeypatch):
     """Batch contract: run 1 fails, run 2 succeeds; both have a row, the mean is the good run's."""
     from posekit.errors import EstimationError
-    from posekit.localcal import experiments
+    from posekit.localcal.sim import experiments
 
     real = experiments.run_episode
     calls = []

@@ -9,7 +9,7 @@ from pytransform3d.rotations import (
 )
 
 from posekit.errors import InputFileError, TrajectoryError
-from posekit.localcal.tum import Trajectory, read_tum, write_tum
+from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
 FR1_SLAM = DATA / "freiburg1_xyz-rgbdslam.txt"

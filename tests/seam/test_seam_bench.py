@@ -31,8 +31,8 @@ def scenario(bench):
 def test_peer_step_equals_posekit_step(bench, scenario):
     """Zero transition noise, no resampling, no tempering: from the same particles both filters give the same
     log-weights, ESS, mean position and (up to chordal vs quaternion mean) mean rotation."""
-    from posekit.seam.config import apply_overrides
-    from posekit.seam.filter import SeamParticleFilter
+    from posekit.seam.engine.filter import SeamParticleFilter
+    from posekit.seam.frontend.config import apply_overrides
 
     cfg = apply_overrides(bench.bench_config(64, steps=60), {"filter.sigma_t_mm": 0.0, "filter.sigma_r_deg": 0.0,
                                                    "filter.k_force_t": 0.0, "filter.k_force_r": 0.0,

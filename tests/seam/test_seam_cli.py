@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from posekit.cli.main import main
-from posekit.seam.report import ERROR_AXES, read_estimates_csv
+from posekit.seam.frontend.report import ERROR_AXES, read_estimates_csv
 
 TINY = ["--steps", "25", "--particles", "60"]
 
@@ -186,8 +186,8 @@ def test_simulate_writes_figures_and_report(simulated, capsys):
 
 def test_simulate_same_seed_same_numbers(simulated, tiny_config, capsys):
     """The CSV holds the episodes of seeds task_seed(5, r): rerunning them gives the same numbers."""
-    from posekit.seam.compare import run_episodes
-    from posekit.seam.config import apply_overrides, load_config
+    from posekit.seam.frontend.compare import run_episodes
+    from posekit.seam.frontend.config import apply_overrides, load_config
     cfg = apply_overrides(load_config(tiny_config), {"filter.particles": 60})
     again = run_episodes(cfg, 2)
     c = read_estimates_csv(simulated / "estimates.csv")
@@ -225,7 +225,7 @@ EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples" / "seam").gl
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
 def test_example_configs_load_and_dump(capsys, path):
     """Every bundled example config loads through the CLI and --dump-config gives it back."""
-    from posekit.seam.config import config_from_dict, load_config
+    from posekit.seam.frontend.config import config_from_dict, load_config
     rc, out, err = _run(capsys, "seam", "simulate", "--config", str(path), "--dump-config")
     assert rc == 0 and err == ""
     assert config_from_dict(yaml.safe_load(out)) == load_config(path)
@@ -244,5 +244,5 @@ def test_rmse_table_fixed_decimals():
 
 def test_cli_trajectory_choices_are_the_config_kinds():
     from posekit.cli.seam_simulate import TRAJECTORIES
-    from posekit.seam.config import TRAJECTORY_KINDS
+    from posekit.seam.frontend.config import TRAJECTORY_KINDS
     assert TRAJECTORIES == TRAJECTORY_KINDS

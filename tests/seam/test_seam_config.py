@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from posekit.errors import ConfigError
-from posekit.seam.config import (
+from posekit.seam.frontend.config import (
     SeamConfig,
     apply_overrides,
     config_from_dict,

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from pydantic import BaseModel
 
 from posekit.errors import ConfigError
-from posekit.seam.config import (
+from posekit.seam.frontend.config import (
     MAX_PARTICLE_STEPS,
     MAX_PARTICLES,
     MAX_STEP_SEAM_POINTS,
@@ -27,7 +27,7 @@ from posekit.seam.config import (
     config_from_dict,
     load_config,
 )
-from posekit.seam.trajectories import SEAM_SPACING_MM
+from posekit.seam.frontend.trajectories import SEAM_SPACING_MM
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "seam" / "default.yaml"

@@ -7,7 +7,7 @@ from scipy.stats import multivariate_normal, norm
 
 from posekit.geometry import rotation_vector_from_matrix, se3_exp
 from posekit.robots import puma560
-from posekit.seam.densities import (
+from posekit.seam.engine.densities import (
     angle_loglik,
     ball_volume,
     joint_compliance,
@@ -18,7 +18,7 @@ from posekit.seam.densities import (
     robot_measurement,
     transition,
 )
-from posekit.seam.seamline import SeamLine
+from posekit.seam.engine.seamline import SeamLine
 
 
 @pytest.mark.parametrize("d, sigma", [(0.0, 1.0), (1.0, 0.5), (3.0, 2.0), (0.2, 0.01)])

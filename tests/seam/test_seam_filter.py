@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from posekit.geometry import rotation_vector_from_matrix, se3_exp
-from posekit.seam.config import config_from_dict
-from posekit.seam.filter import SeamParticleFilter, StepInputs
-from posekit.seam.seamline import SeamLine
-from posekit.seam.trajectories import nominal_trajectory
+from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.trajectories import nominal_trajectory
 
 STEPS = 60
 #: The true tool sits at this constant offset from the nominal pose (tool frame): x, y, z mm, rx, ry, rz rad.

@@ -10,8 +10,8 @@
 import numpy as np
 import pytest
 
-from posekit.seam.config import config_from_dict
-from posekit.seam.simulate import run_episode
+from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.simulate import run_episode
 
 STEPS = 200
 SEEDS = (1, 2)

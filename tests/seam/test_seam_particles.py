@@ -11,7 +11,7 @@ from posekit.geometry import (
     rotation_vector_from_matrix,
     se3_exp,
 )
-from posekit.seam.particles import (
+from posekit.seam.engine.particles import (
     RESAMPLERS,
     effective_sample_size,
     normalize_log_weights,

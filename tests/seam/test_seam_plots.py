@@ -1,4 +1,4 @@
-"""Figures and report files of the seam front end (posekit.seam.plots / posekit.seam.report).
+"""Figures and report files of the seam front end (posekit.seam.frontend.plots / posekit.seam.frontend.report).
 
 Synthetic arrays in the EpisodeResult shapes; the figures must be real PNGs of the expected
 pixel size with content, and the histogram behind Fig. 5 must put the particles where they are.
@@ -13,7 +13,7 @@ import pytest
 
 from posekit.errors import ConfigError
 from posekit.geometry import se3_exp
-from posekit.seam.plots import (
+from posekit.seam.frontend.plots import (
     particle_histogram,
     plot_error_distributions,
     plot_errors_over_time,
@@ -22,7 +22,7 @@ from posekit.seam.plots import (
     plot_trajectories,
     positions_in_frame,
 )
-from posekit.seam.report import (
+from posekit.seam.frontend.report import (
     ESTIMATE_COLUMNS,
     html_figure,
     html_table,
@@ -154,8 +154,8 @@ def test_html_report_embeds_figures(tmp_path):
 
 def test_simulation_report_with_comparison(tmp_path):
     """write_simulation with a Fig. 8 grid: metrics.json gains 'comparison', Fig. 9 shows xy and yz."""
-    from posekit.seam.compare import ConfigurationSet
-    from posekit.seam.report import write_simulation
+    from posekit.seam.frontend.compare import ConfigurationSet
+    from posekit.seam.frontend.report import write_simulation
 
     rng = np.random.default_rng(4)
 

@@ -12,7 +12,7 @@ import yaml
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.seam import config_from_dict, load_config
-from posekit.seam.trajectories import nominal_trajectory, tool_chain
+from posekit.seam.frontend.trajectories import nominal_trajectory, tool_chain
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

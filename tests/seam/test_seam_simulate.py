@@ -4,10 +4,10 @@
 import numpy as np
 import pytest
 
-from posekit.seam.config import config_from_dict
-from posekit.seam.seamline import SeamLine
-from posekit.seam.simulate import metrics, run_episode, seam_knots, simulate_data
-from posekit.seam.trajectories import nominal_trajectory
+from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.simulate import metrics, run_episode, seam_knots, simulate_data
+from posekit.seam.frontend.trajectories import nominal_trajectory
 
 SMALL = {"steps": 100}
 

@@ -1,4 +1,4 @@
-"""Tuning study (posekit.seam.study): OLS effects against a hand-rolled t-test, ranking, factors,
+"""Tuning study (posekit.seam.frontend.study): OLS effects against a hand-rolled t-test, ranking, factors,
 and a tiny end-to-end study that gives the same table in one process and on a 2-worker cluster."""
 
 import csv
@@ -8,7 +8,7 @@ import pytest
 from scipy import stats
 
 from posekit.errors import ConfigError, EstimationError
-from posekit.seam.study import (
+from posekit.seam.frontend.study import (
     ERROR_NAMES,
     RANKED_COLUMNS,
     Factor,
@@ -120,8 +120,8 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
     from distributed import Client, LocalCluster
 
     from posekit.cli.main import main
-    from posekit.seam.config import config_from_dict
-    from posekit.seam.study import seam_study, write_study
+    from posekit.seam.frontend.config import config_from_dict
+    from posekit.seam.frontend.study import seam_study, write_study
     from tests.seam.test_seam_plots import png_size
 
     cfg = tmp_path / "tiny.yaml"
@@ -167,7 +167,7 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     import yaml
 
     from posekit.cli.main import main
-    from posekit.seam import simulate
+    from posekit.seam.frontend import simulate
 
     real = simulate.run_episode
     calls = []
@@ -198,8 +198,8 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
 
 def test_integer_parameters_take_whole_values():
     """A factor on an integer key (the particle count) draws whole numbers, so its runs are valid."""
-    from posekit.seam.config import config_from_dict
-    from posekit.seam.study import seam_study
+    from posekit.seam.frontend.config import config_from_dict
+    from posekit.seam.frontend.study import seam_study
 
     study = seam_study(config_from_dict(TINY), runs=3, factors=[Factor("filter.particles", 20.0, 40.0)], seed=1,
                        scheduler="serial")

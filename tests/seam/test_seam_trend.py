@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from posekit.errors import EstimationError
-from posekit.seam.trend import trend_filter
+from posekit.seam.engine.trend import trend_filter
 
 CORNERS = [0, 30, 45, 60, 99]
 

@@ -6,7 +6,7 @@ cvxpy is not a dependency of posekit (the ``test`` extra brings it); without it 
 import numpy as np
 import pytest
 
-from posekit.seam.trend import trend_filter
+from posekit.seam.engine.trend import trend_filter
 
 cp = pytest.importorskip("cvxpy")
 

@@ -40,8 +40,8 @@ def run_match(args) -> int:
     import numpy as np
 
     from ..geometry import rotation_angle_between
-    from ..localcal.registration import match_trajectories
-    from ..localcal.tum import read_tum
+    from ..localcal.registration.match import match_trajectories
+    from ..localcal.registration.tum import read_tum
 
     check_flags(args)
     src = read_tum(args.camera)

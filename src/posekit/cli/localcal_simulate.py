@@ -85,7 +85,7 @@ def _camera_options(s):
 def _config(args, **extra):
     import math
 
-    from ..localcal.episode import EpisodeConfig
+    from ..localcal.sim.episode import EpisodeConfig
     if not (math.isfinite(args.camera_hz) and args.camera_hz > 0):
         raise ConfigError(f"--camera-hz: expected a rate > 0, got {args.camera_hz:g}")
     if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
@@ -163,9 +163,9 @@ def _workers(args):
 
 def run_simulate(args) -> int:
     """Run ``posekit localcal simulate``; the exit code is 0 if every run succeeded, else 1."""
-    from ..localcal.episode import METHODS, OCCLUSIONS
-    from ..localcal.experiments import run_experiment
     from ..localcal.plots import tables_text
+    from ..localcal.sim.episode import METHODS, OCCLUSIONS
+    from ..localcal.sim.experiments import run_experiment
 
     if args.method not in METHODS:
         raise ConfigError(f"--method: expected one of {' | '.join(METHODS)}, got '{args.method}'")
@@ -199,8 +199,8 @@ def run_demo(args) -> int:
     """Run ``posekit localcal demo``; the exit code is 0 (a failed episode is a one-line error)."""
     from pathlib import Path
 
-    from ..localcal.experiments import run_experiment
     from ..localcal.plots import tables_text
+    from ..localcal.sim.experiments import run_experiment
 
     if args.seed < 0:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")

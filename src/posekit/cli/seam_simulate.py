@@ -14,12 +14,12 @@ from ._flags import bounded_int, check_flags, seed
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
 
-#: The trajectory kinds (``posekit.seam.config.TRAJECTORY_KINDS``, not imported here: the parser stays light).
+#: The trajectory kinds (``posekit.seam.frontend.config.TRAJECTORY_KINDS``, not imported here: the parser stays light).
 TRAJECTORIES = ("xy", "yz", "line", "bend")
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
 DEMO_STEPS = 300
 DEMO_PARTICLES = 300
-#: ``posekit.seam.config.MAX_STEPS`` / ``MAX_PARTICLES`` (not imported: the parser stays light; a test
+#: ``posekit.seam.frontend.config.MAX_STEPS`` / ``MAX_PARTICLES`` (not imported: the parser stays light; a test
 #: keeps them equal). The configuration also bounds steps × particles and steps × seam points.
 MAX_STEPS, MAX_PARTICLES = 100_000, 1_000_000
 #: Most Monte-Carlo episodes of one command.
@@ -110,9 +110,9 @@ def add_demo_parser(verbs):
 
 
 def build_config(args):
-    """The effective :class:`~posekit.seam.config.SeamConfig`: defaults < ``--config`` < flags."""
-    from ..seam.compare import with_sensors
-    from ..seam.config import apply_overrides, config_from_dict, load_config
+    """The effective :class:`~posekit.seam.frontend.config.SeamConfig`: defaults < ``--config`` < flags."""
+    from ..seam.frontend.compare import with_sensors
+    from ..seam.frontend.config import apply_overrides, config_from_dict, load_config
 
     cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
@@ -154,7 +154,7 @@ def _record_count(args, steps: int) -> int:
 
 
 def run_simulate(args) -> int:
-    from ..seam.config import dump_config
+    from ..seam.frontend.config import dump_config
 
     cfg = build_config(args)
     if args.dump_config:
@@ -169,9 +169,9 @@ def run_simulate(args) -> int:
     _check_kept(args.runs, cfg.trajectory.steps, 6 if args.compare else 1)
     record = _record_count(args, cfg.trajectory.steps)
     out_folder(args)
-    from ..seam.compare import compare_configurations, run_episodes
-    from ..seam.report import write_simulation
-    from ..seam.simulate import metrics
+    from ..seam.frontend.compare import compare_configurations, run_episodes
+    from ..seam.frontend.report import write_simulation
+    from ..seam.frontend.simulate import metrics
 
     results = run_episodes(cfg, args.runs, record_particles=record, progress=progress,
                            desc="episodes")
@@ -196,9 +196,9 @@ def run_simulate(args) -> int:
 
 
 def run_demo(args) -> int:
-    from ..seam.compare import compare_configurations
-    from ..seam.config import apply_overrides, config_from_dict, dump_config
-    from ..seam.report import write_simulation
+    from ..seam.frontend.compare import compare_configurations
+    from ..seam.frontend.config import apply_overrides, config_from_dict, dump_config
+    from ..seam.frontend.report import write_simulation
 
     _check_runs(args.runs)
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),

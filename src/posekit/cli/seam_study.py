@@ -74,8 +74,8 @@ def parse_factors(text: str | None):
 
 
 def run_study(args) -> int:
-    from ..seam.report import ERROR_AXES
-    from ..seam.study import make_factors, seam_study, write_study
+    from ..seam.frontend.report import ERROR_AXES
+    from ..seam.frontend.study import make_factors, seam_study, write_study
     from ._common import out_folder, staged
     from .seam_simulate import build_config
 

@@ -21,39 +21,7 @@ episode, experiments, plots
     ``report.html`` (``plots`` imports matplotlib only when drawing; not re-exported here).
 """
 
-from .arm import (
-    DEFAULT_Q0,
-    ArmLog,
-    LongReachArm,
-    NonKinematicErrors,
-    sample_nonkinematic_errors,
-)
-from .camera import (
-    ARUCO_DICTIONARY,
-    CameraIntrinsics,
-    MarkerDetector,
-    marker_corners,
-    render_markers,
-    zed2_720p,
-)
-from .episode import (
-    METHODS,
-    OCCLUSIONS,
-    START_Q,
-    EpisodeConfig,
-    EpisodeResult,
-    run_episode,
-)
-from .experiments import (
-    PAPER_TABLE2_MEAN,
-    PAPER_TABLE3,
-    PAPER_TABLE4_MEAN,
-    ExperimentResult,
-    format_table,
-    run_experiment,
-    table_columns,
-)
-from .line_method import (
+from .methods.line_method import (
     CIRCLE_POINTS,
     CIRCLE_RADIUS_MM,
     LineAdjustment,
@@ -62,9 +30,50 @@ from .line_method import (
     line_reference,
     planar_distance_error,
 )
-from .orientation import orientation_reference, rotation_difference, rotation_errors_deg
-from .registration import Registration, associate, match_trajectories, umeyama
-from .scene import (
+from .methods.orientation import orientation_reference, rotation_difference, rotation_errors_deg
+from .methods.trajectory_method import (
+    PATH_LENGTHS_MM,
+    PATH_XI_RAD,
+    STANDOFF_MM,
+    asymmetric_path,
+    calibrate_trajectories,
+    trajectory_reference,
+)
+from .registration.match import Registration, associate, match_trajectories, umeyama
+from .registration.tum import Trajectory, read_tum, write_tum
+from .sim.arm import (
+    DEFAULT_Q0,
+    ArmLog,
+    LongReachArm,
+    NonKinematicErrors,
+    sample_nonkinematic_errors,
+)
+from .sim.camera import (
+    ARUCO_DICTIONARY,
+    CameraIntrinsics,
+    MarkerDetector,
+    marker_corners,
+    render_markers,
+    zed2_720p,
+)
+from .sim.episode import (
+    METHODS,
+    OCCLUSIONS,
+    START_Q,
+    EpisodeConfig,
+    EpisodeResult,
+    run_episode,
+)
+from .sim.experiments import (
+    PAPER_TABLE2_MEAN,
+    PAPER_TABLE3,
+    PAPER_TABLE4_MEAN,
+    ExperimentResult,
+    format_table,
+    run_experiment,
+    table_columns,
+)
+from .sim.scene import (
     GroundTruth,
     Observation,
     Workcell,
@@ -74,16 +83,7 @@ from .scene import (
     observe,
     ooi_pose,
 )
-from .trajectory_method import (
-    PATH_LENGTHS_MM,
-    PATH_XI_RAD,
-    STANDOFF_MM,
-    asymmetric_path,
-    calibrate_trajectories,
-    trajectory_reference,
-)
-from .tum import Trajectory, read_tum, write_tum
-from .vo import VONoise, simulate_vo
+from .sim.vo import VONoise, simulate_vo
 
 __all__ = [
     # methods

@@ -16,7 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report import (
+from posekit.localcal.sim.experiments import (
+    PAPER_TABLE2_MEAN,
+    PAPER_TABLE3,
+    PAPER_TABLE4_MEAN,
+    ExperimentResult,
+    format_table,
+    table_columns,
+)
+from posekit.report import (
     html_figure,
     html_table,
     pyplot,
@@ -24,14 +32,6 @@ from ..report import (
     write_csv,
     write_html,
     write_json,
-)
-from .experiments import (
-    PAPER_TABLE2_MEAN,
-    PAPER_TABLE3,
-    PAPER_TABLE4_MEAN,
-    ExperimentResult,
-    format_table,
-    table_columns,
 )
 
 __all__ = [
@@ -187,7 +187,7 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     Parameters
     ----------
     result : ExperimentResult
-        From :func:`posekit.localcal.experiments.run_experiment`.
+        From :func:`posekit.localcal.sim.experiments.run_experiment`.
     out : path
         Output folder (created).
     command : str

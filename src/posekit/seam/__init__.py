@@ -14,7 +14,31 @@ nominal seam frame (translation mm, rotation deg).
 """
 
 # --- engine ------------------------------------------------------------------------------
-from .config import (
+from .engine.densities import (
+    RobotMeasurement,
+    angle_loglik,
+    joint_compliance,
+    laser_loglik,
+    plateau_logpdf,
+    plateau_pdf_1d,
+    robot_loglik,
+    robot_measurement,
+    transition,
+)
+from .engine.filter import SeamParticleFilter, StepEstimate, StepInputs
+from .engine.particles import (
+    RESAMPLERS,
+    effective_sample_size,
+    normalize_log_weights,
+    resample,
+    residual_resample,
+    stratified_resample,
+    systematic_resample,
+    weighted_mean_se3,
+)
+from .engine.seamline import Intersection, SeamLine
+from .engine.trend import TrendResult, trend_filter
+from .frontend.config import (
     RESAMPLER_NAMES,
     TRAJECTORY_KINDS,
     FilterConfig,
@@ -28,30 +52,7 @@ from .config import (
     dump_config,
     load_config,
 )
-from .densities import (
-    RobotMeasurement,
-    angle_loglik,
-    joint_compliance,
-    laser_loglik,
-    plateau_logpdf,
-    plateau_pdf_1d,
-    robot_loglik,
-    robot_measurement,
-    transition,
-)
-from .filter import SeamParticleFilter, StepEstimate, StepInputs
-from .particles import (
-    RESAMPLERS,
-    effective_sample_size,
-    normalize_log_weights,
-    resample,
-    residual_resample,
-    stratified_resample,
-    systematic_resample,
-    weighted_mean_se3,
-)
-from .seamline import Intersection, SeamLine
-from .simulate import (
+from .frontend.simulate import (
     AXES,
     EpisodeResult,
     SimulatedData,
@@ -62,12 +63,11 @@ from .simulate import (
     seam_knots,
     simulate_data,
 )
-from .trajectories import (
+from .frontend.trajectories import (
     NominalTrajectory,
     nominal_trajectory,
     seam_points_T0,
 )
-from .trend import TrendResult, trend_filter
 
 __all__ = [
     "AXES",
@@ -126,7 +126,7 @@ __all__ = [
 ]
 
 # --- front end (figures import matplotlib lazily, inside the functions) --------------------
-from .compare import (
+from .frontend.compare import (
     FIG8_SENSORS,
     FIG8_TRAJECTORIES,
     ConfigurationSet,
@@ -135,7 +135,7 @@ from .compare import (
     run_episodes,
     with_sensors,
 )
-from .plots import (
+from .frontend.plots import (
     AXIS_LABELS,
     particle_histogram,
     plot_error_distributions,
@@ -145,7 +145,7 @@ from .plots import (
     plot_trajectories,
     positions_in_frame,
 )
-from .report import (
+from .frontend.report import (
     ERROR_AXES,
     ERROR_COLUMNS,
     ESTIMATE_COLUMNS,
@@ -158,7 +158,7 @@ from .report import (
     write_json,
     write_simulation,
 )
-from .study import (
+from .frontend.study import (
     DEFAULT_FACTORS,
     ERROR_NAMES,
     RANKED_COLUMNS,

@@ -25,9 +25,8 @@ from collections.abc import Callable
 import numpy as np
 
 from posekit.robots import KinematicChain
-
-from . import _kernels as _k
-from .seamline import SeamLine
+from posekit.seam.engine import _kernels as _k
+from posekit.seam.engine.seamline import SeamLine
 
 __all__ = [
     "RobotMeasurement",

@@ -12,8 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from posekit.errors import ConfigError
-
-from ._kernels import mean_spread_kernel
+from posekit.seam.engine._kernels import mean_spread_kernel
 
 __all__ = [
     "RESAMPLERS",

@@ -22,9 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, PosekitError
+from posekit.localcal.sim.episode import METHODS, EpisodeConfig, EpisodeResult, run_episode
 from posekit.sweep import SERIAL, run_tasks, task_seed
-
-from .episode import METHODS, EpisodeConfig, EpisodeResult, run_episode
 
 __all__ = [
     "PAPER_TABLE2_MEAN",

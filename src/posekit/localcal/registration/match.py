@@ -28,8 +28,7 @@ from scipy.spatial import cKDTree
 
 from posekit.errors import ConfigError, TrajectoryError
 from posekit.geometry import nearest_rotation, rotation_angle_between
-
-from .alignment import (
+from posekit.localcal.registration.alignment import (
     _CHI3_MEDIAN,
     INLIER_SIGMAS,
     MIN_POSES,
@@ -39,10 +38,10 @@ from .alignment import (
     thin_indices,
     umeyama,
 )
-from .association import associate, estimate_time_offset
-from .coarse import coarse_align
-from .cpd import rigid_cpd
-from .tum import Trajectory
+from posekit.localcal.registration.association import associate, estimate_time_offset
+from posekit.localcal.registration.coarse import coarse_align
+from posekit.localcal.registration.cpd import rigid_cpd
+from posekit.localcal.registration.tum import Trajectory
 
 __all__ = ["Registration", "associate", "match_trajectories", "umeyama"]
 

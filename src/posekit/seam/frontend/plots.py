@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from posekit.errors import ConfigError
 
 __all__ = [
     "AXIS_LABELS",

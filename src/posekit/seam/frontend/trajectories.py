@@ -32,8 +32,7 @@ from posekit.robots import (
     resolved_rate_step,
     robot_model,
 )
-
-from .config import RobotConfig, TrajectoryConfig
+from posekit.seam.frontend.config import RobotConfig, TrajectoryConfig
 
 __all__ = [
     "IK_SEED_DEG",

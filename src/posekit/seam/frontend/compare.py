@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..sweep import task_seed
+from posekit.errors import ConfigError
+from posekit.sweep import task_seed
 
 __all__ = [
     "FIG8_SENSORS",
@@ -40,7 +40,7 @@ def episode_seeds(seed: int, runs: int) -> list[int]:
 def with_sensors(cfg, count: int, source: str = "command line"):
     """``cfg`` with ``count`` sensors; its distances are kept when it lists at least ``count`` of them
     (the first ``count``), the defaults (20, 40, ... mm) are used otherwise."""
-    from .config import config_from_dict
+    from posekit.seam.frontend.config import config_from_dict
 
     dist = cfg.sensors.distances_mm
     data = cfg.model_dump(mode="python")
@@ -70,7 +70,7 @@ def run_episodes(cfg, runs: int, *, seed: int | None = None, record_particles: i
     -------
     list of EpisodeResult
     """
-    from .simulate import run_episode
+    from posekit.seam.frontend.simulate import run_episode
 
     seeds = episode_seeds(cfg.seed if seed is None else seed, runs)
     it = range(len(seeds)) if progress is None else progress(range(len(seeds)), total=len(seeds), desc=desc)
@@ -108,8 +108,8 @@ def compare_configurations(cfg, runs: int, *, trajectories: Sequence[str] = FIG8
     same runs and seed, taken as they are when a combination equals that configuration.
     Returns one :class:`ConfigurationSet` per combination, trajectories outermost.
     """
-    from .config import apply_overrides
-    from .simulate import metrics
+    from posekit.seam.frontend.config import apply_overrides
+    from posekit.seam.frontend.simulate import metrics
 
     out = []
     for kind in trajectories:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import quaternion_from_matrix
-from ..report import html_figure, to_jsonable, write_csv, write_html, write_json
-from ..report import html_table as _html_table
+from posekit.geometry import quaternion_from_matrix
+from posekit.report import html_figure, to_jsonable, write_csv, write_html, write_json
+from posekit.report import html_table as _html_table
 
 __all__ = [
     "ERROR_AXES",
@@ -150,7 +150,7 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
     results : sequence of EpisodeResult
         The episodes of the main configuration (run 0 may carry recorded particles).
     metrics : mapping
-        ``posekit.seam.simulate.metrics(results)`` (the metrics.json contract); written as is,
+        ``posekit.seam.frontend.simulate.metrics(results)`` (the metrics.json contract); written as is,
         plus ``comparison`` (label -> RMSE per axis) when ``comparison`` is given.
     config_yaml : str
         The effective configuration, shown in the report and written to ``config.yaml``.
@@ -165,7 +165,7 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
         Name -> path of every file written: ``metrics``, ``estimates``, ``config``, ``fig5``
         (only when run 0 recorded particles), ``fig8``, ``fig9``, ``errors``, ``report``.
     """
-    from . import plots
+    from posekit.seam.frontend import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ An episode:
      ``p_ref = p_now + p_u d_ε,now``;
    * ``'trajectory'``: the asymmetric planar path (eq. 17–19) tracked by a simulated VO
      (W = the first camera frame), matched to the encoder TCP trajectory
-     (:func:`~posekit.localcal.registration.match_trajectories`), then ``updates`` times:
+     (:func:`~posekit.localcal.registration.match.match_trajectories`), then ``updates`` times:
      look, eq. (20)–(22), move (VO keeps running for ``R_W_C``);
 
 4. after each update a final look gives the image-based errors (the paper's tables) and the
@@ -27,22 +27,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, EstimationError
-
-from .line_method import (
+from posekit.localcal.methods.line_method import (
     CIRCLE_POINTS,
     CIRCLE_RADIUS_MM,
     circle_path,
     line_range_adjustment,
 )
-from .orientation import orientation_reference, rotation_errors_deg
-from .trajectory_method import (
+from posekit.localcal.methods.orientation import orientation_reference, rotation_errors_deg
+from posekit.localcal.methods.trajectory_method import (
     PATH_LENGTHS_MM,
     STANDOFF_MM,
     asymmetric_path,
     calibrate_trajectories,
     trajectory_reference,
 )
-from .vo import VONoise, simulate_vo
+from posekit.localcal.sim.vo import VONoise, simulate_vo
 
 __all__ = ["METHODS", "OCCLUSIONS", "START_Q", "EpisodeConfig", "EpisodeResult", "run_episode"]
 
@@ -76,7 +75,7 @@ class EpisodeConfig:
         Camera samples per second along the other motions (only for the error plots; 0 = none).
     vo_noise_mm, vo_noise_rad, vo_drift_mm_per_sqrt_m, vo_drift_rad_per_sqrt_m, vo_stride,
     vo_time_offset_s, vo_outlier_fraction :
-        Simulated VO errors (see :func:`posekit.localcal.vo.simulate_vo`).
+        Simulated VO errors (see :func:`posekit.localcal.sim.vo.simulate_vo`).
     use_timestamps : bool
         Match the trajectories with timestamps (default) or correspondence-free.
     error_scale : float
@@ -190,7 +189,7 @@ class _Camera:
         self.images = []
 
     def _observe(self, T_B_F_true):
-        from .scene import observe
+        from posekit.localcal.sim.scene import observe
         obs = observe(self.cell, T_B_F_true, self.detector, self.rng, keep_image=self.keep_images)
         if self.hide_ooi:
             seen = tuple(i for i in obs.seen if i not in self.cell.ooi_marker_ids)
@@ -254,9 +253,9 @@ def _positions(obs_list, attr):
 
 
 def _setup(seed, config):
-    from .arm import LongReachArm, sample_nonkinematic_errors
-    from .camera import MarkerDetector, zed2_720p
-    from .scene import default_workcell
+    from posekit.localcal.sim.arm import LongReachArm, sample_nonkinematic_errors
+    from posekit.localcal.sim.camera import MarkerDetector, zed2_720p
+    from posekit.localcal.sim.scene import default_workcell
 
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     s_err, s_arm, s_cell, s_cam, s_vo = ss.spawn(5)
@@ -286,7 +285,7 @@ def _robot(config):
 
 def _truth(cell, arm):
     """True position error (3,) mm and absolute XYZ rotation errors (3,) deg of the tool marker vs the OOI."""
-    from .scene import ground_truth_errors
+    from posekit.localcal.sim.scene import ground_truth_errors
     gt = ground_truth_errors(cell, arm.true_pose())
     return np.asarray(gt.e_C_mm, float), rotation_errors_deg(gt.T_C_O, gt.T_C_M)
 
@@ -320,7 +319,7 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
     TrajectoryError
         The calibration path or the trajectories are degenerate.
     """
-    from .scene import R_F_C_NOMINAL
+    from posekit.localcal.sim.scene import R_F_C_NOMINAL
 
     if method not in METHODS:
         raise ConfigError(f"method: expected one of {' | '.join(METHODS)}, got {method!r}")
@@ -399,7 +398,7 @@ def _line(arm, cell, camera, config, updates):
 
 
 def _trajectory(arm, cell, camera, config, updates, vo_seed):
-    from .tum import Trajectory
+    from posekit.localcal.registration.tum import Trajectory
 
     T_start = arm.nominal_pose()
     path = asymmetric_path(T_start, config.path_lengths_mm)

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import require
-from ..errors import ConfigError, EstimationError, PosekitError
-from ..sweep import run_tasks, task_seed
-from .report import ERROR_AXES
+from posekit._extras import require
+from posekit.errors import ConfigError, EstimationError, PosekitError
+from posekit.seam.frontend.report import ERROR_AXES
+from posekit.sweep import run_tasks, task_seed
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -45,7 +45,7 @@ __all__ = [
     "write_study",
 ]
 
-#: The filter parameters perturbed by default (dotted keys of :class:`~posekit.seam.config.SeamConfig`).
+#: The filter parameters perturbed by default (dotted keys of :class:`~posekit.seam.frontend.config.SeamConfig`).
 DEFAULT_FACTORS = ("filter.sigma_t_mm", "filter.sigma_r_deg", "filter.k_force_t", "filter.k_force_r",
                    "filter.d0_mm", "filter.kd_mm_per_n", "filter.d0_deg", "filter.kd_deg_per_n",
                    "filter.laser_sigma_mm", "filter.init_sigma_t_mm", "filter.init_sigma_r_deg",
@@ -317,8 +317,8 @@ def study_task(task: dict) -> dict:
     numerical breakdown at extreme parameter values) gives ``status='error'`` and the reason on
     one line, never an exception: one bad run must not cancel the study.
     """
-    from .config import config_from_dict
-    from .simulate import run_episode
+    from posekit.seam.frontend.config import config_from_dict
+    from posekit.seam.frontend.simulate import run_episode
 
     t0 = time.process_time()
     try:
@@ -360,7 +360,7 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     -------
     SeamStudy
     """
-    from .config import config_from_dict
+    from posekit.seam.frontend.config import config_from_dict
 
     if int(runs) < 1:
         raise ConfigError(f"study runs: expected >= 1, got {runs}")
@@ -423,8 +423,8 @@ def write_study(study: SeamStudy, out) -> Path:
     import html
     import json
 
-    from .plots import plot_pvalue_heatmap
-    from .report import html_figure, html_table, write_csv, write_html
+    from posekit.seam.frontend.plots import plot_pvalue_heatmap
+    from posekit.seam.frontend.report import html_figure, html_table, write_csv, write_html
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

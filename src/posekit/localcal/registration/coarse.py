@@ -14,9 +14,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from posekit.geometry import rotation_angle_between
-
-from .alignment import body_rotation_spread, robust_principal_axes, thin_indices
-from .cpd import box_volume, rigid_cpd
+from posekit.localcal.registration.alignment import body_rotation_spread, robust_principal_axes, thin_indices
+from posekit.localcal.registration.cpd import box_volume, rigid_cpd
 
 __all__ = ["TIE_NATS", "CoarseAlignment", "coarse_align", "orientation_spread", "pca_candidates"]
 

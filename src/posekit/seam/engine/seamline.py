@@ -14,8 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from posekit.errors import GeometryError
-
-from ._kernels import window_kernel as _window_kernel
+from posekit.seam.engine._kernels import window_kernel as _window_kernel
 
 __all__ = ["Intersection", "SeamLine"]
 

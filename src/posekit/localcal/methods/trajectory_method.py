@@ -3,7 +3,7 @@
 The TCP runs an asymmetric planar point-to-point path (eq. 17–19) in the plane of its unit
 vectors ``n`` and ``s``, holding its orientation. A VO/SLAM system tracks the camera poses in
 its world frame W meanwhile, and the encoders give the TCP poses through the kinematic model.
-Matching the two trajectories (:func:`posekit.localcal.registration.match_trajectories`:
+Matching the two trajectories (:func:`posekit.localcal.registration.match.match_trajectories`:
 coarse frame alignment, then robust fine registration) gives the rotation ``R_B_W`` (the
 paper's ``R_fm R_cfa``). Any camera-frame error between the tool marker and the OOI is then
 expressed in the base frame and added to the TCP position (eq. 20–22), as often as needed.
@@ -145,7 +145,7 @@ def calibrate_trajectories(camera, kinematic, **match_options):
     kinematic : Trajectory or path
         TCP poses ``T_B_F`` from the encoders and the kinematic model (mm), or a TUM file.
     **match_options
-        Passed to :func:`posekit.localcal.registration.match_trajectories`
+        Passed to :func:`posekit.localcal.registration.match.match_trajectories`
         (``use_timestamps``, ``max_dt_s``, ``with_scale``, ...).
 
     Returns
@@ -158,8 +158,8 @@ def calibrate_trajectories(camera, kinematic, **match_options):
     TrajectoryError, InputFileError
         Too few poses, a degenerate (straight-line) path, an unreadable TUM file.
     """
-    from .registration import match_trajectories
-    from .tum import Trajectory, read_tum
+    from posekit.localcal.registration.match import match_trajectories
+    from posekit.localcal.registration.tum import Trajectory, read_tum
 
     def load(x, name):
         if isinstance(x, Trajectory):

@@ -312,7 +312,7 @@ class FilterConfig(_Section):
     leaving fewer than ``anneal_ess · N`` effective particles is tempered in up to
     ``anneal_stages`` stages with kernel jitter ``anneal_jitter`` (times the cloud's covariance);
     resampling draws from a kernel density of bandwidth ``regularize_h`` that keeps the cloud's
-    mean and covariance (0: plain resampling; see :mod:`posekit.seam.filter`).
+    mean and covariance (0: plain resampling; see :mod:`posekit.seam.engine.filter`).
     """
 
     particles: Integer = _num(500, 1, MAX_PARTICLES)  # N, 1 .. 1,000,000
@@ -362,7 +362,7 @@ class SeamConfig(_Section):
 
     @model_validator(mode="after")
     def _episode_size(self):
-        from .trajectories import SEAM_SPACING_MM
+        from posekit.seam.frontend.trajectories import SEAM_SPACING_MM
 
         steps, n = self.trajectory.steps, self.filter.particles
         if steps * n > MAX_PARTICLE_STEPS:

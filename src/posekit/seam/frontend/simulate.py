@@ -2,7 +2,7 @@
 
 One episode (:func:`run_episode`):
 
-1. the nominal program along the seam (:func:`~posekit.seam.trajectories.nominal_trajectory`)
+1. the nominal program along the seam (:func:`~posekit.seam.frontend.trajectories.nominal_trajectory`)
    and its trend-filtered knot polyline (eq. 10);
 2. the true robot: the nominal DH model with kinematic errors (drawn per episode); the
    motors track the joint stream ``q̄`` exactly, the process force (tool frame, slow drift +
@@ -31,13 +31,12 @@ from posekit.geometry import (
     transform_from,
 )
 from posekit.robots import KinematicChain
-
-from .config import RobotConfig, SeamConfig, TrajectoryConfig
-from .filter import SeamParticleFilter, StepInputs
-from .particles import systematic_resample
-from .seamline import SeamLine
-from .trajectories import NominalTrajectory, nominal_trajectory
-from .trend import TrendResult, trend_filter
+from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.engine.particles import systematic_resample
+from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.engine.trend import TrendResult, trend_filter
+from posekit.seam.frontend.config import RobotConfig, SeamConfig, TrajectoryConfig
+from posekit.seam.frontend.trajectories import NominalTrajectory, nominal_trajectory
 
 __all__ = [
     "AXES",

@@ -1,6 +1,6 @@
 """Compiled inner loop of the long-reach arm simulator (numba).
 
-One time step does, in this order (see :mod:`posekit.localcal.arm` for the model):
+One time step does, in this order (see :mod:`posekit.localcal.sim.arm` for the model):
 
 1. resolved-rate control on the **nominal** chain (eq. 4–5): the commanded joint vector
    ``q_d`` is integrated with ``q̇_d = J⁺(q_d) [ṗ_d + K_p (p_d - p); ω_d + K_θ 2δr]``,

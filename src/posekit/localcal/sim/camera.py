@@ -30,8 +30,7 @@ import numpy as np
 
 from posekit._extras import lazy
 from posekit.errors import ConfigError, EstimationError, InputFileError
-
-from ._checks import rigid_transform as _rigid
+from posekit.localcal._checks import rigid_transform as _rigid
 
 cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 

@@ -44,9 +44,8 @@ from posekit.geometry import (
     matrix_from_rotation_vector,
     rotation_vector_from_matrix,
 )
-
-from ._checks import rigid_transform
-from .camera import MarkerDetector, marker_corners, render_markers
+from posekit.localcal._checks import rigid_transform
+from posekit.localcal.sim.camera import MarkerDetector, marker_corners, render_markers
 
 cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 
@@ -279,7 +278,7 @@ def observe(
     """Render the four markers from the true camera pose and measure them.
 
     The camera is at ``T_B_C = T_B_F_true @ T_F_C``; the image comes from
-    :func:`~posekit.localcal.camera.render_markers` and the poses from ``detector``.
+    :func:`~posekit.localcal.sim.camera.render_markers` and the poses from ``detector``.
 
     Parameters
     ----------

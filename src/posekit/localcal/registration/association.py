@@ -9,8 +9,7 @@ from scipy.optimize import minimize_scalar
 
 from posekit.errors import TrajectoryError
 from posekit.geometry import rotation_angle_between
-
-from .alignment import MIN_POSES, robust_principal_axes, umeyama
+from posekit.localcal.registration.alignment import MIN_POSES, robust_principal_axes, umeyama
 
 __all__ = ["associate", "estimate_time_offset", "interpolate_positions"]
 

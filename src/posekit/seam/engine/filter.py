@@ -28,10 +28,8 @@ import numpy as np
 
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_rotation_vector, transform_from
-
-from . import _kernels as _k
-from .config import SeamConfig
-from .densities import (
+from posekit.seam.engine import _kernels as _k
+from posekit.seam.engine.densities import (
     angle_loglik,
     joint_compliance,
     laser_loglik,
@@ -39,14 +37,15 @@ from .densities import (
     robot_measurement,
     transition,
 )
-from .particles import (
+from posekit.seam.engine.particles import (
     RESAMPLERS,
     effective_sample_size,
     normalize_log_weights,
     weighted_mean_se3,
 )
-from .seamline import SeamLine
-from .trajectories import tool_chain
+from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.frontend.config import SeamConfig
+from posekit.seam.frontend.trajectories import tool_chain
 
 __all__ = ["SeamParticleFilter", "StepEstimate", "StepInputs"]
 

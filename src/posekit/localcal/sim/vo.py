@@ -26,8 +26,7 @@ from posekit.geometry import (
     invert_transform,
     matrix_from_rotation_vector,
 )
-
-from .tum import Trajectory
+from posekit.localcal.registration.tum import Trajectory
 
 __all__ = ["VONoise", "simulate_vo"]
 

@@ -38,10 +38,9 @@ import numpy as np
 
 from posekit.errors import ConfigError, GeometryError
 from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix
+from posekit.localcal._checks import rigid_transform as _rigid
+from posekit.localcal.sim._arm_kernel import simulate_moves
 from posekit.robots import KinematicChain, hiab033, quintic_trajectory
-
-from ._arm_kernel import simulate_moves
-from ._checks import rigid_transform as _rigid
 
 __all__ = [
     "DEFAULT_Q0",

@@ -1,0 +1,2 @@
+"""The front end: configuration, the robot program, simulated episodes, studies, the filterpy
+peer, report and plots."""
