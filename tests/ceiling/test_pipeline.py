@@ -224,7 +224,8 @@ def cli(capsys, *argv):
     """Run ``posekit ceiling VERB ...`` through the two parsers with main()'s error handling."""
     import argparse
 
-    from posekit.cli.ceiling_track import add_demo_parser, add_track_parser
+    from posekit.cli.ceiling_demo import add_demo_parser
+    from posekit.cli.ceiling_track import add_track_parser
     parser = argparse.ArgumentParser(prog="posekit ceiling")
     verbs = parser.add_subparsers(dest="verb", required=True)
     add_track_parser(verbs)

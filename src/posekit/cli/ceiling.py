@@ -8,8 +8,9 @@ def add_parser(sub):
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     from .ceiling_calibrate import add_calibrate_parser
+    from .ceiling_demo import add_demo_parser
     from .ceiling_simulate import add_simulate_parser
-    from .ceiling_track import add_demo_parser, add_track_parser
+    from .ceiling_track import add_track_parser
     add_calibrate_parser(verbs)
     add_simulate_parser(verbs)
     add_track_parser(verbs)

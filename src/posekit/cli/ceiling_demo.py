@@ -1,0 +1,35 @@
+"""``posekit ceiling demo`` (wired into ``cli/ceiling.py``)."""
+
+from ._common import add_deprecated, add_overwrite, out_folder, staged
+from ._flags import check_flags, seed
+from .ceiling_track import _DURATION, _frame_progress
+
+__all__ = ["add_demo_parser", "run_demo"]
+
+
+def add_demo_parser(verbs):
+    d = verbs.add_parser("demo", help="render a ceiling video, calibrate, track, and compare with the truth "
+                                      "(the paper's §V: Fig. 8/9, accuracy, speed)")
+    d.add_argument("--out", default="posekit-ceiling-demo",
+                   help="output folder (default posekit-ceiling-demo, replaced on each run)")
+    add_overwrite(d, "posekit-ceiling-demo")
+    d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
+    add_deprecated(d, "--seconds", "--duration-s", "seconds", _DURATION)
+    d.add_argument("--duration-s", dest="seconds", type=_DURATION, default=None,
+                   help="length of the rendered video, (0, 3600] s (default: the renderer's)")
+    d.add_argument("--seed", type=seed, default=0, help="random seed of the render (default 0)")
+    d.set_defaults(func=run_demo)
+
+
+def run_demo(args) -> int:
+    from ..ceiling.demo import run_demo as demo
+    from ..ceiling.pipeline import parse_dots
+
+    dots = parse_dots(args.dots)
+    check_flags(args)
+    out_folder(args)
+    with staged(args) as tmp:
+        report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"))
+        summary = report.summary().replace(str(tmp), str(args.out))
+    print(summary)
+    return 0
