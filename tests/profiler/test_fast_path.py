@@ -131,3 +131,35 @@ def test_server_record_is_suspect_on_a_wrong_gauge(tmp_path):
     st = server.stats()
     assert st["suspect"] == len(suspect) and st["ok"] == 0
     assert st["processed"] == st["ok"] + st["suspect"] + st["errors"]
+
+
+@pytest.mark.parametrize("name", ["demo-5", "demo-7"])
+def test_other_order_left_unsolved_only_when_it_cannot_matter(name, monkeypatch):
+    """The solver skips the other corner order when the first is clearly best; the verdicts, χ² and
+    poses equal those with both orders solved — good, 3x-noisy and reversed-mounting profiles."""
+    from posekit.profiler.estimate import solve
+
+    gauge = bundled_gauge(name)
+    assert gauge.reversed_miss_um >= solve.SKIP_OTHER_ORDER_MISS_UM
+    Ts = sample_poses(gauge, 15, rng=31)
+    good = render_profiles(gauge, Ts, NoiseModel(), rng=32)
+    noisy = render_profiles(gauge, Ts, NoiseModel(30, 15), rng=33)
+    flipped = good[:, ::-1].copy()                                   # the sensor mounted the other way round
+    calls = []
+    real = solve._solve_order
+    monkeypatch.setattr(solve, "_solve_order", lambda *a, **k: calls.append(a[5]) or real(*a, **k))
+    results = []
+    for skip in (True, False):
+        if not skip:
+            monkeypatch.setattr(solve, "SKIP_OTHER_ORDER_MISS_UM", np.inf)
+        calls.clear()
+        results.append([estimate_pose(p, gauge)[1] for p in np.concatenate([good, noisy, flipped])])
+        if skip:
+            assert calls.count(True) < len(calls) // 2               # most good profiles: one order solved
+        else:
+            assert len(calls) == 2 * 45
+    for a, b in zip(*results):
+        assert (a.status, a.reason, a.reversed, a.dof) == (b.status, b.reason, b.reversed, b.dof)
+        np.testing.assert_array_equal(a.T_G_F, b.T_G_F)
+        assert a.chi2 == b.chi2
+    assert {e.reversed for e in results[0][30:]} == {True}

@@ -18,10 +18,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from posekit.errors import ConfigError
-from posekit.geometry import transform_from
-from posekit.profiler import LJ_X8400, NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
+from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, render_profiles
 from posekit.profiler.estimate.evaluate import pose_errors
-from posekit.profiler.estimate.sensor import sample_poses, visible_mask
+from posekit.profiler.estimate.sensor import loop_poses, sample_poses, visible_mask
 from posekit.profiler.stream.protocol import MAGIC, MAX_POINTS, encode_frame
 from posekit.profiler.stream.server import PoseServer, check_address, parse_address
 from posekit.profiler.stream.stream_client import SensorClient
@@ -36,18 +35,6 @@ QUEUE = 256                    # tests that send bursts and are not about droppi
 
 # --- fixtures ------------------------------------------------------------------------------
 
-def _trajectory(gauge, count):
-    """A smooth closed loop of sensor poses T_G_F around the nominal pose (a moving robot)."""
-    th = 2 * np.pi * np.arange(count) / count
-    T0 = nominal_pose(gauge)
-    pivot_F = np.array([0.0, 0.0, LJ_X8400.z_mid])
-    pivot_G = T0[:3, :3] @ pivot_F + T0[:3, 3]
-    dt = np.stack([6 * np.sin(th), 6 * np.sin(2 * th), 20 * np.sin(3 * th)], axis=1)
-    rv = np.radians(np.stack([3 * np.sin(th + 1), 3 * np.sin(2 * th + 2), 6 * np.sin(th + 3)], axis=1))
-    R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
-    return transform_from(R, pivot_G - np.einsum("kij,j->ki", R, pivot_F) + dt)
-
-
 @pytest.fixture(scope="module")
 def gauge():
     return bundled_gauge("demo-5")
@@ -56,7 +43,7 @@ def gauge():
 @pytest.fixture(scope="module")
 def loop_profiles(gauge):
     """200 distinct profiles along a closed trajectory (LJ-X8400 noise), and their poses."""
-    Ts = _trajectory(gauge, 200)
+    Ts = loop_poses(gauge, 200)
     assert visible_mask(gauge, Ts).all()
     return Ts, render_profiles(gauge, Ts, NoiseModel(), rng=5)
 

@@ -94,7 +94,7 @@ def add_parser(sub):
 
 def run_estimate(args) -> int:
     from ..profiler.estimate.io import RecordWriter
-    from ..profiler.estimate.pipeline import estimate_batch
+    from ..profiler.estimate.pipeline import estimate_profiles
     from ..profiler.stream.sources import read_profile_file
     from .profiler_replay import read_options
 
@@ -105,15 +105,21 @@ def run_estimate(args) -> int:
     noise, significance = _estimator_noise(args)
     gauge = _estimate_gauge(args)        # the mounting goes to the load: an ambiguous gauge needs it
     profiles = read_profile_file(args.input, read_options(args))
+    res = estimate_profiles(profiles, gauge, args.method, args.mounting, noise=noise, significance=significance,
+                            rotation=args.rotation,
+                            progress=lambda it: progress(it, total=len(profiles), desc="estimate"))
     counts = {"ok": 0, "suspect": 0, "error": 0}
     reversed_count = 0
     with RecordWriter(args.out, stream=sys.stdout, rotation=args.rotation) as writer:
-        for rec, est in progress(estimate_batch(profiles, gauge, args.method, args.mounting, noise=noise,
-                                                significance=significance, rotation=args.rotation),
-                                 total=len(profiles), desc="estimate"):
+        for rec, est in zip(res.records, res.estimates):
             writer.write(rec)
             counts[rec["status"]] += 1
             reversed_count += bool(est is not None and est.reversed and rec["status"] == "ok")
+    check = res.gauge_check
+    if check.passed is False:
+        print(f"posekit: {check.message}; every pose of the batch is marked suspect", file=sys.stderr)
+    else:
+        print(f"posekit: note: {check.message}", file=sys.stderr)
     if reversed_count:
         print(f"posekit: note: {reversed_count} of {len(profiles)} profiles had their corners in reverse "
               "order (sensor mounted the other way round?)", file=sys.stderr)

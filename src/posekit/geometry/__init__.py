@@ -106,3 +106,8 @@ __all__ += ["cholesky_solve"]
 from ._rotation_kernels import quaternion_from_entries, rotvec_from_entries  # noqa: E402
 
 __all__ += ["quaternion_from_entries", "rotvec_from_entries"]
+
+# --- Euler angles for robot controllers (euler) -----------------------------------------------
+from .euler import euler_xyz_from_matrix, euler_zyx_from_matrix, matrix_from_euler_zyx  # noqa: E402
+
+__all__ += ["euler_zyx_from_matrix", "euler_xyz_from_matrix", "matrix_from_euler_zyx"]

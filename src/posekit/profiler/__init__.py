@@ -4,7 +4,8 @@ Pipeline: :func:`detect_corners` (paper §II-D; model-based when given the gauge
 :func:`solve_pose` (closed form eq. 9–14 and maximum-likelihood refinement, with the pose
 covariance and a χ² verdict). :func:`estimate_pose` does both.
 :mod:`~posekit.profiler.estimate.sensor` simulates an LJ-X8400-like sensor, ideal or with
-:class:`RealismModel`'s defects; :func:`calibrate_gauge` recovers the as-built gauge;
+:class:`RealismModel`'s defects; :func:`calibrate_gauge` recovers the as-built gauge and :func:`estimate_profiles` tests the gauge file
+against a whole batch (:func:`check_gauge_file`);
 :class:`ProfileSource` is the interface a sensor (or a vendor SDK) plugs into.
 
 Sub-packages: ``estimate/`` (the estimator), ``stream/`` (server, clients, sources, pose
@@ -15,7 +16,8 @@ from .estimate.corners import CornerParams, Corners, detect_corners
 from .estimate.evaluate import Evaluation, evaluate, pose_errors
 from .estimate.gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
 from .estimate.gauge_calibration import GaugeCalibration, calibrate_gauge
-from .estimate.pipeline import estimate_batch, estimate_pose
+from .estimate.gauge_check import GaugeCheck, check_gauge_file
+from .estimate.pipeline import BatchResult, estimate_batch, estimate_pose, estimate_profiles
 from .estimate.realism import RealismModel
 from .estimate.sensor import (
     LJ_X8400,
@@ -35,7 +37,7 @@ __all__ = [
     "ProfilerModel", "NoiseModel", "Workspace", "LJ_X8400", "nominal_pose", "sample_poses", "render_profiles",
     "CornerParams", "Corners", "detect_corners",
     "PoseEstimate", "solve_pose", "closed_form",
-    "estimate_pose", "estimate_batch",
+    "estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "GaugeCheck", "check_gauge_file",
     "Evaluation", "evaluate", "pose_errors",
     "RealismModel", "GaugeCalibration", "calibrate_gauge",
     "ProfileSource", "read_profile_file", "ConstantVelocityFilter", "WindowFusion",

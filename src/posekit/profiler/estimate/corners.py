@@ -42,10 +42,9 @@ from numba import njit
 
 from ...errors import ConfigError, ProfileError
 from ...geometry import robust_line_kernel
-from ...geometry._fit import FASTMATH
 from ..estimate import faces
 from .gauge import Gauge
-from .segments import _median5, expected_turns
+from .segments import _median5, chord_deviation, expected_turns
 
 __all__ = ["CornerParams", "Corners", "detect_corners", "detect_corners_unchecked", "check_profile",
            "raise_for_status", "gauge_turns"]
@@ -228,39 +227,6 @@ class Corners:
     n_points: np.ndarray
 
 
-@njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _max_dev(xs, zs, i0, i1, stride):
-    """Largest distance of points i0 < i < i1 from the chord i0–i1, and its index.
-
-    Scans every ``stride``-th point, then every point within ``stride`` of the best one:
-    the same vertex as a full scan whenever the deviation peaks at a corner (it rises
-    linearly towards it), at a fraction of the cost.
-    """
-    dx = xs[i1] - xs[i0]
-    dz = zs[i1] - zs[i0]
-    length = np.sqrt(dx * dx + dz * dz)
-    if length <= 0.0 or i1 - i0 < 2:
-        return -1.0, -1
-    x0 = xs[i0]
-    z0 = zs[i0]
-    best = -1.0
-    best_i = -1
-    for i in range(i0 + 1, i1, stride):
-        d = abs(dz * (xs[i] - x0) - dx * (zs[i] - z0))
-        if d > best:
-            best = d
-            best_i = i
-    if stride > 1:
-        lo = max(i0 + 1, best_i - stride + 1)
-        hi = min(i1, best_i + stride)
-        for i in range(lo, hi):
-            d = abs(dz * (xs[i] - x0) - dx * (zs[i] - z0))
-            if d > best:
-                best = d
-                best_i = i
-    return best / length, best_i
-
-
 @njit(cache=True, nogil=True)
 def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_floor):
     """Returns (status, info, corners (n,2), cov (2n,2n), lines (n+1,3), sigma, npts, cand)."""
@@ -309,7 +275,7 @@ def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_
     seg_dev = np.empty(n + 1)
     seg_arg = np.empty(n + 1, dtype=np.int64)
     stride = max(1, m // 512)
-    seg_dev[0], seg_arg[0] = _max_dev(xs, zs, 0, m - 1, stride)
+    seg_dev[0], seg_arg[0] = chord_deviation(xs, zs, 0, m - 1, stride, False)
     for k in range(n + 1):
         best = 0
         for s in range(1, nv - 1):
@@ -342,8 +308,8 @@ def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_
             seg_arg[s] = seg_arg[s - 1]
         verts[best + 1] = j
         nv += 1
-        seg_dev[best], seg_arg[best] = _max_dev(xs, zs, verts[best], j, stride)
-        seg_dev[best + 1], seg_arg[best + 1] = _max_dev(xs, zs, j, verts[best + 2], stride)
+        seg_dev[best], seg_arg[best] = chord_deviation(xs, zs, verts[best], j, stride, False)
+        seg_dev[best + 1], seg_arg[best + 1] = chord_deviation(xs, zs, j, verts[best + 2], stride, False)
     info[0] = n
     for s in range(1, nv - 1):
         cand[s - 1, 0] = xs[verts[s]]

@@ -141,6 +141,8 @@ def estimate_profile_unchecked(points, gauge, params: CornerParams, turns, metho
     T_inits = (None, None)
     if T_init is not None:
         T_inits = (None, T_init) if rev_init else (T_init, None)
+        if rev_init and len(orders) == 2:
+            orders = (True, False)          # the previous frame's order first
     est, cold = estimate_from_corners(corners, gauge, METHODS[method_code], orders, T_inits, max_iter, noise,
                                       significance, gate)
     if not isinstance(est, PoseEstimate):

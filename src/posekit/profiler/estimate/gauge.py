@@ -49,6 +49,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from ...errors import GaugeError
 from ...geometry import matrix_from_rotation_vector, plane_intersection
 from ...io import load_yaml
+from .raycast import seen_from_behind
 
 __all__ = ["Gauge", "load_gauge", "bundled_gauge", "bundled_gauge_path", "gauge_from_design",
            "gauge_to_yaml", "gauge_ambiguity", "pose_is_possible", "BUNDLED_GAUGES", "MOUNTINGS"]
@@ -119,6 +120,10 @@ class Gauge:
     ambiguity : str or None
         Why the gauge's profiles cannot tell the two corner readings (normal, reversed)
         apart, or None. Such a gauge is only usable with a known mounting.
+    reversed_miss_um : float
+        How far the reversed reading of noise-free corners misses the ridges at best over
+        the probe poses of :func:`gauge_ambiguity`, µm RMS (NaN: not analysed). The solver
+        skips the other corner order when this is large (:mod:`~posekit.profiler.estimate.solve`).
     """
 
     name: str
@@ -130,6 +135,7 @@ class Gauge:
     y_range: tuple[float, float]
     tolerance_um: float = 0.0
     ambiguity: str | None = None
+    reversed_miss_um: float = float("nan")
 
     @property
     def n_corners(self) -> int:
@@ -245,10 +251,8 @@ def _build(name: str, normals, offsets, extent, source: str, tolerance_um: float
             )
     gauge = Gauge(name=name, normals=normals, offsets=offsets, ridge_q=q, ridge_s=s,
                   x_range=x_range, y_range=y_range, tolerance_um=float(tolerance_um))
-    ambiguity = gauge_ambiguity(gauge)
-    if ambiguity is None:
-        return gauge
-    return replace(gauge, ambiguity=ambiguity)
+    miss_um = reversed_miss_um(gauge)
+    return replace(gauge, ambiguity=_ambiguity(gauge, miss_um), reversed_miss_um=miss_um)
 
 
 # --------------------------------------------------------------------------- ambiguity
@@ -331,11 +335,7 @@ def pose_is_possible(gauge: Gauge, T_G_F, corners_F, margin_mm: float = 1.0, ext
     y = p_F @ T[1, :3] + T[1, 3]
     if extent and np.any((y < gauge.y_range[0] - margin_mm) | (y > gauge.y_range[1] + margin_mm)):
         return False
-    d = p_F @ T[:3, :3].T
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    cos = d @ gauge.normals.T                      # (n corners, n + 1 faces)
-    idx = np.arange(len(c))
-    return not np.any(np.maximum(cos[idx, idx], cos[idx, idx + 1]) > SEEN_FROM_BEHIND_COS)
+    return not seen_from_behind(gauge.normals, T, c, SEEN_FROM_BEHIND_COS)
 
 
 def _reversed_miss_mm(gauge: Gauge, T_G_F) -> float:
@@ -391,8 +391,17 @@ def gauge_ambiguity(gauge: Gauge) -> str | None:
     str or None
         A one-line description naming the ambiguity.
     """
+    return _ambiguity(gauge, reversed_miss_um(gauge))
+
+
+def reversed_miss_um(gauge: Gauge) -> float:
+    """The best fit of the reversed reading over the probe poses of :func:`gauge_ambiguity`, µm RMS."""
+    return float(1e3 * min(_reversed_miss_mm(gauge, T) for T in _probe_poses(gauge)))
+
+
+def _ambiguity(gauge: Gauge, miss_um: float) -> str | None:
+    """:func:`gauge_ambiguity` from the gauge's :func:`reversed_miss_um`."""
     limit_um = max(AMBIGUITY_MIN_MISS_UM, AMBIGUITY_TOLERANCE_FACTOR * gauge.tolerance_um)
-    miss_um = 1e3 * min(_reversed_miss_mm(gauge, T) for T in _probe_poses(gauge))
     if miss_um >= limit_um:
         return None
     if miss_um < 0.01:

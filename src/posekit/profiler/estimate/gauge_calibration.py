@@ -74,7 +74,7 @@ from .solve import solve_pose
 
 __all__ = ["GaugeCalibration", "calibrate_gauge", "as_built_yaml", "datum_constraints", "hinge_constraints",
            "datum_transform", "face_samples", "observed_samples", "face_deviation_um", "pose_variety",
-           "MIN_PROFILES", "MAX_CONDITION", "NEEDED"]
+           "outlying_profiles", "MIN_PROFILES", "MAX_CONDITION", "NEEDED"]
 
 #: Fewest usable profiles :func:`calibrate_gauge` accepts.
 MIN_PROFILES = 50
@@ -344,6 +344,29 @@ def _scaled_information(S, C, nominal):
     return np.linalg.eigvalsh(N.T @ (Dinv.T @ S @ Dinv) @ N)
 
 
+def outlying_profiles(r):
+    """The profiles whose fit is an outlier of the bundle adjustment.
+
+    Parameters
+    ----------
+    r : ndarray, shape (K, 2n)
+        Whitened corner residuals of each profile at the adjustment's solution.
+
+    Returns
+    -------
+    bad : ndarray of bool, shape (K,)
+        χ² of the profile (scaled down by the batch's median χ² over its expected median when
+        above 1) has an upper-tail probability below :data:`OUTLIER_P`.
+    chi2 : ndarray, shape (K,)
+    dof : int
+        Values per profile, ``2n``.
+    """
+    chi2_k = np.sum(r**2, axis=1)
+    dof_k = r.shape[1]
+    scale = max(1.0, float(np.median(chi2_k)) / _chi2.median(dof_k))
+    return _chi2.sf(chi2_k / scale, dof_k) < OUTLIER_P, chi2_k, dof_k
+
+
 def calibrate_gauge(profiles, nominal: Gauge, *, mounting: str = "auto", params: CornerParams = CornerParams(),
                     min_profiles: int = MIN_PROFILES, max_iter: int = 50, source: str = "profiles") -> GaugeCalibration:
     """The as-built gauge from profiles at unknown, varied poses (bundle adjustment).
@@ -406,10 +429,7 @@ def calibrate_gauge(profiles, nominal: Gauge, *, mounting: str = "auto", params:
     for _ in range(3):                      # adjust, drop outlying profiles, adjust again
         theta, Ts, r, Jx, Jp, cost, it = adjust(theta, Ts, corners, Linv, nominal, C, max_iter)
         iters += it
-        chi2_k = np.sum(r**2, axis=1)
-        dof_k = r.shape[1]
-        scale = max(1.0, float(np.median(chi2_k)) / _chi2.median(dof_k))
-        bad = _chi2.sf(chi2_k / scale, dof_k) < OUTLIER_P
+        bad, chi2_k, dof_k = outlying_profiles(r)
         if not bad.any():
             break
         for k in np.flatnonzero(bad):

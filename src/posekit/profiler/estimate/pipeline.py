@@ -4,7 +4,10 @@ Records (JSON lines and CSV through :class:`~posekit.profiler.estimate.io.Record
 verdict of :func:`~posekit.profiler.estimate.solve.solve_pose`: ``status`` 'ok' (the data agree
 with the gauge and the assumed noise), 'suspect' (an estimate exists but the consistency
 test failed; ``reason`` says why) or 'error' (no estimate; ``error`` says why), with
-``chi2`` and ``dof`` of the test.
+``chi2`` and ``dof`` of the test. One profile cannot see every gauge that differs from its
+file (a face off its drawing can look like a pose shifted along y); a batch
+(:func:`estimate_profiles`, :func:`estimate_batch`) also tests the gauge file against all its
+profiles together (:mod:`~posekit.profiler.estimate.gauge_check`).
 
 Rotation output for robot controllers (:data:`ROTATIONS`; ``q_wxyz`` is always written):
 
@@ -23,8 +26,8 @@ Rotation output for robot controllers (:data:`ROTATIONS`; ``q_wxyz`` is always w
     ``Rotation.from_euler("xyz", [W, P, R], degrees=True)``. The same matrix as euler-zyx
     with the angles in the other order: ``[W, P, R] = [C, B, A]``.
 
-Euler angles: the first and last in (-180°, 180°], the middle one in [-90°, 90°]. At
-gimbal lock (middle angle ±90°) the last angle of euler-zyx (C; W of euler-xyz) is set to
+Euler angles (:mod:`posekit.geometry.euler`): the first and last in (-180°, 180°], the
+middle one in [-90°, 90°]. At gimbal lock (middle angle ±90°) the last angle of euler-zyx (C; W of euler-xyz) is set to
 0 and the first carries the whole turn, as scipy does. A pose looking straight down at
 the gauge is near C = ±180°, where C wraps from +180 to -180 between neighbouring poses.
 
@@ -37,17 +40,20 @@ the long way round. A sensor looking down at the gauge is near a 180° turn abou
 where ``w ≈ 0`` and the canonical sign would flip between neighbouring poses.
 """
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ...errors import EstimationError, PosekitError
+from ...geometry import euler_zyx_from_matrix
 from .corners import CornerParams, Corners, detect_corners
 from .gauge import Gauge
+from .gauge_check import GaugeCheck, check_gauge_file
 from .sensor import NoiseModel
 from .solve import DEFAULT_SIGNIFICANCE, PoseEstimate, solve_pose
 
-__all__ = ["estimate_pose", "estimate_batch", "ok_record", "error_record", "rotation_fields",
+__all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record", "rotation_fields",
            "euler_zyx_from_matrix", "ROTATIONS", "DEFAULT_NOISE"]
 
 #: Rotation formats of the records (module docstring).
@@ -55,8 +61,6 @@ ROTATIONS = ("quat", "matrix", "euler-zyx", "euler-xyz")
 #: The noise the estimator assumes unless told: the LJ-X8400's repeatability (10 µm in x,
 #: 5 µm in z), the simulator's default.
 DEFAULT_NOISE = NoiseModel()
-#: cos B below which euler-zyx is at gimbal lock (|B| within about 1e-7 deg of 90°).
-_GIMBAL_COS = 2e-9
 
 
 def estimate_pose(profile, gauge: Gauge, method: str = "mle", mounting: str = "auto",
@@ -96,30 +100,6 @@ def estimate_pose(profile, gauge: Gauge, method: str = "mle", mounting: str = "a
                                significance=significance)
 
 
-def euler_zyx_from_matrix(R) -> np.ndarray:
-    """Intrinsic Z-Y'-X'' angles ``[A, B, C]`` (rad) with ``R = Rz(A) Ry(B) Rx(C)``.
-
-    Parameters
-    ----------
-    R : array_like, shape (3, 3)
-
-    Returns
-    -------
-    ndarray, shape (3,)
-        A, C in (-π, π], B in [-π/2, π/2]; at gimbal lock (``cos B ≈ 0``) C = 0.
-    """
-    R = np.asarray(R, dtype=np.float64)
-    cb = np.hypot(R[0, 0], R[1, 0])
-    b = np.arctan2(-R[2, 0], cb)
-    if cb > _GIMBAL_COS:
-        a = np.arctan2(R[1, 0], R[0, 0])
-        c = np.arctan2(R[2, 1], R[2, 2])
-    else:                                  # B = ±90°: only A ∓ C is defined; put it all in A
-        a = np.arctan2(-R[0, 1], R[1, 1])
-        c = 0.0
-    return np.array([a, b, c]) + 0.0
-
-
 def rotation_fields(R_G_F, rotation: str = "quat") -> dict:
     """The record fields of a rotation in the format ``rotation`` (:data:`ROTATIONS`).
 
@@ -141,7 +121,7 @@ def rotation_fields(R_G_F, rotation: str = "quat") -> dict:
         return {"R": [[float(v) for v in row] for row in R]}
     if rotation == "quat":
         return {}
-    abc = np.degrees(euler_zyx_from_matrix(R))
+    abc = np.degrees(euler_zyx_from_matrix(R, check=False))
     if rotation == "euler-zyx":
         return {"euler_zyx_deg": [float(v) for v in abc]}
     return {"euler_xyz_deg": [float(v) for v in abc[::-1]]}
@@ -193,11 +173,103 @@ def error_record(index: int, message: str, rotation: str = "quat") -> dict:
             "std_rot_deg": None, "chi2": None, "dof": None, "reason": None, "error": message}
 
 
+@dataclass(frozen=True)
+class BatchResult:
+    """Result of :func:`estimate_profiles`.
+
+    Attributes
+    ----------
+    records : list of dict
+        One record per profile, in order (:func:`ok_record`, :func:`error_record`).
+    estimates : list of PoseEstimate or None
+        The estimate behind each record (None for an error); its ``status`` and ``reason``
+        are the record's.
+    gauge_check : GaugeCheck or None
+        The test of the gauge file against the whole batch (None when not asked for).
+    """
+
+    records: list
+    estimates: list
+    gauge_check: GaugeCheck | None
+
+
+def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str = "auto",
+                      params: CornerParams = CornerParams(), *, noise: NoiseModel = DEFAULT_NOISE,
+                      significance: float = DEFAULT_SIGNIFICANCE, rotation: str = "quat", continuous: bool = True,
+                      check_gauge: bool = True, progress: Callable | None = None) -> BatchResult:
+    """Estimate every profile of a batch, then test the gauge file against the whole batch.
+
+    Each profile gets its own verdict (:func:`estimate_pose`). One profile cannot tell a face
+    machined off its drawing from a pose shifted along the weakly observable y (see
+    :mod:`~posekit.profiler.estimate.gauge_check`): such a pose reads 'ok' while it is off by
+    several times its std. A batch can: with ``check_gauge`` and enough profiles at varied
+    poses (:data:`~posekit.profiler.estimate.gauge_check.MIN_CHECK_PROFILES`, the laser line
+    turned about its line of sight between them), a bundle adjustment of every face and every
+    pose tests the file's planes within their declared ``tolerance_um`` at ``significance``;
+    when the file fails, every estimate of the batch becomes 'suspect' and its reason names
+    the faces, their offset in µm and ``posekit profiler calibrate-gauge``. A batch too small
+    or too alike leaves the statuses alone, and ``gauge_check.checked`` is False with the why.
+
+    Parameters
+    ----------
+    profiles : array_like, shape (K, N, 2)
+        Points (x, z) in F, mm, scan order, NaN = no return.
+    gauge, method, mounting, params, noise, significance
+        As :func:`estimate_pose`.
+    rotation, continuous
+        As :func:`estimate_batch`.
+    check_gauge : bool
+        Test the gauge file against the batch (default True).
+    progress : callable, optional
+        Wraps the iterable of profile indices (e.g. a progress bar).
+
+    Returns
+    -------
+    BatchResult
+    """
+    if rotation not in ROTATIONS:
+        raise EstimationError(f"unknown rotation format '{rotation}'; expected one of {', '.join(ROTATIONS)}")
+    profiles = np.asarray(profiles, dtype=np.float64)
+    indices = range(profiles.shape[0])
+    corners_all, ests, errors = [], [], []
+    for k in (indices if progress is None else progress(indices)):
+        try:
+            corners, est = estimate_pose(profiles[k], gauge, method, mounting, params, noise=noise,
+                                         significance=significance)
+        except PosekitError as exc:
+            corners, est = None, None
+            errors.append((k, str(exc)))
+        corners_all.append(corners)
+        ests.append(est)
+    check = None
+    if check_gauge:
+        check = check_gauge_file(corners_all, ests, gauge, noise=noise, significance=significance)
+        if check.passed is False:
+            ests = [None if e is None else replace(e, status="suspect",
+                                                   reason=check.message if e.reason is None
+                                                   else f"{e.reason}; {check.message}") for e in ests]
+    records = []
+    err = dict(errors)
+    q_prev = None
+    for k, (corners, est) in enumerate(zip(corners_all, ests)):
+        if est is None:
+            records.append(error_record(k, err[k], rotation))
+            continue
+        rec = ok_record(k, corners, est, rotation, q_prev)
+        if continuous:
+            q_prev = rec["q_wxyz"]
+        records.append(rec)
+    return BatchResult(records, ests, check)
+
+
 def estimate_batch(profiles, gauge: Gauge, method: str = "mle", mounting: str = "auto",
                    params: CornerParams = CornerParams(), *, noise: NoiseModel = DEFAULT_NOISE,
                    significance: float = DEFAULT_SIGNIFICANCE, rotation: str = "quat",
-                   continuous: bool = True) -> Iterator[tuple[dict, PoseEstimate | None]]:
+                   continuous: bool = True, check_gauge: bool = True) -> Iterator[tuple[dict, PoseEstimate | None]]:
     """Estimate every profile of a batch; a failure becomes an error record, never a gap.
+
+    The records of :func:`estimate_profiles` (the gauge file tested against the whole batch
+    when ``check_gauge``; the first record comes after the last profile is estimated).
 
     Parameters
     ----------
@@ -209,6 +281,8 @@ def estimate_batch(profiles, gauge: Gauge, method: str = "mle", mounting: str = 
     continuous : bool
         Quaternion sign continuous along the batch (module docstring); False: canonical
         ``w >= 0`` in every record.
+    check_gauge : bool
+        As :func:`estimate_profiles`.
 
     Yields
     ------
@@ -216,18 +290,6 @@ def estimate_batch(profiles, gauge: Gauge, method: str = "mle", mounting: str = 
         One record per profile, in order (see :func:`ok_record`, :func:`error_record`).
     estimate : PoseEstimate or None
     """
-    if rotation not in ROTATIONS:
-        raise EstimationError(f"unknown rotation format '{rotation}'; expected one of {', '.join(ROTATIONS)}")
-    profiles = np.asarray(profiles, dtype=np.float64)
-    q_prev = None
-    for k in range(profiles.shape[0]):
-        try:
-            corners, est = estimate_pose(profiles[k], gauge, method, mounting, params, noise=noise,
-                                         significance=significance)
-        except PosekitError as exc:
-            yield error_record(k, str(exc), rotation), None
-            continue
-        rec = ok_record(k, corners, est, rotation, q_prev)
-        if continuous:
-            q_prev = rec["q_wxyz"]
-        yield rec, est
+    res = estimate_profiles(profiles, gauge, method, mounting, params, noise=noise, significance=significance,
+                            rotation=rotation, continuous=continuous, check_gauge=check_gauge)
+    yield from zip(res.records, res.estimates)

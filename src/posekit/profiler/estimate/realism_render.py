@@ -10,6 +10,8 @@ and dropouts on steep surfaces. The sensor noise is added by
 import numpy as np
 from numba import njit
 
+from .raycast import first_face_hit, ray_in_gauge
+
 __all__ = ["true_corners", "cast_as_built", "render_as_built", "EDGE", "PLATE", "FIXTURE", "NONE"]
 
 # labels of the returns (internal): face k -> k, the edge zone of ridge k -> EDGE + k
@@ -98,7 +100,6 @@ def _in_sector(px, py, pz, a, u, na, nb, sgn):
 def _cast_kernel(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, kind, size, convex, axis_q,
                  chamfer_plane, plate_z, fixture, Rs, ts, d_F, z_apex, z_near, z_far, out, label, cosinc):
     """First hit of each ray on the as-built scene: points (x, z) in F, label, cos(incidence)."""
-    n_faces = normals.shape[0]
     n_ridges = ridge_q.shape[0]
     u_ax = np.empty((n_ridges, 3))
     for k in range(n_ridges):
@@ -108,39 +109,13 @@ def _cast_kernel(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, kin
     has_plate = np.isfinite(plate_z)
     has_fix = np.isfinite(fixture[0])
     for kp in range(Rs.shape[0]):
-        R = Rs[kp]
-        ox = R[0, 2] * z_apex + ts[kp, 0]
-        oy = R[1, 2] * z_apex + ts[kp, 1]
-        oz = R[2, 2] * z_apex + ts[kp, 2]
         for i in range(d_F.shape[0]):
             dxF = d_F[i, 0]
             dzF = d_F[i, 2]
-            dx = R[0, 0] * dxF + R[0, 2] * dzF
-            dy = R[1, 0] * dxF + R[1, 2] * dzF
-            dz = R[2, 0] * dxF + R[2, 2] * dzF
+            ox, oy, oz, dx, dy, dz = ray_in_gauge(Rs[kp], ts[kp], z_apex, dxF, dzF)
             dn = np.sqrt(dx * dx + dy * dy + dz * dz)
-            best = np.inf
-            face = -1
-            for f in range(n_faces):
-                denom = normals[f, 0] * dx + normals[f, 1] * dy + normals[f, 2] * dz
-                if denom >= 0.0:
-                    continue
-                lam = (offsets[f] - (normals[f, 0] * ox + normals[f, 1] * oy + normals[f, 2] * oz)) / denom
-                if lam <= 0.0 or lam >= best:
-                    continue
-                px = ox + lam * dx
-                py = oy + lam * dy
-                if py < y_lo or py > y_hi:
-                    continue
-                lo = x_lo
-                hi = x_hi
-                if f > 0:
-                    lo = max(lo, ridge_q[f - 1, 0] + ridge_s[f - 1, 0] * py)
-                if f < n_ridges:
-                    hi = min(hi, ridge_q[f, 0] + ridge_s[f, 0] * py)
-                if px >= lo and px <= hi:
-                    best = lam
-                    face = f
+            best, face = first_face_hit(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, ox, oy, oz,
+                                        dx, dy, dz)
             lab = NONE
             cz = 0.0
             if face >= 0:

@@ -31,7 +31,7 @@ from numba import njit
 from ...geometry._fit import FASTMATH
 from .gauge import Gauge
 
-__all__ = ["expected_turns", "clean_points", "split_segments", "segment_table", "line_candidates",
+__all__ = ["expected_turns", "clean_points", "chord_deviation", "split_segments", "segment_table", "line_candidates",
            "assign_faces", "NCOL"]
 
 # Columns of a segment table.
@@ -140,10 +140,16 @@ def noise_sigma(xs, zs, m):
 
 
 @njit(cache=True, nogil=True)
-def _chord_dev(xs, zs, i0, i1, stride):
-    """Largest distance of points i0 < i < i1 from the chord i0–i1, and its index.
+def chord_deviation(xs, zs, i0, i1, stride, split_coincident):
+    """Largest distance of points i0 < i < i1 from the chord i0–i1 (mm), and its index.
 
-    Scans every ``stride``-th point, then every point within ``stride`` of the best one.
+    Scans every ``stride``-th point, then every point within ``stride`` of the best one:
+    the same vertex as a full scan whenever the deviation peaks at a corner (it rises
+    linearly towards it), at a fraction of the cost. ``(-1, -1)`` when there is no point
+    between; when the chord's ends coincide, ``(inf, middle index)`` with
+    ``split_coincident`` (the segment must be split), else ``(-1, -1)``. The one chord
+    deviation of both detectors (:func:`split_segments`; the RDP detector of
+    :mod:`~posekit.profiler.estimate.corners`).
     """
     dx = xs[i1] - xs[i0]
     dz = zs[i1] - zs[i0]
@@ -151,7 +157,7 @@ def _chord_dev(xs, zs, i0, i1, stride):
     if i1 - i0 < 2:
         return -1.0, -1
     if length <= 0.0:
-        return np.inf, (i0 + i1) // 2
+        return (np.inf, (i0 + i1) // 2) if split_coincident else (-1.0, -1)
     x0 = xs[i0]
     z0 = zs[i0]
     best = -1.0
@@ -195,7 +201,7 @@ def split_segments(xs, zs, m, tol, max_vertices):
         sp -= 1
         i0 = stack[sp, 0]
         i1 = stack[sp, 1]
-        dev, j = _chord_dev(xs, zs, i0, i1, stride)
+        dev, j = chord_deviation(xs, zs, i0, i1, stride, True)
         if dev <= tol or j < 0:
             continue
         if nv >= max_vertices or sp + 2 > stack.shape[0]:

@@ -24,9 +24,10 @@ from scipy.spatial.transform import Rotation
 from ...errors import ConfigError
 from ...geometry import transform_from
 from .gauge import Gauge
+from .raycast import first_face_hit, ray_in_gauge
 from .realism import AsBuiltGauge, RealismModel, build_as_built, render_as_built, true_corners
 
-__all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose",
+__all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose", "loop_poses",
            "sample_poses", "visible_mask", "render_profiles", "RealismModel", "AsBuiltGauge",
            "build_as_built", "true_corners"]
 
@@ -140,6 +141,35 @@ def nominal_pose(gauge: Gauge, model: ProfilerModel = LJ_X8400, standoff_mm: flo
     return transform_from(R, np.array([cx, 0.0, z]))
 
 
+def loop_poses(gauge: Gauge, count: int, model: ProfilerModel = LJ_X8400) -> np.ndarray:
+    """A smooth closed loop of sensor poses around the nominal pose: a robot moving over the gauge.
+
+    Over one period the sensor turns about the point at mid-range on its line of sight by
+    ±3°, ±3° and ±6° about its x, y and z and shifts by ±6, ±6 and ±20 mm along G's x, y, z
+    (sines of different frequencies and phases), so neighbouring poses are close: a stream.
+
+    Parameters
+    ----------
+    gauge : Gauge
+    count : int
+        Poses along one period.
+    model : ProfilerModel
+
+    Returns
+    -------
+    Ts_G_F : ndarray, shape (count, 4, 4)
+        Poses of F in G, mm.
+    """
+    th = 2 * np.pi * np.arange(count) / count
+    T0 = nominal_pose(gauge, model)
+    pivot_F = np.array([0.0, 0.0, model.z_mid])
+    pivot_G = T0[:3, :3] @ pivot_F + T0[:3, 3]
+    dt = np.stack([6 * np.sin(th), 6 * np.sin(2 * th), 20 * np.sin(3 * th)], axis=1)
+    rv = np.radians(np.stack([3 * np.sin(th + 1), 3 * np.sin(2 * th + 2), 6 * np.sin(th + 3)], axis=1))
+    R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
+    return transform_from(R, pivot_G - np.einsum("kij,j->ki", R, pivot_F) + dt)
+
+
 def visible_mask(gauge: Gauge, Ts_G_F, model: ProfilerModel = LJ_X8400, margin_mm: float = 3.0) -> np.ndarray:
     """Which poses see every corner of the gauge, shape (K,) bool.
 
@@ -246,39 +276,13 @@ def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Work
 def _cast_kernel(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, Rs, ts, d_F, z_apex,
                  z_near, z_far, out):
     """First-hit ray casting, compiled: out[k, i] = (x, z) in F of ray i at pose k, or NaN."""
-    n_faces = normals.shape[0]
-    n_ridges = ridge_q.shape[0]
     for k in range(Rs.shape[0]):
-        R = Rs[k]
-        ox = R[0, 2] * z_apex + ts[k, 0]
-        oy = R[1, 2] * z_apex + ts[k, 1]
-        oz = R[2, 2] * z_apex + ts[k, 2]
         for i in range(d_F.shape[0]):
             dxF = d_F[i, 0]
             dzF = d_F[i, 2]
-            dx = R[0, 0] * dxF + R[0, 2] * dzF
-            dy = R[1, 0] * dxF + R[1, 2] * dzF
-            dz = R[2, 0] * dxF + R[2, 2] * dzF
-            best = np.inf
-            for f in range(n_faces):
-                denom = normals[f, 0] * dx + normals[f, 1] * dy + normals[f, 2] * dz
-                if denom >= 0.0:          # the ray meets the face from inside: occluded
-                    continue
-                lam = (offsets[f] - (normals[f, 0] * ox + normals[f, 1] * oy + normals[f, 2] * oz)) / denom
-                if lam <= 0.0 or lam >= best:
-                    continue
-                px = ox + lam * dx
-                py = oy + lam * dy
-                if py < y_lo or py > y_hi:
-                    continue
-                lo = x_lo
-                hi = x_hi
-                if f > 0:
-                    lo = max(lo, ridge_q[f - 1, 0] + ridge_s[f - 1, 0] * py)
-                if f < n_ridges:
-                    hi = min(hi, ridge_q[f, 0] + ridge_s[f, 0] * py)
-                if px >= lo and px <= hi:
-                    best = lam
+            ox, oy, oz, dx, dy, dz = ray_in_gauge(Rs[k], ts[k], z_apex, dxF, dzF)
+            best, _ = first_face_hit(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, ox, oy, oz,
+                                     dx, dy, dz)
             z = z_apex + best * dzF
             if best < np.inf and z >= z_near and z <= z_far:
                 out[k, i, 0] = best * dxF

@@ -71,8 +71,6 @@ arrived over TCP.
 
 import gc
 import logging
-import math
-import selectors
 import socket
 import threading
 import time
@@ -83,40 +81,30 @@ import numpy as np
 from ...errors import ConfigError, PosekitError, ProfileError
 from ...geometry import quaternion_from_matrix
 from ..estimate.corners import CornerParams, gauge_turns
-from ..estimate.fast import estimate_profile_unchecked, warm_gate
+from ..estimate.fast import warm_gate
 from ..estimate.gauge import Gauge
 from ..estimate.pipeline import DEFAULT_NOISE
-from ..estimate.solve import DEFAULT_SIGNIFICANCE, METHODS, MOUNTINGS, _check_noise
-from .protocol import MAX_FRAME_BYTES, MAX_POINTS, Frame, encode_command, encode_hello
+from ..estimate.solve import DEFAULT_SIGNIFICANCE, METHODS, MOUNTINGS
+from ..estimate.verdict import check_noise
+from .protocol import MAX_POINTS, Frame, encode_hello
+from .server_receiver import SensorReceiver
 from .server_support import (
     Counts,
     LogLimiter,
-    RobotLink,
-    SensorConnection,
     check_address,
     parse_address,
     read_token_file,
     token_digest,
 )
-from .sources import units_hint
+from .server_worker import NAN_STORM, PoseWorker
 
 __all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
 
-#: Rejection reason of a frame whose points are (almost) all NaN.
-NAN_STORM = "nan_storm"
 _TIMING_KEYS = ("DT", "QW", "CD", "PC")
-_POLL_S = 0.05                 # how often blocked threads look at the stop flag
 _SECONDS_RANGE = (0.05, 86_400.0)   # accepted timeouts, s
 
 
-def _error_record(frame, error):
-    """The robot record of a frame without a pose (its fields are filled in on success)."""
-    return {"seq": frame.seq, "t_sensor_ns": frame.t_sensor_ns, "status": "error", "t_mm": None, "q_wxyz": None,
-            "std_t_um": None, "std_rot_deg": None, "reprojection_um": None, "reversed": None,
-            "chi2": None, "dof": None, "reason": None, "command": None, "filter": None, "timing_ms": None, "error": error}
-
-
-class PoseServer:
+class PoseServer(SensorReceiver, PoseWorker):
     """Streams profile frames in, sends one pose record per frame to the robot.
 
     Parameters
@@ -212,7 +200,7 @@ class PoseServer:
         if not (isinstance(significance, float | int) and 0 < significance < 1):
             raise ConfigError(f"PoseServer: significance must be a number in (0, 1), got {significance!r}")
         try:
-            _check_noise(noise)
+            check_noise(noise)
         except PosekitError as exc:
             raise ConfigError(f"PoseServer: {exc}") from None
         if method == "cf" and gauge.n_corners < 5:
@@ -498,266 +486,3 @@ class PoseServer:
                 self._counts.bad_stamps += 1
         self._enqueue(Frame(seq, stamp, pts, now), dt_ns)
         return seq
-
-    def _reject(self, reason: str, detail: str) -> None:
-        with self._stats_lock:
-            self._counts.rejected += 1
-            self._reasons[reason] += 1
-        self._limiter.event(reason, logging.WARNING, f"rejected frame ({reason}): {detail}")
-
-    # ------------------------------------------------------------------ receiver
-
-    def _receive_loop(self) -> None:
-        buf = bytearray(4 * MAX_FRAME_BYTES)
-        view = memoryview(buf)
-        sel = selectors.DefaultSelector()
-        sel.register(self._lsock, selectors.EVENT_READ, None)
-        conns: dict = {}
-        idle_ns = int(self.idle_timeout_s * 1e9)
-        read_ns = int(self.read_timeout_s * 1e9)
-        next_check = 0
-        try:
-            while not self._stop.is_set():
-                try:
-                    events = sel.select(_POLL_S)
-                except OSError:                     # e.g. EINTR storms; look at the stop flag
-                    events = []
-                for key, _ in events:
-                    c = key.data
-                    if c is None:
-                        self._accept(sel, conns)
-                    elif c.sock in conns:           # not closed earlier in this round
-                        try:
-                            self._read(c, view, sel, conns)
-                        except Exception as exc:    # a bug, never bad input (the decoders take any bytes)
-                            self.log.exception("receiver: internal error, dropping the connection")
-                            self._close(c, sel, conns, f"internal error ({type(exc).__name__}: {exc})")
-                now = time.perf_counter_ns()
-                if now >= next_check:               # deadlines: ~20 times a second is enough
-                    next_check = now + 50_000_000
-                    expired = [(c, c.expired(now, idle_ns, read_ns)) for c in conns.values()]
-                    for c, why in expired:
-                        if why is not None:
-                            with self._stats_lock:
-                                self._counts.timeouts += 1
-                            self._close(c, sel, conns, why, "timeout", logging.WARNING)
-                    self._limiter.flush_due()
-        finally:
-            for c in list(conns.values()):
-                c.close()
-            conns.clear()
-            with self._stats_lock:
-                self._n_conns = 0
-            sel.close()
-
-    def _accept(self, sel, conns: dict) -> None:
-        """Accept every pending connection (the listening socket is non-blocking)."""
-        for _ in range(64):
-            try:
-                sock, addr = self._lsock.accept()
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError as exc:        # e.g. out of file descriptors: try again later
-                self._limiter.event("accept_failed", logging.WARNING, f"cannot accept a sensor connection ({exc})")
-                time.sleep(_POLL_S)
-                return
-            now = time.perf_counter_ns()
-            if len(conns) >= self.max_connections:
-                oldest = min(conns.values(), key=lambda c: c.t_progress_ns)
-                with self._stats_lock:
-                    self._counts.evictions += 1
-                self._close(oldest, sel, conns, f"evicted: {self.max_connections} connections open and it had "
-                            f"the oldest complete frame", "evicted", logging.WARNING)
-            sock.setblocking(False)
-            try:
-                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            except OSError:
-                pass
-            peer = f"{addr[0]}:{addr[1]}"
-            c = SensorConnection(sock, peer, now, self._digest)
-            conns[sock] = c
-            sel.register(sock, selectors.EVENT_READ, c)
-            with self._stats_lock:
-                self._counts.connections += 1
-                self._n_conns = len(conns)
-            self._limiter.event("connect", logging.INFO, f"sensor connected from {peer}")
-
-    def _read(self, c: SensorConnection, view, sel, conns: dict) -> None:
-        """One ``recv`` on a readable connection; decode, enqueue, or close it."""
-        try:
-            n = c.sock.recv_into(view)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError as exc:
-            self._close(c, sel, conns, f"connection error ({exc})")
-            return
-        t_recv = time.perf_counter_ns()
-        if n == 0:
-            self._close(c, sel, conns, "closed by the sensor")
-            return
-        items, refused = c.feed(view[:n], t_recv)
-        if refused is not None:
-            with self._stats_lock:
-                self._counts.auth_failures += 1
-            self._close(c, sel, conns, f"refused: {refused}", "auth", logging.WARNING)
-            return
-        max_ns = int(self.max_dt_s * 1e9)
-        for item in items:
-            if isinstance(item, Frame):
-                dt_ns, why = c.transmission_ns(item.t_sensor_ns, item.t_recv_ns, max_ns)
-                if why is not None:
-                    with self._stats_lock:
-                        self._counts.bad_stamps += 1
-                    self._limiter.event("bad_stamp", logging.WARNING,
-                                        f"sensor {c.peer}: seq {item.seq}: {why}; DT not measured for this frame")
-                self._enqueue(item, dt_ns)
-            else:
-                self._reject(item.reason, item.detail)
-
-    def _close(self, c: SensorConnection, sel, conns: dict, why: str, key: str = "disconnect",
-               level: int = logging.INFO) -> None:
-        """Close one connection, count and log it (once, rate-limited by kind)."""
-        try:
-            sel.unregister(c.sock)
-        except (KeyError, ValueError, OSError):
-            pass
-        conns.pop(c.sock, None)
-        partial = c.close()
-        with self._stats_lock:
-            self._counts.disconnects += 1
-            self._n_conns = len(conns)
-        if partial is not None:
-            self._reject(partial.reason, partial.detail)
-            why += f", mid-frame: {partial.detail}; the partial frame was discarded"
-            level = max(level, logging.WARNING)
-        self._limiter.event(key, level, f"sensor {c.peer} disconnected ({why})")
-
-    def _enqueue(self, frame: Frame, dt_ns: int | None) -> None:
-        with self._cond:
-            dropped = len(self._queue) == self.queue_size
-            self._queue.append((frame, dt_ns))  # a full deque drops its oldest item
-            self._cond.notify()
-        with self._stats_lock:
-            self._counts.received += 1
-            self._counts.dropped += dropped
-        if dropped:
-            self._limiter.event("dropped", logging.WARNING,
-                                f"worker behind: dropped the oldest buffered frame (queue_size={self.queue_size})")
-
-    # ------------------------------------------------------------------ worker
-
-    def _work_loop(self) -> None:
-        link = None if self._robot is None else RobotLink(*self._robot, self._counts, self._stats_lock, self._limiter)
-        try:
-            while True:
-                with self._cond:
-                    while not self._queue and not self._stop.is_set():
-                        self._cond.wait(_POLL_S)
-                    if self._stop.is_set():
-                        break
-                    frame, dt_ns = self._queue.popleft()
-                try:
-                    record = self._process(frame, dt_ns)
-                except Exception as exc:  # a bug, never bad input: report it and go on
-                    self.log.exception("worker: internal error on frame seq %d", frame.seq)
-                    with self._stats_lock:
-                        self._counts.processed += 1
-                        self._counts.errors += 1
-                    record = _error_record(frame, f"seq {frame.seq}: internal error: {type(exc).__name__}: {exc}")
-                if self.record_sink is not None:
-                    self.record_sink.put(record)
-                if link is None:
-                    continue
-                sent = link.send(encode_command(record))
-                with self._stats_lock:
-                    if sent:
-                        self._counts.sent += 1
-                    else:
-                        self._counts.unsent += 1
-        finally:
-            if link is not None:
-                link.close()
-
-    def _estimate(self, pts, last=None):
-        """Corners, pose and verdict of one profile; warm start from ``last = (T_G_F, reversed)``."""
-        T_init, rev_init = (None, False) if last is None or self._method_code != 1 else last
-        return estimate_profile_unchecked(pts, self.gauge, self.params, self._turns, self._method_code,
-                                          self._mounting_code, T_init, rev_init, noise=self.noise,
-                                          significance=self.significance, gate=self._chi2_gate)
-
-    def _process(self, frame: Frame, dt_ns: int | None = None) -> dict:
-        t0 = time.perf_counter_ns()
-        seq = frame.seq
-        dt_ms = None if dt_ns is None else dt_ns * 1e-6
-        qw_ms = (t0 - frame.t_recv_ns) * 1e-6
-        rec = _error_record(frame, None)
-        pts = frame.points
-        res = self._estimate(pts, None if self._last_T is None else (self._last_T, self._last_rev))
-        n_pts = pts.shape[0]
-        n_nan = n_pts - res.n_valid
-        if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
-            detail = (f"seq {seq}: {n_nan} of {n_pts} points have no return "
-                      f"(more than {100 * self.nan_storm_fraction:.0f} % NaN)")
-            self._reject(NAN_STORM, detail)
-            rec["error"] = f"rejected frame (nan_storm): {detail}"
-            return rec
-        if res.cold_restart:
-            with self._stats_lock:
-                self._counts.cold_restarts += 1
-        error = None
-        T = res.T_G_F
-        if T is None:
-            error = f"seq {seq}: {res.error}"
-            if res.corners is None:
-                hint = units_hint(pts)         # only on failure: free on the good path
-                if hint is not None:
-                    error += f"; the profile {hint}"
-        else:
-            cov = res.cov
-            self._last_T = T
-            self._last_rev = bool(res.reversed)
-            var = cov.diagonal().tolist()
-            finite = all(map(math.isfinite, var))
-            rec.update(status=res.status, t_mm=T[:3, 3].tolist(),
-                       q_wxyz=quaternion_from_matrix(T[:3, :3], check=False).tolist(),
-                       std_t_um=[1e3 * math.sqrt(abs(v)) for v in var[:3]] if finite else None,
-                       std_rot_deg=[math.degrees(math.sqrt(abs(v))) for v in var[3:]] if finite else None,
-                       reprojection_um=float(res.reprojection_um), reversed=bool(res.reversed),
-                       chi2=float(res.chi2), dof=int(res.dof), reason=res.reason)
-            if self.pose_filter is not None and finite:
-                try:
-                    rec["filter"] = self.pose_filter.update(frame.t_sensor_ns * 1e-9, T, cov).to_record()
-                except ConfigError:         # a covariance the filter cannot use: no filtered pose
-                    rec["filter"] = None
-            if self.controller is not None:
-                try:
-                    command = self.controller(seq, frame.t_sensor_ns * 1e-9, T, cov)
-                    if command is not None:
-                        encode_command(command)     # a dict JSON can carry, or ConfigError
-                    rec["command"] = command
-                except Exception as exc:   # user code: report, never kill the worker
-                    error = f"seq {seq}: controller failed: {type(exc).__name__}: {exc}"
-        t2 = time.perf_counter_ns()
-        cd_ms = res.detect_ns * 1e-6
-        pc_ms = (t2 - t0 - res.detect_ns) * 1e-6
-        rec["timing_ms"] = {"DT": dt_ms, "QW": qw_ms, "CD": cd_ms, "PC": pc_ms}
-        with self._stats_lock:
-            c = self._counts
-            c.processed += 1
-            if error is not None:
-                c.errors += 1
-            elif rec["status"] == "ok":
-                c.ok += 1
-            else:
-                self._n_suspect += 1
-            row = self._tim[self._tim_n % self._tim.shape[0]]
-            row[0] = math.nan if dt_ms is None else dt_ms
-            row[1] = qw_ms
-            row[2] = cd_ms
-            row[3] = pc_ms
-            self._tim_n += 1
-        if error is not None:
-            rec["status"] = "error"
-            rec["error"] = error
-            self._limiter.event("profile_error", logging.WARNING, f"profile failed: {error}")
-        return rec

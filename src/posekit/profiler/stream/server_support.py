@@ -262,6 +262,16 @@ class SensorConnection:
             return FrameError(TRUNCATED, f"stream ended {n} bytes into its first message (a hello or frame)", 0)
         return self.decoder.flush()
 
+    def detach(self, sel, conns: dict) -> FrameError | None:
+        """Unregister from the selector ``sel``, leave ``conns`` (socket → connection) and close;
+        the incomplete frame it leaves, if any (:meth:`close`)."""
+        try:
+            sel.unregister(self.sock)
+        except (KeyError, ValueError, OSError):
+            pass
+        conns.pop(self.sock, None)
+        return self.close()
+
 
 # --------------------------------------------------------------------------- helpers
 

@@ -171,12 +171,7 @@ class SocketSource:
         return frames
 
     def _drop(self, c: SensorConnection, sel, conns: dict, why: str) -> None:
-        try:
-            sel.unregister(c.sock)
-        except (KeyError, ValueError, OSError):
-            pass
-        conns.pop(c.sock, None)
-        partial = c.close()
+        partial = c.detach(sel, conns)
         if partial is not None:
             self.counts["rejected"] += 1
             why += f", mid-frame: {partial.detail}"

@@ -1,0 +1,166 @@
+"""The gauge file tested across a batch (:mod:`posekit.profiler.estimate.gauge_check`).
+
+One profile cannot see a face machined off its drawing on demo-5's faces 1, 3, 5 (the offset is
+a pose shift along the weakly observable y); a batch at varied poses can. The profiles here come
+from the tests' own generator (tests/profiler/test_realistic_generator.py: the gauge's section
+cut analytically, fillets, chamfers, plate, fixture, ghosts, scale error, dropouts), not from
+posekit's simulator, at poses drawn here with the laser line turned by up to ±10° about its
+line of sight.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from posekit.cli.main import main
+from posekit.profiler import bundled_gauge, pose_errors
+from posekit.profiler.estimate.gauge_check import MIN_CHECK_PROFILES, check_gauge_file
+from posekit.profiler.estimate.pipeline import estimate_batch, estimate_profiles
+from tests.profiler.test_realistic_generator import ALL, generate, random_pose
+
+#: Every defect of the independent generator but machining (the gauge's faces are set per test).
+CELL = replace(ALL, offset_um=0.0)
+K = 60
+
+
+def varied_poses(gauge, count, rng, yaw_deg=10.0):
+    """Poses over the gauge with the laser line turned about its line of sight by up to ±yaw_deg."""
+    Ts = []
+    for _ in range(count):
+        T = random_pose(gauge, rng)
+        a = np.radians(rng.uniform(-yaw_deg, yaw_deg))
+        Rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        pivot = T[:3, 3] + T[:3, :3] @ np.array([0.0, 0.0, 440.0])      # the point the sensor looks at
+        T[:3, :3] = Rz @ T[:3, :3]
+        T[:3, 3] = pivot - T[:3, :3] @ np.array([0.0, 0.0, 440.0])
+        Ts.append(T)
+    return np.array(Ts)
+
+
+def batch(built, nominal, count, seed, defects=CELL):
+    """Profiles of the gauge ``built`` (its faces) at varied poses, padded to one length; and the poses."""
+    rng = np.random.default_rng(seed)
+    Ts = varied_poses(nominal, count, rng)
+    profs = [generate(built, T, defects, rng)[0] for T in Ts]
+    n = max(len(p) for p in profs)
+    out = np.full((count, n, 2), np.nan)
+    for k, p in enumerate(profs):
+        out[k, :len(p)] = p
+    return out, Ts
+
+
+def face_off(gauge, face, um):
+    offsets = gauge.offsets.copy()
+    offsets[face] += um * 1e-3
+    return replace(gauge, offsets=offsets)
+
+
+@pytest.mark.parametrize("face", range(6))
+def test_a_face_off_its_file_makes_the_batch_suspect(face):
+    """demo-5 with one face 20 µm off, its file declaring no tolerance: the batch test fails and
+    every pose is suspect with the face, its offset and calibrate-gauge in the reason."""
+    d5 = bundled_gauge("demo-5")
+    profiles, Ts = batch(face_off(d5, face, 20.0), d5, K, 100 + face)
+    res = estimate_profiles(profiles, d5)
+    check = res.gauge_check
+    assert check.checked and check.passed is False
+    assert check.chi2 > check.critical and check.dof == 10 and check.n_profiles >= K - 2
+    assert check.faces[0] == face                           # the face named first is the one off
+    assert abs(check.face_offset_um[face] - 20.0) < 4 * check.face_sigma_um[face] + 3.0
+    statuses = [r["status"] for r in res.records]
+    assert "ok" not in statuses and statuses.count("suspect") >= K - 2
+    for rec, est in zip(res.records, res.estimates):
+        if rec["status"] == "suspect":
+            assert rec["reason"].endswith(check.message) and est.reason == rec["reason"]
+            assert "measure the as-built gauge with 'posekit profiler calibrate-gauge'" in rec["reason"]
+            assert f"one face off along its normal explains it: face {face} +" in rec["reason"]
+    # the same profiles without the batch test: the per-profile verdict alone (faces 1, 3, 5 mostly 'ok')
+    alone = [r["status"] for r, _ in estimate_batch(profiles, d5, check_gauge=False)]
+    if face in (1, 3, 5):
+        assert alone.count("ok") > K // 3
+
+
+def test_good_batches_pass():
+    """The true gauge file, every defect of a cell but machining: 8 batches of 60, none fails, and
+    the statuses are the per-profile ones; the statistic's mean is near its dof."""
+    d5 = bundled_gauge("demo-5")
+    chi2 = []
+    for b in range(8):
+        profiles, _ = batch(d5, d5, K, 200 + b)
+        res = estimate_profiles(profiles, d5)
+        assert res.gauge_check.passed is True, res.gauge_check.message
+        assert res.gauge_check.message.startswith(f"gauge file 'demo-5' checked against {res.gauge_check.n_profiles} "
+                                                  "profiles: its faces agree within their tolerance (0 µm, chi2 = ")
+        plain = [r for r, _ in estimate_batch(profiles, d5, check_gauge=False)]
+        assert [r["status"] for r in res.records] == [r["status"] for r in plain]
+        chi2.append(res.gauge_check.chi2)
+    assert 4.0 < np.mean(chi2) < 16.0            # χ²(10): mean 10, sd of a mean of 8 ≈ 1.6
+
+
+def test_declared_tolerance_covers_the_offset():
+    """The same 20 µm offset of face 2 against a file that declares 20 µm: the batch passes."""
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(face_off(d5, 2, 20.0), d5, K, 300)
+    check = estimate_profiles(profiles, replace(d5, tolerance_um=20.0)).gauge_check
+    assert check.passed is True, check.message
+
+
+def test_too_small_or_too_alike_is_not_checked():
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(face_off(d5, 2, 50.0), d5, 12, 400)
+    res = estimate_profiles(profiles, d5)
+    assert res.gauge_check.checked is False and res.gauge_check.passed is None
+    assert res.gauge_check.message == (
+        "the gauge file could not be checked by this batch: 12 profiles with an estimate; it needs >= "
+        f"{MIN_CHECK_PROFILES} profiles with an estimate at varied poses (the laser line turned about its line of "
+        "sight by up to ±10-15° and tilted by a few degrees)")
+    assert [r["status"] for r in res.records] == [r["status"] for r, _ in estimate_batch(profiles, d5,
+                                                                                           check_gauge=False)]
+    # one pose, many times: too alike to fix the faces
+    one, _ = batch(d5, d5, 1, 401, defects=replace(CELL, dropouts=0))
+    rng = np.random.default_rng(5)
+    same = np.repeat(one, K, axis=0)
+    same[..., 1] += rng.normal(0, 0.005, same.shape[:2])
+    check = estimate_profiles(same, d5).gauge_check
+    assert check.checked is False
+    assert check.message.startswith(f"the gauge file could not be checked by this batch: the {K} profiles are too "
+                                    "alike to fix every face (condition ")
+    # None entries (no estimate) are skipped
+    assert check_gauge_file([None] * 3, [None] * 3, d5).message.startswith(
+        "the gauge file could not be checked by this batch: 0 profiles with an estimate")
+
+
+def test_cli_summary_says_the_gauge_file_failed(tmp_path, capsys):
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(face_off(d5, 5, 20.0), d5, K, 500)
+    np.savez(tmp_path / "p.npz", profiles=profiles)
+    capsys.readouterr()
+    rc = main(["profiler", "estimate", str(tmp_path / "p.npz"), "--gauge", "demo-5", "--out",
+               str(tmp_path / "poses.csv")])
+    err = capsys.readouterr().err.splitlines()
+    assert rc == 1
+    assert err[0].startswith("posekit: gauge 'demo-5' is not what its file says: across ")
+    assert err[0].endswith("calibrate-gauge'; every pose of the batch is marked suspect")
+    assert "one face off along its normal explains it: face 5 +" in err[0]
+
+
+@pytest.mark.parametrize("face", [0, 2, 4, 5])
+def test_an_understated_tolerance_is_caught(face):
+    """The same faces against a file that declares 2 µm: still caught (faces 0, 2, 4, 5)."""
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(face_off(d5, face, 20.0), d5, K, 600 + face)
+    check = estimate_profiles(profiles, replace(d5, tolerance_um=2.0)).gauge_check
+    assert check.passed is False and check.faces[0] == face, check.message
+
+
+def test_the_limit_face_3_within_a_2um_tolerance():
+    """Face 3 20 µm off against a 2 µm tolerance looks like a ~100 ppm scale error: the batch passes
+    (module docstring, "Measured limits"), and the poses it leaves 'ok' are off by < 4σ."""
+    d5 = bundled_gauge("demo-5")
+    profiles, Ts = batch(face_off(d5, 3, 20.0), d5, K, 700)
+    res = estimate_profiles(profiles, replace(d5, tolerance_um=2.0))
+    assert res.gauge_check.passed is True
+    z = np.array([np.abs(pose_errors(e.T_G_F, T)) / np.sqrt(np.diag(e.cov))
+                  for e, T in zip(res.estimates, Ts) if e is not None and e.status == "ok"])
+    assert len(z) > K // 2 and np.percentile(z[:, 1], 95) < 4.0
