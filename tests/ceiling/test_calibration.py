@@ -292,7 +292,7 @@ def test_cli_calibrate_writes_the_design_keys(points, tmp_path, capsys):
     assert "calibrated from 17 of 18 points" in stdout and "line 6: X=5400 Y=1200" in stdout
     assert re.search(r"rms \d\.\d{3} px in the image, \d+\.\d{3} world units \(mm\)", stdout)
     rc, stdout, _ = run_cli(capsys, "calibrate", csv, "--out", out, "--no-ransac", "--no-refine")
-    assert rc == 0 and "calibrated from 18 of 18 points (DLT only)" in stdout
+    assert rc == 0 and "calibrated from 18 of 18 points (DLT only, no lens model)" in stdout
     assert isinstance(load_calibration(out), Calibration)
     rc, _, stderr = run_cli(capsys, "calibrate", tmp_path / "missing.csv", "--out", out)
     assert rc == 1 and stderr.count("\n") == 1 and "missing.csv: no such file" in stderr

@@ -94,8 +94,13 @@ def test_bad_frame_input_is_one_line_naming_the_path(tmp_path):
     one_line(e)
     corrupt = write_images(tmp_path / "corrupt")
     (corrupt / "f001.png").write_bytes(b"\x89PNG garbage")
-    with pytest.raises(InputFileError, match="f001.png: cannot decode this file as an image") as e:
-        list(open_frames(corrupt))
+    frames = list(open_frames(corrupt))                  # an undecodable image is a frame without image
+    assert [f.image is None for f in frames] == [False, True, False]
+    assert frames[1].error.endswith("f001.png: cannot decode this file as an image")
+    for k in range(3):
+        (corrupt / f"f00{k}.png").write_bytes(b"\x89PNG garbage")
+    with pytest.raises(InputFileError, match=r"none of the 3 image file\(s\) decodes") as e:
+        open_frames(corrupt)
     one_line(e)
     sizes = write_images(tmp_path / "sizes")
     cv2.imwrite(str(sizes / "f009.png"), np.zeros((10, 10, 3), np.uint8))
@@ -113,13 +118,25 @@ def test_track_csv_round_trip(tmp_path):
             TrackRow(2, 2 / 15, float("nan"), float("nan"), float("nan"), "lost")]
     path = write_track_csv(rows, tmp_path / "t.csv")
     lines = path.read_text().splitlines()
-    assert lines[0] == ",".join(TRACK_COLUMNS) == "frame,time_s,x,y,heading_deg,status"
-    assert lines[1] == "0,0.000000,1.000,2.000,,ok"
-    assert lines[3] == "2,0.133333,,,,lost"
+    assert lines[0] == ",".join(TRACK_COLUMNS) == "frame,time_s,x,y,heading_deg,status,std_mm"
+    assert lines[1] == "0,0.000000,1.000,2.000,,ok,"
+    assert lines[3] == "2,0.133333,,,,lost,"
     back = read_track_csv(path)
     np.testing.assert_array_equal(back["frame"], [0, 1, 2])
     np.testing.assert_allclose(back["x"], [1.0, 1.5, np.nan])
     assert list(back["status"]) == ["ok", "predicted", "lost"]
+    rows[0].std_mm = 0.25
+    lines = write_track_csv(rows, tmp_path / "t.csv").read_text().splitlines()
+    assert lines[1] == "0,0.000000,1.000,2.000,,ok,0.250"
+    np.testing.assert_allclose(read_track_csv(tmp_path / "t.csv")["std_mm"], [0.25, np.nan, np.nan])
+    # the six-column file of earlier versions still reads (std_mm NaN); a short line is one error line
+    old = tmp_path / "old.csv"
+    old.write_text("frame,time_s,x,y,heading_deg,status\n0,0.0,1.0,2.0,,ok\n")
+    back = read_track_csv(old)
+    assert back["x"][0] == 1.0 and np.isnan(back["std_mm"][0])
+    old.write_text("frame,time_s,x,y,heading_deg,status,std_mm\n0,0.0,1.0\n")
+    with pytest.raises(InputFileError, match="old.csv: line 2 has 3 fields, expected 7"):
+        read_track_csv(old)
 
 
 def test_bad_dots_and_calibrations(tmp_path):
@@ -171,7 +188,12 @@ def test_noiseless_render_sub_millimetre_and_the_vent_dropout():
     status, xy = res.status(), res.xy()
     vis = truth.visible[:, 0]
     ok = status == "ok"
-    assert np.array_equal(ok, vis)                        # ok exactly when the dot is there
+    # ok exactly when the dot is there, except the first frame and the first one after the vent:
+    # a dot seen once is not yet known to be the laser (a lamp looks the same in one frame);
+    # seen moving in the next frame, it is
+    back = np.flatnonzero(vis[1:] & ~vis[:-1]) + 1
+    assert np.all(ok <= vis)
+    assert set(np.flatnonzero(vis & ~ok)) == {0, *back.tolist()}
     s = error_stats(xy[ok], truth.xy_red[ok])
     assert s.n > 80 and s.mean_mm < 0.5 and s.p95_mm < 1.0 and s.max_mm < 2.0
     # in the vent: predicted for max_predict_s, then lost (x, y empty), then ok again
@@ -191,10 +213,11 @@ def test_noisy_render_two_dots_corner_and_turn():
     cfg = render.SceneConfig(noise_std=6.0, duration_s=8.0, dots=("red", "green"), path_phase_s=10.0)
     truth, res = track_scene(cfg)
     status, xy = res.status(), res.xy()
-    assert np.all(status == "ok")
+    assert status[0] == "lost" and np.all(status[1:] == "ok")
+    status[0], xy[0] = "ok", truth.xy_red[0]
     s = error_stats(xy, truth.xy_red)
     assert s.mean_mm < 3.0 and s.max_mm < 6.0
-    dh = (res.heading_deg() - np.degrees(truth.heading_rad) + 180.0) % 360.0 - 180.0
+    dh = ((res.heading_deg() - np.degrees(truth.heading_rad) + 180.0) % 360.0 - 180.0)[1:]
     assert np.all(np.isfinite(dh))
     assert np.sqrt(np.mean(dh ** 2)) < 0.5 and np.abs(dh).max() < 2.0
 
@@ -211,11 +234,11 @@ def test_two_cameras_hand_over_the_track():
     res = track_frames(frames, [ca, cb], ("red",))
     ta, tb = sa.truth(), sb.truth()
     assert not ta.visible[-1, 0] and not tb.visible[0, 0]       # neither camera sees it all
-    assert np.all(res.status() == "ok")
-    used = np.array([r.camera for r in res.rows])
+    assert res.status()[0] == "lost" and np.all(res.status()[1:] == "ok")
+    used = np.array([r.camera for r in res.rows])[1:]
     assert used[0] == 0 and used[-1] == 1 and np.count_nonzero(np.diff(used)) == 1
-    assert np.all(ta.visible[used == 0, 0]) and np.all(tb.visible[used == 1, 0])
-    assert error_stats(res.xy(), ta.xy_red).max_mm < 3.0
+    assert np.all(ta.visible[1:][used == 0, 0]) and np.all(tb.visible[1:][used == 1, 0])
+    assert error_stats(res.xy()[1:], ta.xy_red[1:]).max_mm < 3.0
 
 
 # --- the CLI (a local harness: the lead wires these parsers into cli/ceiling.py) -----------------
@@ -263,13 +286,14 @@ def test_cli_track_video_and_image_folder(capsys, short_render):
         rc, stdout, err = cli(capsys, "track", source, "--calibration", out / "cal.json", "--dots", "red,green",
                               "--out", csv_path, *extra)
         assert rc == 0, err
-        assert "45 frames: 45 ok, 0 predicted, 0 lost" in stdout and "frames/s" in stdout
-        assert csv_path.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status"
+        assert "45 frames: 44 ok, 0 predicted, 1 lost" in stdout and "frames/s" in stdout
+        assert csv_path.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm"
         t = read_track_csv(csv_path)
-        xy = np.column_stack([t["x"], t["y"]])
-        assert error_stats(xy, truth.xy).mean_mm < 3.0
-        dh = (t["heading_deg"] - truth.heading_deg + 180.0) % 360.0 - 180.0
+        xy = np.column_stack([t["x"], t["y"]])[1:]
+        assert error_stats(xy, truth.xy[1:]).mean_mm < 3.0
+        dh = ((t["heading_deg"] - truth.heading_deg + 180.0) % 360.0 - 180.0)[1:]
         assert np.abs(dh).max() < 2.0
+        assert np.all(t["std_mm"][1:] > 0) and np.all(np.hypot(*(xy - truth.xy[1:]).T) <= 2.5 * t["std_mm"][1:])
         assert t["time_s"][1] == pytest.approx(1 / 15, abs=1e-6)
 
 

@@ -39,11 +39,17 @@ def test_dropout_predicts_then_loses_and_never_ok_without_a_dot():
     present = np.ones(90, bool)
     present[30:36] = False            # 0.4 s in an air-conditioning hole: predicted
     present[50:75] = False            # 1.67 s: predicted for 1 s, then lost
-    tr = Tracker(TrackerConfig(meas_std_mm=3.0, max_predict_s=1.0))
+    tr = Tracker(TrackerConfig(meas_std_mm=3.0, max_predict_s=1.0, min_move_mm=0.0))
     rows = run(tr, t, meas, present)
     status = np.array([r.status for r in rows])
     assert np.all(status[present] == "ok")
     assert np.all(status[30:36] == "predicted")
+    # by default a dot that comes back after more than confirm_after_s must be seen moving
+    # with the track once before it is ok again (a lamp where the dot was expected is not)
+    rows2 = run(Tracker(TrackerConfig(meas_std_mm=3.0)), t, meas, present)
+    status2 = np.array([r.status for r in rows2])
+    assert status2[0] == "lost" and status2[36] == "predicted" and status2[76] == "ok"
+    assert np.all((status2 == status) | (np.arange(90) == 0) | (np.arange(90) == 36) | (np.arange(90) == 75))
     gap = t[50:75] - t[49]
     assert np.all(status[50:75][gap <= 1.0 + 1e-9] == "predicted")
     assert np.all(status[50:75][gap > 1.0 + 1e-9] == "lost")
@@ -93,7 +99,7 @@ def test_follows_a_sharp_turn_without_gating_it_out():
     th = np.cumsum(w) * DT
     truth = np.cumsum(np.column_stack([300 * np.cos(th), 300 * np.sin(th)]), axis=0) * DT
     meas = truth + rng.normal(0.0, 3.0, truth.shape)
-    rows = run(Tracker(TrackerConfig(meas_std_mm=3.0)), t, meas, np.ones(len(t), bool))
+    rows = run(Tracker(TrackerConfig(meas_std_mm=3.0, min_move_mm=0.0)), t, meas, np.ones(len(t), bool))
     assert all(r.status == "ok" for r in rows)
     err = np.hypot(*(np.array([[r.x, r.y] for r in rows]) - truth).T)[30:]
     raw = np.hypot(*(meas - truth).T)[30:]
@@ -125,7 +131,7 @@ def test_nearest_candidate_is_associated():
 
 
 def test_consistent_jump_reinitialises_after_reinit_after_frames():
-    tr = Tracker(TrackerConfig(meas_std_mm=2.0, reinit_after=4))
+    tr = Tracker(TrackerConfig(meas_std_mm=2.0, reinit_after=4, min_move_mm=0.0))
     for k in range(10):
         tr.step(k * DT, {"red": [0.0, 0.0]})
     rows = [tr.step((10 + k) * DT, {"red": [2000.0, 0.0]}) for k in range(4)]   # robot carried away
@@ -141,7 +147,7 @@ def test_abrupt_stop_is_a_manoeuvre_not_an_outlier():
     t = np.arange(60) * DT
     truth = np.column_stack([np.minimum(t, 2.0) * 300.0, np.zeros_like(t)])
     meas = truth + rng.normal(0.0, 0.3, truth.shape)
-    tr = Tracker(TrackerConfig(meas_std_mm=0.3))
+    tr = Tracker(TrackerConfig(meas_std_mm=0.3, min_move_mm=0.0))
     rows = run(tr, t, meas, np.ones(len(t), bool))
     assert all(r.status == "ok" for r in rows)
     err = np.hypot(*(np.array([[r.x, r.y] for r in rows]) - truth).T)
@@ -168,7 +174,7 @@ def rotating_robot(n, rng, noise_mm=2.0, d_mm=400.0, rate=0.8):
 def test_heading_from_two_dots_through_the_wrap():
     rng = np.random.default_rng(3)
     t, theta, _, _, red, green = rotating_robot(300, rng)
-    tr = Tracker(TrackerConfig(dots=("red", "green"), meas_std_mm=2.0))
+    tr = Tracker(TrackerConfig(dots=("red", "green"), meas_std_mm=2.0, min_move_mm=0.0))
     rows = [tr.step(ti, {"red": r, "green": g}) for ti, r, g in zip(t, red, green)]
     h = np.radians([r.heading_deg for r in rows])
     assert np.all((h > -np.pi) & (h <= np.pi))
@@ -181,7 +187,7 @@ def test_heading_from_two_dots_through_the_wrap():
 def test_heading_empty_with_one_dot_and_when_green_lost():
     tr = Tracker()
     assert np.isnan(tr.step(0.0, {"red": [0.0, 0.0]}).heading_deg)
-    tr2 = Tracker(TrackerConfig(dots=("red", "green"), max_predict_s=0.5))
+    tr2 = Tracker(TrackerConfig(dots=("red", "green"), max_predict_s=0.5, min_move_mm=0.0))
     row = tr2.step(0.0, {"red": [0.0, 0.0], "green": [0.0, 400.0]})
     assert row.heading_deg == pytest.approx(90.0)
     assert row.csv_fields()[4] == "90.000"
@@ -253,7 +259,7 @@ def test_multicamera_switches_to_the_camera_that_sees_the_dot():
     # two 400x300 cameras at 5 mm/px: A covers x in [0, 2000], B x in [1500, 3500] (overlap 500 mm)
     cams = [Camera(AffineCal(5.0, (0.0, 0.0)), (400, 300), "A"),
             Camera(AffineCal(5.0, (1500.0, 0.0)), (400, 300), "B")]
-    mct = MultiCameraTracker(cams, TrackerConfig(meas_std_mm=2.0), border_margin_px=20.0)
+    mct = MultiCameraTracker(cams, TrackerConfig(meas_std_mm=2.0, min_move_mm=0.0), border_margin_px=20.0)
     n = 150
     t = np.arange(n) * DT
     truth = np.column_stack([200 + 300 * t, 700 + 0 * t])   # 200 → 3170 mm along x
@@ -285,7 +291,7 @@ def test_multicamera_switches_to_the_camera_that_sees_the_dot():
 def test_multicamera_prefers_dot_far_from_border_when_starting():
     cams = [Camera(AffineCal(5.0, (0.0, 0.0)), (400, 300), "A"),
             Camera(AffineCal(5.0, (1500.0, 0.0)), (400, 300), "B")]
-    mct = MultiCameraTracker(cams)
+    mct = MultiCameraTracker(cams, TrackerConfig(min_move_mm=0.0))
     p = np.array([1900.0, 700.0])             # 20 px from A's right border, 80 px inside B
     row = mct.step(0.0, [{"red": c.calibration.world_to_image(p)[0]} for c in cams])
     assert row.camera == 1 and row.status == "ok"

@@ -13,10 +13,13 @@ from .calibration import (
     read_points_csv,
     write_points_csv,
 )
+from .cameras import Camera, MultiCameraTracker
 from .demo import run_demo
-from .detect import Dot, DotDetector, Line, LineDetector
+from .detect import Dot, DotDetector, DotSignature, Line, LineDetector
 from .grid import CeilingGrid, find_grid_corners
-from .pipeline import read_track_csv, track_frames, track_video, write_track_csv
+from .live import TrackOutputs
+from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
+from .pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
 from .render import (
     CeilingScene,
     SceneConfig,
@@ -24,8 +27,8 @@ from .render import (
     render_video,
     true_homography,
 )
-from .track import Camera, MultiCameraTracker, Tracker, TrackerConfig
-from .video_io import open_frames
+from .track import Tracker, TrackerConfig
+from .video_io import open_frames, open_live
 
 __all__ = [
     "Calibration",
@@ -42,6 +45,7 @@ __all__ = [
     "render_video",
     "Dot",
     "DotDetector",
+    "DotSignature",
     "Line",
     "LineDetector",
     "TrackerConfig",
@@ -49,6 +53,12 @@ __all__ = [
     "Camera",
     "MultiCameraTracker",
     "open_frames",
+    "open_live",
+    "iter_track",
+    "TrackOutputs",
+    "MultiRobotTracker",
+    "track_robots_frames",
+    "track_robots_video",
     "track_video",
     "track_frames",
     "write_track_csv",

@@ -12,9 +12,11 @@ import numpy as np
 from scipy.special import ndtri
 
 __all__ = ["WALL_ALBEDO", "RIM_MM", "NOISE_LUT_BITS", "albedo_params", "ceiling_albedo", "render_albedo",
-           "noise_lut", "compose"]
+           "noise_lut", "compose", "compose_shaded", "undistort_normalized",
+           "undistort_many", "shade_board"]
 
 WALL_ALBEDO = 0.45                 # outside the ceiling (walls) and above the horizon
+OUTSIDE_LENS_ALBEDO = 0.02         # a pixel no ray reaches (beyond the distortion model's fold)
 RIM_MM = 30.0                      # white metal frame around a vent opening
 NOISE_LUT_BITS = 16
 
@@ -106,22 +108,103 @@ def _albedo_many(X, Y, p, holes, seed, texture, albedo, flags):
 
 
 @nb.njit(cache=True)
-def render_albedo(H_world_image, h, w, s, p, holes, seed):
+def undistort_normalized(xd, yd, dist):
+    """Undistorted normalized coordinates of distorted ones (OpenCV's fixed-point iteration,
+    run to 1e-12); ``dist = [k1, k2, p1, p2, k3]``."""
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    x, y = xd, yd
+    for _ in range(100):
+        r2 = x * x + y * y
+        icdist = 1.0 / (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3)))
+        if icdist <= 0.0:                 # beyond the lens model's fold: give up on this point
+            return np.nan, np.nan
+        dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        xn, yn = (xd - dx) * icdist, (yd - dy) * icdist
+        if abs(xn - x) + abs(yn - y) < 1e-12:
+            x, y = xn, yn
+            break
+        x, y = xn, yn
+    r2 = x * x + y * y
+    if 1.0 + r2 * (3.0 * k1 + r2 * (5.0 * k2 + r2 * 7.0 * k3)) <= 0.0:     # beyond the fold: no ray
+        return np.nan, np.nan
+    rd2 = xd * xd + yd * yd
+    rad = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    if abs(math.sqrt(r2) * rad - math.sqrt(rd2)) > 1e-6 * (1.0 + math.sqrt(rd2)) and p1 == 0.0 and p2 == 0.0:
+        return np.nan, np.nan                                                 # not converged
+    return x, y
+
+
+@nb.njit(cache=True)
+def undistort_many(xd, yd, dist, x, y):
+    """:func:`undistort_normalized` of every (xd[k], yd[k]) into x[k], y[k] (NaN: no ray)."""
+    for k in range(xd.shape[0]):
+        x[k], y[k] = undistort_normalized(xd[k], yd[k], dist)
+
+
+@nb.njit(cache=True)
+def shade_board(rays, R, t, square, cols, rows, acc):
+    """Add to ``acc`` (N,) the grey level of a chessboard (cols+1)×(rows+1) squares of ``square``
+    mm at pose (R, t) seen along each camera ray (N, 3): squares 40/215, a one-square white
+    margin (215), a grey wall (128) elsewhere."""
+    n0, n1, n2 = R[0, 2], R[1, 2], R[2, 2]
+    nt = n0 * t[0] + n1 * t[1] + n2 * t[2]
+    for k in range(rays.shape[0]):
+        den = rays[k, 0] * n0 + rays[k, 1] * n1 + rays[k, 2] * n2
+        val = 128.0
+        if den != 0.0 and rays[k, 0] == rays[k, 0]:
+            lam = nt / den
+            if lam > 0.0:
+                px, py, pz = lam * rays[k, 0] - t[0], lam * rays[k, 1] - t[1], lam * rays[k, 2] - t[2]
+                x = (px * R[0, 0] + py * R[1, 0] + pz * R[2, 0]) / square
+                y = (px * R[0, 1] + py * R[1, 1] + pz * R[2, 1]) / square
+                if 0.0 <= x < cols + 1 and 0.0 <= y < rows + 1:
+                    val = 40.0 if (math.floor(x) + math.floor(y)) % 2 == 0 else 215.0
+                elif -1.0 <= x < cols + 2 and -1.0 <= y < rows + 2:
+                    val = 215.0
+        acc[k] += val
+
+
+@nb.njit(cache=True)
+def _undistort_pixel(u, v, K, dist, lens):
+    """Undistorted pixel (same K) of the distorted pixel (u, v); identity without a lens."""
+    if not lens:
+        return u, v
+    y = (v - K[1, 2]) / K[1, 1]
+    x = (u - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    xu, yu = undistort_normalized(x, y, dist)
+    return K[0, 0] * xu + K[0, 1] * yu + K[0, 2], K[1, 1] * yu + K[1, 2]
+
+
+@nb.njit(cache=True)
+def render_albedo(H_world_image, h, w, s, p, holes, seed, K, dist):
     """Mean albedo over s×s samples per pixel, plus the fibre texture at the pixel centre
-    weighted by the pixel's tile-face coverage; shape (h, w)."""
+    weighted by the pixel's tile-face coverage; shape (h, w).
+
+    Pixels are those of the real (distorted) camera: each sample is undistorted with ``K`` and
+    ``dist = [k1, k2, p1, p2, k3]`` (all zero: a pinhole) before ``H_world_image`` maps it to the
+    ceiling."""
+    lens = False
+    for k in range(dist.shape[0]):
+        if dist[k] != 0.0:
+            lens = True
     out = np.empty((h, w))
     for i in range(h):
         for j in range(w):
             acc = 0.0
             face = 0.0
             for a in range(s):
-                v = i + (a + 0.5) / s - 0.5
+                vd = i + (a + 0.5) / s - 0.5
                 for b in range(s):
-                    u = j + (b + 0.5) / s - 0.5
+                    ud = j + (b + 0.5) / s - 0.5
+                    u, v = _undistort_pixel(ud, vd, K, dist, lens)
+                    if u != u:                                        # outside the lens's image circle
+                        acc += OUTSIDE_LENS_ALBEDO
+                        continue
                     q0 = H_world_image[0, 0] * u + H_world_image[0, 1] * v + H_world_image[0, 2]
                     q1 = H_world_image[1, 0] * u + H_world_image[1, 1] * v + H_world_image[1, 2]
                     q2 = H_world_image[2, 0] * u + H_world_image[2, 1] * v + H_world_image[2, 2]
-                    if q2 <= 0.0:                                     # above the horizon: a wall
+                    if not (q2 > 0.0):                                # above the horizon: a wall
                         acc += WALL_ALBEDO
                         continue
                     alb, fl = _albedo_at(q0 / q2, q1 / q2, p, holes, seed, False)
@@ -129,9 +212,10 @@ def render_albedo(H_world_image, h, w, s, p, holes, seed):
                     face += fl >> 1
             acc /= s * s
             if face > 0:
-                q0 = H_world_image[0, 0] * j + H_world_image[0, 1] * i + H_world_image[0, 2]
-                q1 = H_world_image[1, 0] * j + H_world_image[1, 1] * i + H_world_image[1, 2]
-                q2 = H_world_image[2, 0] * j + H_world_image[2, 1] * i + H_world_image[2, 2]
+                u, v = _undistort_pixel(float(j), float(i), K, dist, lens)
+                q0 = H_world_image[0, 0] * u + H_world_image[0, 1] * v + H_world_image[0, 2]
+                q1 = H_world_image[1, 0] * u + H_world_image[1, 1] * v + H_world_image[1, 2]
+                q2 = H_world_image[2, 0] * u + H_world_image[2, 1] * v + H_world_image[2, 2]
                 if q2 > 0.0:
                     acc += face / (s * s) * _texture(q0 / q2, q1 / q2, seed)
             out[i, j] = acc
@@ -154,6 +238,23 @@ def compose(bg, gain_rows, gain_cols, offset, noise_bits, lut, sigma, out):
         gi = gain_rows[i]
         for j in range(w):
             g = gi + gain_cols[j]
+            for c in range(3):
+                val = bg[i, j, c] * g + offset + sigma * lut[noise_bits[k]] + np.float32(0.5)
+                k += 1
+                out[i, j, c] = np.uint8(min(max(val, np.float32(0.0)), np.float32(255.0)))
+    return out
+
+
+@nb.njit(cache=True, fastmath=True, boundscheck=False)
+def compose_shaded(bg, shade, gain_rows, gain_cols, offset, noise_bits, lut, sigma, out):
+    """As :func:`compose` with a per-pixel illumination factor ``shade`` (h, w) on the ceiling
+    (shadows): out = clip(round(bg * shade[i, j] * (gain_rows[i] + gain_cols[j]) + offset + noise))."""
+    h, w, _ = bg.shape
+    k = 0
+    for i in range(h):
+        gi = gain_rows[i]
+        for j in range(w):
+            g = (gi + gain_cols[j]) * shade[i, j]
             for c in range(3):
                 val = bg[i, j, c] * g + offset + sigma * lut[noise_bits[k]] + np.float32(0.5)
                 k += 1

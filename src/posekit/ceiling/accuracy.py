@@ -336,7 +336,8 @@ class KnownPointsResult:
 
 
 def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, inset: float = 0.0,
-                            empty_first: bool = True, detector_options: dict | None = None) -> KnownPointsResult:
+                            empty_first: bool = True, detector_options: dict | None = None,
+                            camera=None) -> KnownPointsResult:
     """The paper's §V-B accuracy experiment on rendered frames.
 
     The red dot is placed, still, at each of the ``n × n`` points of
@@ -364,6 +365,10 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
         Show the detector a frame without the dot first (see above).
     detector_options : dict, optional
         Keyword arguments of the detector.
+    camera : CameraModel, optional
+        Lens model: detected dots are undistorted with it before ``calibration`` (which then
+        maps undistorted pixels). The scene's own stray lights, people and exposure steps are
+        left out (the experiment measures the geometry).
 
     Returns
     -------
@@ -376,9 +381,16 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
     pts = known_points_grid((x0, x1), (y0, y1), n=n, inset=inset)
     eps = 1e-3                                   # a degenerate rectangle: the robot stands at its corner
 
+    clean = {k: 0 for k in ("occluders", "shadows", "stray_lights", "blinking_lights", "reflections")
+             if hasattr(config, k)}
+    if hasattr(config, "exposure_step_s"):
+        clean["exposure_step_s"] = 0.0
+    if hasattr(config, "stray_light_xy_mm"):
+        clean["stray_light_xy_mm"] = ()
+
     def still_at(p):
         return replace(config, dots=("red",), path_rect_mm=(p[0], p[1], p[0] + eps, p[1] + eps),
-                       path_phase_s=0.0, duration_s=1.0 / config.fps)
+                       path_phase_s=0.0, duration_s=1.0 / config.fps, **clean)
 
     scene = CeilingScene(still_at(pts[0]))       # the background is rendered once
     uv = np.full((len(pts), 2), np.nan)
@@ -400,7 +412,8 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
     est = np.full_like(uv, np.nan)
     ok = np.all(np.isfinite(uv), axis=1)
     if ok.any():
-        est[ok] = calibration.image_to_world(uv[ok])
+        seen = uv[ok] if camera is None else camera.undistort_points(uv[ok])
+        est[ok] = calibration.image_to_world(seen, invalid="nan")
     return KnownPointsResult(world_xy=pts, image_uv=uv, estimated_xy=est, true_uv=true_uv,
                              stats=error_stats(est, pts), detection_stats=error_stats(uv, true_uv),
                              n_missed=int((~ok).sum()))

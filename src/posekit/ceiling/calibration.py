@@ -33,7 +33,11 @@ from ..io import load_json, read_text, write_text_atomic
 __all__ = [
     "Calibration",
     "CalibrationPoints",
+    "RadialPattern",
     "calibrate",
+    "undistort_calibration_points",
+    "point_residuals",
+    "radial_pattern",
     "load_calibration",
     "read_points_csv",
     "write_points_csv",
@@ -85,6 +89,10 @@ class Calibration:
     rms_world: float
     inliers: np.ndarray | None = None
     n_points: int | None = None
+    camera: object | None = None
+    """The :class:`~posekit.ceiling.camera.CameraModel` whose undistorted pixels the homography
+    maps (``calibrate --camera``), or None: pixels as seen (a distortion-free camera). The
+    homography never undistorts by itself: undistort detected points with this camera first."""
 
     def image_to_world(self, uv, *, invalid="raise"):
         """Map image points to the ceiling.
@@ -131,6 +139,9 @@ class Calibration:
             data["n_points"] = int(self.n_points)
         if self.inliers is not None:
             data["inliers"] = [bool(b) for b in self.inliers]
+        if self.camera is not None:
+            data["undistorted"] = True              # H maps undistorted pixels: track needs --camera
+            data["camera"] = self.camera.to_json()
         text = "{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items()) + "\n}\n"
         write_text_atomic(path, text, error=CalibrationError)
 
@@ -190,6 +201,188 @@ def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0,
     rms_px = math.sqrt(float(np.mean(np.sum((apply_homography(H, w_in) - i_in) ** 2, axis=1))))
     rms_world = math.sqrt(float(np.mean(np.sum((apply_homography(H_world_image, i_in) - w_in) ** 2, axis=1))))
     return Calibration(H, H_world_image, rms_px, rms_world, inliers, n)
+
+
+def undistort_calibration_points(camera, image_uv, lines=None) -> np.ndarray:
+    """Undistorted pixels (N, 2) of calibration points ``image_uv`` (N, 2) px with ``camera``.
+
+    Raises
+    ------
+    CalibrationError
+        A point outside the lens model's image circle (no ray is imaged there), naming its line
+        (``lines``, as read from the CSV) or its index.
+    """
+    uv = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    und = camera.undistort_points(uv)
+    bad = np.flatnonzero(~np.isfinite(und).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        where = f"line {lines[k]}" if lines is not None else f"point {k}"
+        raise CalibrationError(f"{where}: u={uv[k, 0]:g} v={uv[k, 1]:g} is outside the image circle of the "
+                               "camera's lens model; expected pixels of the camera the --camera file describes")
+    w, h = camera.image_size
+    out = np.flatnonzero((uv[:, 0] < -0.5) | (uv[:, 1] < -0.5) | (uv[:, 0] > w - 0.5) | (uv[:, 1] > h - 0.5))
+    if out.size:
+        k = int(out[0])
+        where = f"line {lines[k]}" if lines is not None else f"point {k}"
+        raise CalibrationError(f"{where}: u={uv[k, 0]:g} v={uv[k, 1]:g} is outside the {w}x{h} image of the "
+                               "--camera file; expected pixels of that camera")
+    return und
+
+
+def point_residuals(cal: "Calibration", world_xy, image_uv) -> tuple[np.ndarray, np.ndarray]:
+    """Per-point residuals of a calibration: image (px, ``‖H(X, Y) − (u, v)‖``) and world
+    (mm, ``‖H⁻¹(u, v) − (X, Y)‖``), each shape (N,); NaN where a point maps to infinity.
+    ``image_uv`` in the pixels the homography maps (undistorted when calibrated with a camera)."""
+    world = np.asarray(world_xy, dtype=float).reshape(-1, 2)
+    image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    e_px = np.linalg.norm(cal.world_to_image(world, invalid="nan") - image, axis=1)
+    e_mm = np.linalg.norm(cal.image_to_world(image, invalid="nan") - world, axis=1)
+    return e_px, e_mm
+
+
+class RadialPattern(NamedTuple):
+    """The radial part of calibration residuals (:func:`radial_pattern`)."""
+
+    detected: bool
+    """True: the residuals grow with the distance from the centre like lens distortion."""
+    k_r3_px: float
+    """Coefficient of r³ in the radial residual, px at r = 1 (r normalised by the largest radius)."""
+    t_stat: float
+    """Its t statistic."""
+    explained: float
+    """Fraction of the residuals' sum of squares the radial model [r, r³] explains (0..1)."""
+    rms_px: float
+    """Rms residual of the least-squares homography over all points, px."""
+    rms_after_px: float
+    """Rms residual left after removing the radial model, px."""
+    centre: np.ndarray
+    """Centre the radius was measured from, px (image centre, or the points' bounding box)."""
+    n: int
+    """Points used."""
+    off_px: np.ndarray | None = None
+    """Per point, the distance of its residual from the radial model, px (a point far off it is
+    a mis-click, one on it follows the lens)."""
+
+
+#: A radial pattern must explain at least this fraction of the residuals' sum of squares ...
+RADIAL_EXPLAINED = 0.6
+#: ... with an r³ coefficient of at least this t statistic ...
+RADIAL_T = 6.0
+#: ... on residuals of at least this rms, px (below it, clicking noise dominates).
+RADIAL_MIN_RMS_PX = 0.5
+
+
+def radial_pattern(world_xy, image_uv, *, centre=None) -> RadialPattern:
+    """Do the residuals of a plain homography show lens distortion?
+
+    Fits one homography to all points (least squares in the image), takes each point's residual
+    along the ray from ``centre`` (default: the centre of the points' bounding box, which is the
+    image centre when the points fill the image, as the paper asks) and regresses it on
+    ``[r, r³]`` (r: distance from the centre / the largest one). The part proportional to r is
+    absorbed by the homography's scale; a significant r³ term that explains most of the
+    residuals is the signature of radial distortion. Two rounds: points more than 4 robust
+    sigmas off the radial model (mis-clicks) are left out of the second.
+
+    Returns
+    -------
+    RadialPattern
+    """
+    world = np.asarray(world_xy, dtype=float).reshape(-1, 2)
+    image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    n = len(world)
+    c = (np.asarray(centre, dtype=float) if centre is not None
+         else 0.5 * (image.min(axis=0) + image.max(axis=0)))
+    nothing = RadialPattern(False, 0.0, 0.0, 0.0, 0.0, 0.0, c, n)
+    if n < 8:
+        return nothing
+    use = np.ones(n, dtype=bool)
+    result = nothing
+    if centre is None:                              # the centre of distortion: search near the bbox centre
+        span = image.max(axis=0) - image.min(axis=0)
+        grid = np.linspace(-0.3, 0.3, 7)
+        centres = [c + span * np.array([a, b]) for a in grid for b in grid]
+    else:
+        centres = [c]
+    for _ in range(2):
+        try:
+            H = homography_dlt(world[use], image[use], check=False)
+            H = refine_homography(H, world[use], image[use], check=False)
+        except Exception:                                   # degenerate subsets: no verdict
+            return nothing
+        e = apply_homography(H, world, invalid="nan") - image
+        fits = [_radial_fit(e, image, cc, use) for cc in centres]
+        fits = [f for f in fits if f is not None]
+        if not fits:
+            return nothing
+        result, full_off = max(fits, key=lambda f: f[0].explained)
+        mad = 1.4826 * np.median(full_off[use & np.isfinite(full_off)]) + 1e-9
+        new = np.isfinite(full_off) & (full_off <= 4.0 * mad + 0.5)
+        if new.sum() < 8 or np.array_equal(new, use):
+            break
+        use = new
+    if result.detected:
+        off, rms_after = _radial_homography_off(world, image, result.centre, H)
+        result = result._replace(off_px=off, rms_after_px=rms_after)
+    return result
+
+
+def _radial_homography_off(world, image, c, H0):
+    """Per-point residual (px) of a homography followed by radial distortion about ``c``
+    (``uv = c + (Hx − c)(1 + k1 ρ² + k2 ρ⁴)``, ρ normalised by the largest radius, the centre
+    free near ``c``), fitted by
+    robust least squares (soft-L1, 1 px), and the rms over the points within 3 px."""
+    from scipy.optimize import least_squares
+
+    s = max(float(np.max(np.hypot(*(image - c).T))), 1.0)
+
+    def model(x):
+        H = np.append(x[:8], 1.0).reshape(3, 3)
+        cc = c + s * x[10:12]
+        q = apply_homography(H, world, invalid="nan") - cc
+        rho2 = np.sum(q ** 2, axis=1) / s ** 2
+        return cc + q * (1.0 + x[8] * rho2 + x[9] * rho2 ** 2)[:, None]
+
+    def resid(x):
+        return np.nan_to_num((model(x) - image).ravel(), nan=1e6)
+
+    x0 = np.concatenate([(H0 / H0[2, 2]).ravel()[:8], [0.0, 0.0, 0.0, 0.0]])
+    try:
+        sol = least_squares(resid, x0, loss="soft_l1", f_scale=1.0, max_nfev=400)
+        off = np.linalg.norm(model(sol.x) - image, axis=1)
+    except (ValueError, np.linalg.LinAlgError):
+        return None, math.nan
+    good = off <= 3.0
+    return off, (math.sqrt(float(np.mean(off[good] ** 2))) if good.any() else math.nan)
+
+
+def _radial_fit(e: np.ndarray, image: np.ndarray, c: np.ndarray, use: np.ndarray):
+    """Regression of the radial residual on [r, r³] about ``c``: (RadialPattern, per-point
+    distance of the residual from the radial model, px), or None with too few points."""
+    d = image - c
+    rad = np.hypot(d[:, 0], d[:, 1])
+    r = rad / max(rad.max(), 1e-9)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        er = np.where(rad > 1e-9, np.sum(e * d, axis=1) / np.maximum(rad, 1e-12), 0.0)
+    ok = use & np.isfinite(er)
+    if ok.sum() < 8:
+        return None
+    A_all = np.column_stack([r, r ** 3])
+    A = A_all[ok]
+    beta, *_ = np.linalg.lstsq(A, er[ok], rcond=None)
+    rss1 = float(np.sum((er[ok] - A @ beta) ** 2))
+    e2 = np.sum(e ** 2, axis=1)
+    tangential = float(np.sum(np.maximum(e2[ok] - er[ok] ** 2, 0.0)))
+    total = float(np.sum(e2[ok]))
+    dof = max(int(ok.sum()) - 2, 1)
+    cov = np.linalg.pinv(A.T @ A) * (rss1 / dof)
+    t = float(beta[1] / math.sqrt(cov[1, 1])) if cov[1, 1] > 0 else math.inf
+    explained = 1.0 - (rss1 + tangential) / total if total > 0 else 0.0
+    rms = math.sqrt(total / ok.sum())
+    rms_after = math.sqrt(max(rss1 + tangential, 0.0) / ok.sum())
+    detected = bool(abs(t) >= RADIAL_T and explained >= RADIAL_EXPLAINED and rms >= RADIAL_MIN_RMS_PX)
+    off = np.hypot(er - A_all @ beta, np.sqrt(np.maximum(e2 - er ** 2, 0.0)))
+    return RadialPattern(detected, float(beta[1]), t, float(explained), rms, rms_after, c, int(ok.sum()), off), off
 
 
 def _check_count_and_distinct(world_xy, image_uv):
@@ -288,7 +481,11 @@ def load_calibration(path) -> Calibration:
                 and (n_points is None or len(inliers) == n_points)):
             raise CalibrationError(f"{path}: 'inliers' must be a list of true/false, one per point")
         inliers = np.array(inliers, dtype=bool)
-    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points)
+    camera = None
+    if data.get("camera") is not None:                    # written by calibrate --camera
+        from .camera import CameraModel
+        camera = CameraModel.from_dict(data["camera"], f"{path}: camera")
+    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera)
 
 
 class CalibrationPoints(NamedTuple):

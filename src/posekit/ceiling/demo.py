@@ -21,8 +21,8 @@ from .._extras import require
 from ..errors import ConfigError, InputFileError
 from .accuracy import ErrorStats, HeadingSimulation, KnownPointsResult, error_stats
 
-__all__ = ["SceneTruthTable", "DemoReport", "read_truth_csv", "calibrate_rendered", "compare_with_truth",
-           "plot_trajectories", "write_demo_report", "run_demo"]
+__all__ = ["SceneTruthTable", "DemoReport", "read_truth_csv", "calibrate_rendered", "calibrate_rendered_points",
+           "lens_from_chessboards", "compare_with_truth", "plot_trajectories", "write_demo_report", "run_demo"]
 
 
 @dataclass
@@ -61,14 +61,23 @@ def read_truth_csv(path) -> SceneTruthTable:
                            uv=np.column_stack([col("red_u"), col("red_v")]))
 
 
-def calibrate_rendered(render_dir, grid=None):
+def calibrate_rendered(render_dir, grid=None, lens=None):
+    """Calibrate the camera of a rendered video folder; returns ``(calibration, method)``.
+    See :func:`calibrate_rendered_points`."""
+    cal, method, _, _ = calibrate_rendered_points(render_dir, grid, lens)
+    return cal, method
+
+
+def calibrate_rendered_points(render_dir, grid=None, lens=None):
     """Calibrate the camera of a rendered video folder.
 
     With ``reference.png``: four grid corners of ``calibration_points.csv`` (the extreme
     ones, rounded to whole pixels as a user would click them) seed
     :func:`~posekit.ceiling.grid.find_grid_corners`, which finds every T-bar crossing to
     sub-pixel accuracy; the homography is fitted to those. Without it: to the points of
-    ``calibration_points.csv``.
+    ``calibration_points.csv``. With a ``lens``, the reference image is undistorted first
+    (``cv2.undistort`` with the same K: straight T-bars again) and the seeds with it, so the
+    homography maps undistorted pixels.
 
     Parameters
     ----------
@@ -76,18 +85,26 @@ def calibrate_rendered(render_dir, grid=None):
         Folder written by :func:`~posekit.ceiling.render.render_video`.
     grid : CeilingGrid, optional
         The ceiling lattice (default: the renderer's default tiles).
+    lens : CameraModel, optional
+        The camera's lens model.
 
     Returns
     -------
     calibration : Calibration
+        ``camera`` set to ``lens``.
     method : str
         How it was obtained (for the report).
+    world_xy : ndarray, shape (N, 2)
+        The calibration points on the ceiling, mm.
+    image_uv : ndarray, shape (N, 2)
+        Their pixels as seen (distorted), px.
     """
-    from .calibration import calibrate, read_points_csv
+    from .calibration import calibrate, read_points_csv, undistort_calibration_points
 
     render_dir = Path(render_dir)
     pts = read_points_csv(render_dir / "calibration_points.csv")
     ref = render_dir / "reference.png"
+    lens_note = "" if lens is None else ", through the lens model"
     if ref.exists():
         cv2 = require("cv2", "vision", "posekit ceiling demo")
 
@@ -100,15 +117,49 @@ def calibrate_rendered(render_dir, grid=None):
         if image is None:
             raise InputFileError(f"{ref}: cannot decode this file as an image")
         uv = pts.image_uv
+        if lens is not None:
+            image = cv2.undistort(image, lens.K, lens.dist, None, lens.K)
+            uv = undistort_calibration_points(lens, uv, pts.lines)
         seeds = np.unique([np.argmin(uv.sum(1)), np.argmax(uv.sum(1)),
                            np.argmin(uv[:, 0] - uv[:, 1]), np.argmax(uv[:, 0] - uv[:, 1])])
         with np.errstate(invalid="ignore"):
             corners = find_grid_corners(image, grid, seed_world=pts.world_xy[seeds],
                                         seed_image=np.round(uv[seeds]))
         cal = calibrate(corners.world_xy, corners.image_uv)
-        return cal, f"{len(corners.world_xy)} grid corners found in reference.png"
-    cal = calibrate(pts.world_xy, pts.image_uv)
-    return cal, f"{len(pts.world_xy)} points of calibration_points.csv"
+        cal.camera = lens
+        seen = corners.image_uv if lens is None else lens.distort_points(corners.image_uv)
+        return (cal, f"{len(corners.world_xy)} grid corners found in reference.png{lens_note}",
+                corners.world_xy, seen)
+    image_uv = pts.image_uv if lens is None else undistort_calibration_points(lens, pts.image_uv, pts.lines)
+    cal = calibrate(pts.world_xy, image_uv)
+    cal.camera = lens
+    return cal, f"{len(pts.world_xy)} points of calibration_points.csv{lens_note}", pts.world_xy, pts.image_uv
+
+
+def lens_from_chessboards(camera, out_dir=None, *, n_views: int = 12, board=(9, 6), square_mm: float = 30.0,
+                          seed: int = 0):
+    """Calibrate a simulated lens the way a user would: render ``n_views`` chessboard images
+    through ``camera`` (:mod:`~posekit.ceiling.render_chessboard`) and run
+    :func:`~posekit.ceiling.camera.calibrate_camera` on them (k3 fixed at 0, as the CLI's
+    default). Writes the views as ``chessboard/view_NN.png`` under ``out_dir`` if given.
+
+    Returns
+    -------
+    LensCalibration
+    """
+    from .camera import calibrate_camera
+    from .render_chessboard import chessboard_poses, render_chessboard
+
+    poses = chessboard_poses(camera, board, square_mm, n_views, rng=seed)
+    views = [(f"view_{k:02d}", render_chessboard(camera, T, board, square_mm, supersample=2, rng=[seed, k]))
+             for k, T in enumerate(poses)]
+    if out_dir is not None:
+        cv2 = require("cv2", "vision", "posekit ceiling demo")
+        folder = Path(out_dir) / "chessboard"
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, img in views:
+            cv2.imwrite(str(folder / f"{name}.png"), img)
+    return calibrate_camera(views, board, square_mm, fix_k3=True)
 
 
 def compare_with_truth(result, truth: SceneTruthTable) -> dict:
@@ -208,11 +259,15 @@ class DemoReport:
     known_points: KnownPointsResult | None
     heading_simulation: HeadingSimulation
     files: list = field(default_factory=list)
+    lens_method: str = "none (pinhole camera)"
+    effects: str = "none"
 
     def summary(self) -> str:
         e = self.errors
         lines = [
             f"posekit ceiling demo: {self.n_frames} frames, dots {','.join(self.dots)}, written to {self.out_dir}",
+            f"scene effects: {self.effects}",
+            f"lens: {self.lens_method}",
             (f"calibration: {self.calibration_method}; rms {self.calibration_rms_px:.3f} px, "
              f"{self.calibration_rms_world:.2f} mm"),
             (f"track: {self.counts['ok']} ok, {self.counts['predicted']} predicted, {self.counts['lost']} lost; "
@@ -243,7 +298,8 @@ class DemoReport:
         def stats(s: ErrorStats):
             return {"n": s.n, "mean_mm": s.mean_mm, "rms_mm": s.rms_mm, "p95_mm": s.p95_mm, "max_mm": s.max_mm}
         e = self.errors
-        out = {"n_frames": self.n_frames, "dots": list(self.dots), "calibration": self.calibration_method,
+        out = {"n_frames": self.n_frames, "dots": list(self.dots), "effects": self.effects, "lens": self.lens_method,
+               "calibration": self.calibration_method,
                "calibration_rms_px": self.calibration_rms_px, "calibration_rms_mm": self.calibration_rms_world,
                "counts": self.counts, "fps": self.fps, "processing_ms": self.processing_ms,
                "error_ok": stats(e["ok"]), "error_predicted": stats(e["predicted"]), "error_raw": stats(e["raw"]),
@@ -275,6 +331,8 @@ def write_demo_report(report: DemoReport) -> Path:
     e = report.errors
     overview = [
         {"item": "video", "value": f"{report.n_frames} frames, dots {', '.join(report.dots)}"},
+        {"item": "scene effects", "value": report.effects},
+        {"item": "lens model", "value": report.lens_method},
         {"item": "calibration", "value": report.calibration_method},
         {"item": "calibration rms", "value": f"{report.calibration_rms_px:.3f} px, "
                                              f"{report.calibration_rms_world:.2f} mm"},
@@ -307,6 +365,15 @@ def write_demo_report(report: DemoReport) -> Path:
                                       f"radius {hs.error_mm:g} mm; closed form e/D = {hs.closed_form_deg:.3f}°"),
                     "std": hs.std_deg, "mean": hs.mean_deg, "max |err|": float("nan"), "paper": "std 2.00"})
     figures = "".join(html_figure(p, caption) for p, caption in (
+        (report.out_dir / "fig5_calibration_check.png",
+         "Fig. 5: calibration points (black crosses) and the world points back-projected by the calibration "
+         "(red circles)"),
+        (report.out_dir / "fig6_known_points.png",
+         "Fig. 6: accuracy assessment: known positions (circles) and the positions estimated from rendered "
+         "dots (crosses)"),
+        (report.out_dir / "fig7_heading_simulation.png",
+         "Fig. 7: heading accuracy from the localisation accuracy: two dots D apart, each on a circle of radius "
+         "e; the angle θ between the estimated and the ideal line"),
         (report.out_dir / "fig8_image_trajectory.png", "Fig. 8: trajectory of the laser dot in the image"),
         (report.out_dir / "fig9_world_trajectory.png", "Fig. 9: trajectory on the ceiling plane, with the truth"),
     ) if p in report.files)
@@ -323,18 +390,32 @@ def write_demo_report(report: DemoReport) -> Path:
                       sections)
 
 
+def _effects(cfg) -> str:
+    on = [name for name, flag in (
+        (f"lens k1={cfg.dist[0]:g}, k2={cfg.dist[1]:g}", any(cfg.dist)), (f"bloom {cfg.bloom:g}", cfg.bloom > 0),
+        (f"exposure steps ~{cfg.exposure_step_s:g} s", cfg.exposure_step_s > 0),
+        (f"{cfg.occluders} occluder(s)", cfg.occluders), (f"{cfg.shadows} shadow(s)", cfg.shadows),
+        (f"{cfg.stray_lights} steady red light(s)", cfg.stray_lights),
+        (f"{cfg.blinking_lights} blinking red light(s)", cfg.blinking_lights),
+        (f"{cfg.reflections} reflection(s)", cfg.reflections),
+        (f"{cfg.codec} video", cfg.codec != "mjpg")) if flag]
+    return ", ".join(on) or "none (clean video)"
+
+
 def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, seed: int = 0,
-             config=None, known_points: bool = True, progress=None) -> DemoReport:
+             config=None, known_points: bool = True, progress=None, camera=None, realistic: bool = False,
+             line_pattern: str = "dotted") -> DemoReport:
     """Render, calibrate, track and evaluate; write the figures, ``demo.json`` and ``report.html``.
 
     Parameters
     ----------
     out_dir : path
         Output folder (created): the render (``video.avi``, ``truth.csv``,
-        ``calibration_points.csv``, ``reference.png``), ``calibration.json``, ``track.csv``,
-        ``fig8_image_trajectory.png``, ``fig9_world_trajectory.png``, ``demo.json``, ``report.html``.
+        ``calibration_points.csv``, ``reference.png``, ``camera.json``), ``calibration.json``,
+        ``track.csv``, the figures ``fig5`` .. ``fig9``, ``demo.json``, ``report.html``; with a
+        distorting lens and no ``camera``, ``chessboard/`` and ``camera_calibrated.json``.
     dots : tuple of str
-        ``("red",)`` or ``("red", "green")``.
+        ``("red",)``, ``("red", "green")`` or ``("line",)`` (case C).
     seconds : float, optional
         Video length, s (default: the renderer's).
     seed : int
@@ -345,6 +426,15 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
         Also run the 36-known-points assessment.
     progress : callable, optional
         Wraps the frame iterators (progress bars).
+    camera : CameraModel or path, optional
+        Lens model used for calibration and tracking. Default: none for a pinhole scene; for a
+        distorting one, the lens is calibrated from rendered chessboard views
+        (:func:`lens_from_chessboards`), as a user would.
+    realistic : bool
+        Start from :meth:`SceneConfig.realistic` instead of the clean defaults (ignored with
+        ``config``).
+    line_pattern : {"dotted", "solid"}
+        With ``dots=("line",)``: the §III-C dotted line (default) or a solid line.
 
     Returns
     -------
@@ -355,6 +445,8 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
     cv2 = require("cv2", "vision", "posekit ceiling demo")
 
     from .accuracy import known_points_assessment, simulate_heading_error
+    from .camera import CameraModel, load_camera
+    from .figures import plot_calibration_check, plot_heading_simulation, plot_known_points
     from .pipeline import track_video, write_track_csv
     from .render import SceneConfig, render_video
 
@@ -365,30 +457,72 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
         raise ConfigError(f"--out {out}: cannot create folder ({exc.strerror or exc})") from None
     if seconds is not None and not (np.isfinite(seconds) and seconds > 0):
         raise ConfigError(f"--duration-s must be a positive number of seconds, got {seconds!r}")
-    cfg = SceneConfig() if config is None else config
-    cfg = replace(cfg, dots=tuple(dots), seed=int(seed),
+    dots = tuple(dots)
+    cfg = (SceneConfig.realistic() if realistic else SceneConfig()) if config is None else config
+    extra = {"line_pattern": line_pattern} if dots == ("line",) else {}
+    cfg = replace(cfg, dots=dots, seed=int(seed), **extra,
                   **({} if seconds is None else {"duration_s": float(seconds)}))
     rendered = render_video(cfg, out, progress=progress)
 
+    lens, lens_method = None, "none (pinhole camera)"
+    if camera is not None:
+        lens = camera if isinstance(camera, CameraModel) else load_camera(camera)
+        if tuple(lens.image_size) != (cfg.width_px, cfg.height_px):
+            raise ConfigError(f"--camera: the model is for {lens.image_size[0]}x{lens.image_size[1]} px images; "
+                              f"the demo renders {cfg.width_px}x{cfg.height_px}")
+        lens_method = f"given ({camera if not isinstance(camera, CameraModel) else 'model'}; rms {lens.rms_px:.3f} px)"
+    elif any(cfg.dist):
+        from .camera import save_camera
+        from .render import lens_camera
+        lc = lens_from_chessboards(lens_camera(cfg), out, seed=int(seed))
+        lens = lc.camera
+        save_camera(lens, out / "camera_calibrated.json")
+        lens_method = (f"calibrated from {len(lc.used)} rendered chessboard views (rms {lens.rms_px:.3f} px, "
+                       f"k1 {lens.dist[0]:+.4f}, k2 {lens.dist[1]:+.4f}; boards cover {100 * lc.coverage:.0f} % "
+                       f"of the image); truth k1 {cfg.dist[0]:+.4f}, k2 {cfg.dist[1]:+.4f}")
+
     from .grid import CeilingGrid
     grid = CeilingGrid(spacing_mm=cfg.tile_size_mm, bar_width_mm=cfg.tbar_width_mm)
-    cal, method = calibrate_rendered(out, grid)
+    cal, method, cal_world, cal_seen = calibrate_rendered_points(out, grid, lens)
     cal.to_json(out / "calibration.json")
-    result = track_video(rendered.video, cal, tuple(dots), progress=progress)
+    if dots == ("line",) and cfg.line_pattern == "dotted":
+        result = _track_dotted_line(rendered.video, cal, lens, progress)
+    else:
+        result = track_video(rendered.video, cal, dots, progress=progress, camera=lens)
     write_track_csv(result.rows, out / "track.csv")
     truth = read_truth_csv(rendered.truth)
     errors = compare_with_truth(result, truth)
-    kp = known_points_assessment(replace(cfg, holes=False), cal) if known_points else None
+    kp = known_points_assessment(replace(cfg, holes=False), cal, camera=lens) if known_points else None
     hs = simulate_heading_error()
     reference = cv2.imread(str(rendered.reference))
-    files = [out / "video.avi", out / "truth.csv", out / "calibration.json", out / "track.csv"]
+    files = [rendered.video, out / "truth.csv", out / "calibration.json", out / "track.csv", out / "camera.json"]
+    if (out / "camera_calibrated.json").exists():
+        files.append(out / "camera_calibrated.json")
+    files.append(plot_calibration_check(reference, cal_world, cal_seen, cal, out / "fig5_calibration_check.png",
+                                        lens=lens, inliers=cal.inliers))
+    if kp is not None:
+        files.append(plot_known_points(kp, out / "fig6_known_points.png"))
+    files.append(plot_heading_simulation(hs, out / "fig7_heading_simulation.png"))
     files += plot_trajectories(result, truth, cal, reference, out,
                                holes_mm=cfg.hole_rects_mm if cfg.holes else ())
     report = DemoReport(out_dir=out, n_frames=len(result), dots=tuple(dots), calibration_method=method,
                         calibration_rms_px=cal.rms_px, calibration_rms_world=cal.rms_world,
                         counts=result.counts(), fps=result.fps, processing_ms=result.processing_ms,
-                        errors=errors, known_points=kp, heading_simulation=hs, files=files)
+                        errors=errors, known_points=kp, heading_simulation=hs, files=files,
+                        lens_method=lens_method, effects=_effects(cfg))
     (out / "demo.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
     report.files.append(out / "demo.json")
     report.files.append(write_demo_report(report))
     return report
+
+
+def _track_dotted_line(video, cal, lens, progress):
+    """Track the §III-C dotted line: :class:`~posekit.ceiling.linetrack.DottedLineDetector` in
+    the line pipeline of :func:`~posekit.ceiling.pipeline.track_frames`."""
+    from .linetrack import DottedLineDetector
+    from .pipeline import frame_groups, make_cameras, open_sources, track_frames
+
+    streams = open_sources([video])
+    cameras = make_cameras(streams, [cal], lens)
+    return track_frames(frame_groups(streams), cameras, ("line",), detectors=[DottedLineDetector()],
+                        progress=progress)

@@ -56,7 +56,7 @@ from ..errors import ConfigError, InputFileError
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
-__all__ = ["Dot", "Line", "LaserColor", "LASER_COLORS", "DotDetector", "LineDetector"]
+__all__ = ["Dot", "Line", "LaserColor", "LASER_COLORS", "DotDetector", "DotSignature", "LineDetector"]
 
 
 @dataclass(frozen=True)
@@ -78,9 +78,12 @@ class LaserColor:
         return (hue_deg >= lo) & (hue_deg <= hi) if lo <= hi else (hue_deg >= lo) | (hue_deg <= hi)
 
 
-#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them.
+#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them. The red dot's
+#: halo keeps a saturation of only ~0.3-0.45 after JPEG/H.264 4:2:0 chroma (measured on a
+#: saturated dot at quality 50-90), hence its lower threshold; white lamps and glints add
+#: light of saturation near 0.
 LASER_COLORS = {
-    "red": LaserColor("red", (330.0, 30.0)),
+    "red": LaserColor("red", (330.0, 30.0), min_saturation=0.3),
     "green": LaserColor("green", (75.0, 170.0)),
 }
 
@@ -91,7 +94,9 @@ class Dot:
 
     ``u, v``: sub-pixel position in px (pixel-centre convention: the top-left pixel's centre
     is (0, 0)); ``area_px``: pixels in its blob; ``peak``: the largest background difference
-    in the blob, summed over the three channels (grey levels, 0-765).
+    in the blob, summed over the three channels (grey levels, 0-765); ``stray``: the blob
+    lies where the detector has learned a static light or reflection (see
+    :meth:`DotDetector.learn`), so it must not start or re-acquire a track.
     """
 
     color: str
@@ -99,6 +104,7 @@ class Dot:
     v: float
     area_px: int
     peak: float
+    stray: bool = False
 
 
 @nb.njit(cache=True, boundscheck=False)
@@ -258,6 +264,17 @@ class DotDetector:
         above which the illumination is taken to have jumped and the background is rebuilt.
     background : ndarray, shape (H, W, 3), optional
         An image of the ceiling without dots (uint8 BGR) to start the background from.
+    min_color_fraction : float
+        A blob is of a laser colour when at least this fraction of its unsaturated pixels
+        (and at least 2) have that colour (0.2: compressed video, whose 4:2:0 chroma smears
+        a small dot's colour, keeps its dots; a white lamp has none).
+    stray_cell_px, stray_hits, stray_memory_frames, stray_still_px
+        The adaptive mask of static lights (:meth:`learn`): cells of ``stray_cell_px``
+        square pixels; a cell is a stray light once it holds ``stray_hits`` sightings of a
+        blob that was not the tracked dot and stayed within ``stray_still_px`` of where the
+        cell first saw it (a blob that moves restarts the count: a slow robot is not a
+        lamp), each sighting fading with a time constant of ``stray_memory_frames`` frames (so
+        a light that blinks stays masked, and a place the laser only crossed is not).
 
     Attributes
     ----------
@@ -277,7 +294,10 @@ class DotDetector:
                  core_level: int = 250, min_area_px: int = 8, max_area_px: int = 900,
                  max_elongation: float = 3.0, roi_radius_px: int = 24, roi_fallback: bool = True,
                  weight_threshold: float = 12.0, window_margin_px: int = 3, background_stride: int = 4,
-                 max_lit_fraction: float = 0.01, background: np.ndarray | None = None):
+                 max_lit_fraction: float = 0.01, background: np.ndarray | None = None,
+                 stray_cell_px: int = 8, stray_hits: float = 5.0, stray_memory_frames: float = 150.0,
+                 stray_still_px: float = 0.4,
+                 min_color_fraction: float = 0.2):
         colors = (colors,) if isinstance(colors, str) else tuple(colors)
         unknown = [c for c in colors if c not in LASER_COLORS]
         if not colors or unknown or len(set(colors)) != len(colors):
@@ -304,6 +324,15 @@ class DotDetector:
         self.window_margin_px = int(window_margin_px)
         self.background_stride = int(background_stride)
         self.max_lit_fraction = float(max_lit_fraction)
+        if not 0.0 < float(min_color_fraction) <= 1.0:
+            raise ConfigError(f"min_color_fraction: expected a number in (0, 1], got {min_color_fraction}")
+        self.min_color_fraction = float(min_color_fraction)
+        if int(stray_cell_px) < 2 or not stray_hits > 0 or not stray_memory_frames > 0:
+            raise ConfigError("stray_cell_px must be >= 2, stray_hits and stray_memory_frames > 0")
+        self.stray_cell_px = int(stray_cell_px)
+        self.stray_hits = float(stray_hits)
+        self.stray_still_px = float(stray_still_px)
+        self._stray_keep = 1.0 - 1.0 / float(stray_memory_frames)
         self._kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
         self.reset()
         self._initial = None if background is None else self._check_frame(background, "background").copy()
@@ -316,6 +345,9 @@ class DotDetector:
         self._thr = None          # min(background + contrast, 255), uint8 (H, W, 3)
         self._frames = 0
         self._coords = None
+        self._stray = None        # float32 (rows, cols) sightings at _stray_t, per cell
+        self._stray_t = None      # int64 frame of the last change, per cell
+        self._anchor = None       # float (rows, cols, 2): where the blob of each cell was first seen, px
         self.status = "empty"     # 'ok', 'started', 'rebuilt' (background built from this frame)
 
     @property
@@ -394,7 +426,63 @@ class DotDetector:
                 dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])]) or []
         self._update_background(frame)
         self._frames += 1
+        if self._stray is None:
+            cs = self.stray_cell_px
+            shape = (frame.shape[0] // cs + 1, frame.shape[1] // cs + 1)
+            self._stray, self._stray_t = np.zeros(shape, np.float32), np.zeros(shape, np.int64)
+        if dots and self._stray.any():
+            dots = [Dot(d.color, d.u, d.v, d.area_px, d.peak, True) if self.is_stray(d.u, d.v) else d for d in dots]
         return dots
+
+    # -- the adaptive mask of static lights --
+    def _cells(self, u: float, v: float):
+        cs = self.stray_cell_px
+        r, c = int(round(v)) // cs, int(round(u)) // cs
+        h, w = self._stray.shape
+        return slice(max(r - 1, 0), min(r + 2, h)), slice(max(c - 1, 0), min(c + 2, w)), (r, c)
+
+    def stray_level(self, u: float, v: float) -> float:
+        """Sightings of non-tracked blobs (faded) in the 3×3 cells around ``(u, v)`` px (max)."""
+        if self._stray is None:
+            return 0.0
+        rs, cs, _ = self._cells(u, v)
+        age = self._frames - self._stray_t[rs, cs]
+        return float((self._stray[rs, cs] * self._stray_keep ** age).max())
+
+    def is_stray(self, u: float, v: float) -> bool:
+        """True if ``(u, v)`` px is where a static light or reflection has been learned."""
+        return self.stray_level(u, v) >= self.stray_hits
+
+    def learn(self, dots, track_uv=None, radius_px: float = 6.0) -> None:
+        """Teach the mask of static lights: every dot of ``dots`` (this frame's detections)
+        farther than ``radius_px`` from each of ``track_uv`` ((u, v) or (K, 2) px: where the
+        tracker put the laser this frame; None: no track) is a sighting of something that is
+        not the laser. Sightings pile up only where a blob stays still, so a lamp, a steady or
+        blinking LED, or a reflection becomes ``stray`` within ``stray_hits`` frames, while the
+        laser, followed by the tracker or moving (more than ``stray_still_px`` in a few
+        frames), never does."""
+        if self._stray is None or not dots:
+            return
+        tr = np.zeros((0, 2)) if track_uv is None else np.asarray(track_uv, float).reshape(-1, 2)
+        tr = tr[np.all(np.isfinite(tr), axis=1)]
+        h, w = self._stray.shape
+        if self._anchor is None:
+            self._anchor = np.full((h, w, 2), np.nan)
+        for d in dots:
+            if len(tr) and np.min(np.hypot(tr[:, 0] - d.u, tr[:, 1] - d.v)) <= radius_px:
+                continue
+            _, _, (r, c) = self._cells(d.u, d.v)
+            if 0 <= r < h and 0 <= c < w:
+                a = self._anchor[r, c]
+                age = self._frames - self._stray_t[r, c]
+                level = self._stray[r, c] * self._stray_keep ** age
+                if level >= self.stray_hits or (np.isfinite(a[0]) and
+                                                math.hypot(d.u - a[0], d.v - a[1]) <= self.stray_still_px):
+                    self._stray[r, c] = level + 1.0     # still there (a learned light stays learned)
+                else:                               # a blob that moved: not a fixed light (a slow robot)
+                    self._anchor[r, c] = (d.u, d.v)
+                    self._stray[r, c] = 1.0
+                self._stray_t[r, c] = self._frames
 
     def _rois(self, predicted_uv, shape) -> list[tuple[int, int, int, int]]:
         if predicted_uv is None:
@@ -466,7 +554,7 @@ class DotDetector:
                 continue
             counts = row[_COUNTS:]
             best = int(np.argmax(counts))
-            if counts[best] < max(2.0, 0.3 * row[_PLAIN]):
+            if counts[best] < max(2.0, self.min_color_fraction * row[_PLAIN]):
                 continue
             found = self._make(self.colors[best], row, x0, y0)
             if found is not None:
@@ -509,6 +597,59 @@ class DotDetector:
             self._bg[y0:y1, x0:x1] = saved
         cv2.convertScaleAbs(bg, bg_u8)
         cv2.add(bg_u8, self.contrast, thr)
+
+
+class DotSignature:
+    """What the tracked laser dot looks like, learned from the dots the tracker accepted.
+
+    The laser's brightness above the background (``peak``) and blob size (``area_px``) stay
+    within a factor of a few along a track (exposure steps, vignetting), while a lamp, a
+    reflection or a dim LED differ. Running means of their logarithms over the accepted dots
+    (a time constant of ``memory`` acceptances) give the reference; a candidate is
+    consistent with it when its peak is at least ``min_peak_ratio`` of the reference and its
+    area within a factor ``area_factor``. Until ``warmup`` dots were accepted everything
+    passes. Used for eligibility (starting or re-acquiring a track), never to drop a dot the
+    track follows.
+    """
+
+    def __init__(self, *, memory: float = 30.0, warmup: int = 5, min_peak_ratio: float = 0.35,
+                 area_factor: float = 4.0):
+        self.memory, self.warmup = float(memory), int(warmup)
+        self.min_peak_ratio, self.area_factor = float(min_peak_ratio), float(area_factor)
+        self.n = 0
+        self.log_peak = 0.0
+        self.log_area = 0.0
+        self.recent_area = 0.0
+
+    def update(self, dot: Dot) -> None:
+        """Learn from a dot the tracker accepted."""
+        lp, la = math.log(max(dot.peak, 1.0)), math.log(max(dot.area_px, 1))
+        a = 1.0 / min(self.n + 1, self.memory)
+        self.log_peak += a * (lp - self.log_peak)
+        self.log_area += a * (la - self.log_area)
+        b = 1.0 / min(self.n + 1, 10.0)
+        self.recent_area += b * (dot.area_px - self.recent_area)
+        self.n += 1
+
+    def std_px(self, dot: Dot, floor_px: float = 0.1) -> float:
+        """1σ per axis of the dot's centroid, px: ``0.04 sqrt(area)`` for a blooming or blurred
+        blob (at least ``floor_px``); for a blob smaller than the recent ones (cut by an
+        occluder's edge, a vent or the image border) up to the dot's radius in proportion to
+        the missing area, since the centroid of a clipped dot moves away from the cut."""
+        s = max(floor_px, 0.04 * math.sqrt(max(dot.area_px, 1)))
+        if self.n >= self.warmup and self.recent_area > 0:
+            missing = 1.0 - dot.area_px / self.recent_area
+            if missing > 0.15:
+                s = max(s, missing * math.sqrt(self.recent_area / math.pi))
+        return s
+
+    def consistent(self, dot: Dot) -> bool:
+        """True if ``dot`` could be the laser that was tracked."""
+        if self.n < self.warmup:
+            return True
+        if math.log(max(dot.peak, 1.0)) < self.log_peak + math.log(self.min_peak_ratio):
+            return False
+        return abs(math.log(max(dot.area_px, 1)) - self.log_area) <= math.log(self.area_factor)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,8 @@ import numpy as np
 from ..errors import ConfigError, GeometryError, TrajectoryError
 from .track import HeadingState, Tracker, TrackerConfig, TrackRow, cv_predict, kf_update
 
-__all__ = ["LineTracker", "LineTrackerConfig", "line_world_measurement", "pick_line", "wrap_half"]
+__all__ = ["LineTracker", "LineTrackerConfig", "DottedLineDetector", "dots_to_line", "line_world_measurement",
+           "pick_line", "wrap_half"]
 
 
 def _wrap(a: float) -> float:
@@ -63,7 +64,8 @@ class LineTrackerConfig:
     ----------
     tracker : TrackerConfig
         Position filter (its ``dots`` are replaced by ``("red",)``: the segment's midpoint
-        is the primary dot); its ``max_predict_s``, ``heading_psd_rad2_s3`` and
+        is the primary dot, and ``min_move_mm`` by 0: a segment needs no motion to be
+        believed); its ``max_predict_s``, ``heading_psd_rad2_s3`` and
         ``init_rate_std_rad_s`` also tune the heading filter.
     init_motion_mm : float
         Straight travel that resolves (or re-checks) the forward/backward branch.
@@ -96,7 +98,10 @@ class LineTrackerConfig:
     def __post_init__(self):
         if not isinstance(self.tracker, TrackerConfig):
             raise ConfigError(f"LineTrackerConfig.tracker: expected a TrackerConfig, got {self.tracker!r}")
-        object.__setattr__(self, "tracker", replace(self.tracker, dots=("red",)))
+        # a segment is verified by its shape (a lamp is no line): it starts a track at once, even while
+        # the robot turns on the spot, where the dot tracker would wait for motion (min_move_mm)
+        no_wait = {"min_move_mm": 0.0} if hasattr(self.tracker, "min_move_mm") else {}
+        object.__setattr__(self, "tracker", replace(self.tracker, dots=("red",), **no_wait))
         for name in ("init_motion_mm", "window_s", "straight_tol_deg", "min_angle_std_deg"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -321,3 +326,151 @@ def pick_line(lines: Sequence, camera) -> tuple[np.ndarray, np.ndarray] | None:
     if not np.all(np.isfinite(xy)):
         return None
     return xy, cov
+
+
+# --- the dotted line of §III-C ------------------------------------------------------------------
+
+def dots_to_line(uv, *, tol_px: float = 2.0, min_dots: int = 3, max_gap_ratio: float = 2.6):
+    """The largest set of collinear, evenly spaced dots among ``uv`` as a segment.
+
+    A laser dot-line generator (the paper's Fig. 3, left) projects a row of equally spaced dots;
+    the row's end dots are the ends of the segment, so a dotted line feeds
+    :class:`LineTracker` like a solid one (a row cut by a vent is shorter: the tracker takes the
+    centre from the intact end). Every pair of dots proposes a line; the one with the most dots
+    within ``tol_px`` wins (ties: the smaller spread about it). Dots missing inside the row are
+    allowed up to ``max_gap_ratio`` times the smallest gap (a dot lost in a vent).
+
+    Parameters
+    ----------
+    uv : array_like, shape (N, 2)
+        Dot centres in the image, px.
+
+    Returns
+    -------
+    tuple (ends, members) or None
+        ``ends`` (2, 2) px, the outermost dots along the fitted axis, projected onto it;
+        ``members`` the indices of the dots used. None with fewer than ``min_dots`` in a row.
+    """
+    pts = np.asarray(uv, dtype=float).reshape(-1, 2)
+    pts_ok = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+    best = None
+    for a_i in range(len(pts_ok)):
+        for b_i in range(a_i + 1, len(pts_ok)):
+            a, b = pts[pts_ok[a_i]], pts[pts_ok[b_i]]
+            d = b - a
+            n = np.hypot(*d)
+            if n < 1e-6:
+                continue
+            u = d / n
+            perp = np.abs((pts[pts_ok] - a) @ np.array([-u[1], u[0]]))
+            members = pts_ok[perp <= tol_px]
+            if len(members) < min_dots:
+                continue
+            s_along = np.sort((pts[members] - a) @ u)
+            gaps = np.diff(s_along)
+            if gaps.min() <= 1e-6 or gaps.max() > max_gap_ratio * gaps.min() * 1.0001:
+                continue
+            score = (len(members), -float(np.sum(perp[perp <= tol_px] ** 2)))
+            if best is None or score > best[0]:
+                best = (score, members)
+    if best is None:
+        return None
+    members = best[1]
+    p = pts[members]
+    c = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - c)
+    axis = vt[0]
+    s_along = (p - c) @ axis
+    ends = c + np.outer([s_along.min(), s_along.max()], axis)
+    return ends, np.sort(members)
+
+
+class DottedLineDetector:
+    """Finds the dotted laser line of §III-C: the red dots of a frame
+    (:class:`~posekit.ceiling.detect.DotDetector`, which learns static lights), grouped by
+    :func:`dots_to_line` into one segment, reported as a :class:`~posekit.ceiling.detect.Line`
+    so that the line pipeline (:func:`~posekit.ceiling.pipeline.track_frames` with
+    ``dots=("line",)``) and :class:`LineTracker` take it like a solid line.
+
+    Parameters
+    ----------
+    color : str
+        Laser colour.
+    tol_px, min_dots : as :func:`dots_to_line` (default 3: two red things are always
+        collinear). A row cut by a vent down to two dots is taken only if their distance is a
+        whole number (1-4) of the dot gap learnt from full rows, within 15 %, and it lies within
+        two row lengths of the last row seen.
+    contrast : int
+        Threshold above the background, grey levels: 60 (the dot detector's default is 25) so
+        the glows of dots about 10 px apart do not merge into one elongated blob, which the dot
+        detector would refuse as not round.
+    **kwargs
+        Any other :class:`~posekit.ceiling.detect.DotDetector` parameter.
+
+    Where the row is seen end-on (far away, along the view) its dots merge into one streak: a
+    :class:`~posekit.ceiling.detect.LineDetector` running beside the dot detector measures that
+    streak as a solid segment, used when fewer than three dots form a row and it is longer. Its
+    length from the second moments (``sqrt(12 λ)``, exact for a uniform bar) is scaled by
+    ``sqrt((n - 1) / (n + 1))`` for ``n_dots`` point-like dots spanning the row (their variance
+    is ``L² (n + 1) / (12 (n - 1))``), so that a streak and a resolved row give the same length.
+    """
+
+    def __init__(self, color: str = "red", *, tol_px: float = 2.0, min_dots: int = 3, contrast: int = 60,
+                 n_dots: int = 5, **kwargs):
+        from .detect import DotDetector, LineDetector
+        self._dots = DotDetector(colors=(color,), contrast=contrast, **kwargs)
+        self._lines = LineDetector(color)
+        self.colors = (color,)
+        self.tol_px, self.min_dots = float(tol_px), int(min_dots)
+        self._streak_scale = float(np.sqrt((n_dots - 1) / (n_dots + 1)))
+        self.last_dots: list = []
+        self._gap_px = float("nan")              # dot gap of the last full row, px
+        self._last: tuple | None = None          # (centre (2,), length px) of the last row
+
+    def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list:
+        """The dotted segment of this frame as a one-element list of ``Line`` (or empty).
+        The whole frame is searched (a row of dots is wider than the dot detector's window)."""
+        from .detect import Line
+        dots = [d for d in self._dots.detect(frame_bgr) if d.color == self.colors[0] and not d.stray]
+        streaks = self._lines.detect(frame_bgr)
+        self.last_dots = dots
+        found = None
+        if len(dots) >= 2:
+            uv = np.array([(d.u, d.v) for d in dots])
+            found = dots_to_line(uv, tol_px=self.tol_px, min_dots=self.min_dots) if len(dots) >= self.min_dots else None
+            if found is not None:
+                self._gap_px = float(np.hypot(*(found[0][1] - found[0][0]))) / max(len(found[1]) - 1, 1)
+            else:
+                found = self._pair(uv)
+        if streaks and (found is None or (len(found[1]) < 3
+                                          and streaks[0].length_px > np.hypot(*(found[0][1] - found[0][0])))):
+            return [replace(streaks[0], length_px=streaks[0].length_px * self._streak_scale)]
+        if found is None:
+            return []
+        ends, members = found
+        d = ends[1] - ends[0]
+        c = ends.mean(axis=0)
+        self._last = (c, float(np.hypot(*d)))
+        angle = float(np.degrees(np.arctan2(d[1], d[0])) % 180.0)
+        return [Line(self.colors[0], float(c[0]), float(c[1]), angle, float(np.hypot(*d)),
+                     int(sum(dots[k].area_px for k in members)), float(max(dots[k].peak for k in members)))]
+
+    def _pair(self, uv: np.ndarray):
+        """Two dots of a row cut by a vent: ``(ends, members)`` if their distance is 1-4 learnt gaps
+        (within 15 %) and they lie within two row lengths of the last row; else None."""
+        if not np.isfinite(self._gap_px) or self._last is None:
+            return None
+        centre, length = self._last
+        best = None
+        for i in range(len(uv)):
+            for j in range(i + 1, len(uv)):
+                dist = float(np.hypot(*(uv[j] - uv[i])))
+                m = round(dist / self._gap_px)
+                if not 1 <= m <= 4 or abs(dist - m * self._gap_px) > 0.15 * m * self._gap_px:
+                    continue
+                off = float(np.hypot(*(0.5 * (uv[i] + uv[j]) - centre)))
+                if off <= 2.0 * max(length, self._gap_px) and (best is None or off < best[0]):
+                    best = (off, i, j)
+        if best is None:
+            return None
+        return uv[[best[1], best[2]]], np.array([best[1], best[2]])

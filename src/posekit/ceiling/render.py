@@ -21,6 +21,39 @@ seeded sensor noise in one compiled pass, then recomposes the small windows of t
 sprites (pixel-integrated Gaussians: a saturating white core and a coloured glow, scaled by
 the albedo where the laser hits, averaged over the exposure for motion blur). Frames come out
 uint8 BGR, as OpenCV reads a video. Frame k is shown at time k / fps (the middle of its exposure).
+
+Realism (all off by default; :data:`REALISTIC`, ``SceneConfig.realistic()`` and
+``posekit ceiling simulate --realistic`` turn on the set in brackets; every one is a field of
+:class:`SceneConfig`, a key of ``simulate --config SCENE.yaml`` and a flag of ``simulate``):
+
+=====================  ============================================================================
+``dist``               lens distortion ``[k1, k2, p1, p2, k3]`` (OpenCV's model, K of ``focal_px``,
+                       principal point at the image centre) [-0.2, 0.04, 0.0008, -0.0006, 0]. Every
+                       pixel of the ceiling, every dot and every calibration point goes through the
+                       lens; ``H_image_world`` (:func:`true_homography`) maps *undistorted* pixels;
+                       ``camera.json`` (:func:`lens_camera`) holds the lens. Pixels no ray reaches
+                       (beyond the polynomial's fold) are black.
+``bloom``              a saturated dot bleeding: a wider white core and a halo of the laser's colour
+                       of ``bloom_sigma_px`` [1]
+``exposure_step_s``    auto-exposure steps: the exposure (scene and laser) jumps by 40-100 % of
+                       ``exposure_step_gain`` about every this many seconds [8 s, ±0.3]
+``occluders``          people crossing the view (dark soft ellipses, once per
+                       ``occluder_period_s``); the dot behind one is invisible: ``red_visible`` 0 [1]
+``shadows``            soft shadows drifting over the ceiling (room light down to ~55 %) [2]
+``stray_lights``       steady red LEDs fixed on the ceiling, red but not white-saturated [1]
+``blinking_lights``    the same, blinking with ``blink_period_s`` (half on) [1]
+``reflections``        specular glints of lamps: white, saturated, flickering slightly [2]
+``stray_light_xy_mm``  extra steady red LEDs at chosen ceiling points, e.g. beside a vent [none]
+``codec``              video compression: ``mjpg`` (quality 95), ``mp4v`` (MPEG-4 Part 2, what
+                       OpenCV's FFmpeg writes here), ``xvid``; ``h264`` where an encoder exists
+                       (here: none, a one-line error) [mp4v]
+``noise_std``          sensor noise [3 grey levels]
+=====================  ============================================================================
+
+Stray lights stay at least 250 mm from the robot's path; ``stray_lights.csv`` lists them
+(``kind,x,y,u,v,period_s,phase_s``). Effects are drawn from ``seed`` (:mod:`posekit.ceiling.render_effects`).
+The dotted line of §III-C is ``dots=("line",)`` with ``line_pattern="dotted"``: ``line_dots``
+dots spread over ``line_length_mm``.
 """
 
 from __future__ import annotations
@@ -41,14 +74,21 @@ from ._render_kernels import (
     NOISE_LUT_BITS,
     albedo_params,
     compose,
+    compose_shaded,
     noise_lut,
     render_albedo,
 )
 from ._render_kernels import ceiling_albedo as _ceiling_albedo
+from .camera import CameraModel
+from .render_config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
+from .render_effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
 
 __all__ = [
     "SceneConfig",
+    "REALISTIC",
+    "CODECS",
     "CeilingScene",
+    "lens_camera",
     "SceneTruth",
     "RenderedVideo",
     "true_homography",
@@ -58,15 +98,6 @@ __all__ = [
     "DEFAULT_HOLES_MM",
     "TRUTH_HEADER",
 ]
-
-#: Air-conditioning vents (openings), ``(x0, y0, x1, y1)`` in mm on the ceiling: three on the
-#: default robot path (the dot vanishes while crossing them) and one off it.
-DEFAULT_HOLES_MM = (
-    (1500.0, 700.0, 2100.0, 1100.0),
-    (300.0, 1900.0, 900.0, 2300.0),
-    (3900.0, 3100.0, 4500.0, 3500.0),
-    (2700.0, 1900.0, 3300.0, 2300.0),
-)
 
 #: Laser appearance per colour: (core amplitude B, G, R), (glow amplitude B, G, R), in grey
 #: levels on a tile of the nominal albedo. The core saturates all channels (a laser dot looks
@@ -79,108 +110,12 @@ LASER_APPEARANCE = {
 TRUTH_HEADER = ("frame", "time_s", "x", "y", "heading_deg", "red_visible", "green_visible",
                 "red_u", "red_v", "green_x", "green_y", "green_u", "green_v")
 
-_NOMINAL_TILE_ALBEDO = 0.80
+_NOMINAL_TILE_ALBEDO = NOMINAL_TILE_ALBEDO
 _EXPOSURE_LEVEL = 205.0            # grey level of albedo 1 at gain 1
 _CEILING_TINT_BGR = (0.95, 1.0, 1.03)
 _SUPERSAMPLE = 4
 _SPRITE_HALF_PX = 10               # half-size of the window a dot sprite is drawn in
 _BLUR_SUBSAMPLES = 5
-
-
-@dataclass(frozen=True)
-class SceneConfig:
-    """Every parameter of a synthetic ceiling video (same config and seed, same video).
-
-    Lengths in mm in the world frame W (ceiling plane Z = 0, Z up), times in s, angles in
-    degrees (a user-facing configuration), grey levels on the 0-255 scale. ``seed`` draws the
-    sensor noise; ``ceiling_seed`` the tiles' texture (the room stays the same across runs).
-    """
-
-    seed: int = 0
-    ceiling_seed: int = 0
-    fps: float = 15.0
-    duration_s: float = 60.0
-    width_px: int = 864
-    height_px: int = 480
-    # ceiling
-    ceiling_size_mm: tuple[float, float] = (6000.0, 4000.0)
-    tile_size_mm: tuple[float, float] = (1200.0, 600.0)
-    tbar_width_mm: float = 15.0
-    tile_albedo: float = _NOMINAL_TILE_ALBEDO
-    tile_albedo_spread: float = 0.02
-    tbar_albedo: float = 0.55
-    holes: bool = True
-    hole_rects_mm: tuple[tuple[float, float, float, float], ...] = DEFAULT_HOLES_MM
-    # camera: pinhole, no distortion; x axis of the image horizontal before the roll
-    camera_position_mm: tuple[float, float, float] = (3000.0, 400.0, -2300.0)
-    camera_target_mm: tuple[float, float] = (3000.0, 1700.0)
-    focal_px: float = 370.0
-    camera_roll_deg: float = -1.5
-    vignetting: float = 0.2
-    # robot and lasers
-    dots: tuple[str, ...] = ("red",)
-    dot_spacing_mm: float = 400.0
-    line_length_mm: float = 300.0
-    path_rect_mm: tuple[float, float, float, float] = (800.0, 800.0, 5200.0, 3200.0)
-    speed_mm_s: float = 300.0
-    turn_rate_deg_s: float = 45.0
-    path_phase_s: float = 0.0
-    core_sigma_px: float = 0.9
-    glow_sigma_px: float = 2.4
-    laser_gain: float = 1.0
-    # camera effects
-    motion_blur: bool = True
-    exposure_s: float = 1.0 / 60.0
-    noise_std: float = 2.0
-    drift_gain: float = 0.10
-    drift_period_s: float = 90.0
-    drift_offset: float = 4.0
-    gradient: float = 0.06
-    gradient_period_s: float = 120.0
-
-    def __post_init__(self):
-        allowed = {("red",), ("red", "green"), ("red", "red"), ("line",)}
-        dots = tuple(self.dots)
-        if dots not in allowed:
-            raise ConfigError(f"dots: expected one of red | red,green | red,red | line, got {','.join(dots)!r}")
-        object.__setattr__(self, "dots", dots)
-        for name, size in (("ceiling_size_mm", 2), ("tile_size_mm", 2), ("camera_position_mm", 3),
-                           ("camera_target_mm", 2), ("path_rect_mm", 4)):
-            value = tuple(float(v) for v in getattr(self, name))          # lists (YAML) -> hashable tuples
-            if len(value) != size:
-                raise ConfigError(f"{name}: expected {size} numbers, got {len(value)}")
-            object.__setattr__(self, name, value)
-        holes = tuple(tuple(float(v) for v in rect) for rect in self.hole_rects_mm)
-        if any(len(rect) != 4 or not (rect[2] > rect[0] and rect[3] > rect[1]) for rect in holes):
-            raise ConfigError(f"hole_rects_mm: expected rectangles (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {holes}")
-        object.__setattr__(self, "hole_rects_mm", holes)
-        positive = {"fps": self.fps, "focal_px": self.focal_px, "speed_mm_s": self.speed_mm_s,
-                    "turn_rate_deg_s": self.turn_rate_deg_s, "core_sigma_px": self.core_sigma_px,
-                    "glow_sigma_px": self.glow_sigma_px, "tbar_width_mm": self.tbar_width_mm}
-        for name, value in positive.items():
-            if not (math.isfinite(value) and value > 0):
-                raise ConfigError(f"{name}: expected a positive number, got {value}")
-        if not (self.duration_s >= 0 and math.isfinite(self.duration_s)):
-            raise ConfigError(f"duration_s: expected a non-negative number, got {self.duration_s}")
-        if self.width_px < 32 or self.height_px < 32:
-            raise ConfigError(f"image size: expected at least 32×32 px, got {self.width_px}×{self.height_px}")
-        if self.noise_std < 0 or self.exposure_s < 0:
-            raise ConfigError("noise_std and exposure_s must be >= 0")
-        if self.camera_position_mm[2] >= 0:
-            raise ConfigError(f"camera_position_mm: the camera must be below the ceiling (Z < 0), "
-                              f"got Z = {self.camera_position_mm[2]}")
-        x0, y0, x1, y1 = self.path_rect_mm
-        if not (x1 > x0 and y1 > y0):
-            raise ConfigError(f"path_rect_mm: expected (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {self.path_rect_mm}")
-
-    @property
-    def n_frames(self) -> int:
-        return int(round(self.duration_s * self.fps))
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return (self.height_px, self.width_px, 3)
-
 
 # --- geometry ---------------------------------------------------------------------------------
 
@@ -203,9 +138,18 @@ def _camera(config: SceneConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return K, R, -R @ C
 
 
+def lens_camera(config: SceneConfig) -> CameraModel:
+    """The simulated camera's lens: ``K`` (focal_px, principal point at the image centre) and
+    ``dist`` of ``config`` (written as ``camera.json`` beside each rendered video)."""
+    K, _, _ = _camera(config)
+    return CameraModel(K=K, dist=np.asarray(config.dist, float), image_size=(config.width_px, config.height_px),
+                       rms_px=0.0)
+
+
 def true_homography(config: SceneConfig) -> np.ndarray:
     """H_image_world, shape (3, 3): ceiling point ``(X, Y, 1)`` in mm → image ``(u, v, 1)`` in px
-    (pixel-centre convention), normalised so that ``H[2, 2] == 1``."""
+    (pixel-centre convention), normalised so that ``H[2, 2] == 1``. With lens distortion these
+    are *undistorted* pixels (same K); :func:`lens_camera` maps them to the distorted image."""
     K, R, t = _camera(config)
     H = K @ np.column_stack([R[:, 0], R[:, 1], t])
     return H / H[2, 2]
@@ -257,7 +201,10 @@ def _background(config: SceneConfig) -> np.ndarray:
 
 #: Fields that do not change the background (reset so that such configs share one rendering).
 _NOT_BACKGROUND = dict(seed=0, duration_s=0.0, fps=15.0, dots=("red",), laser_gain=1.0, noise_std=0.0,
-                       motion_blur=False, path_phase_s=0.0, drift_gain=0.0, drift_offset=0.0, gradient=0.0)
+                       stray_light_xy_mm=(),
+                       motion_blur=False, path_phase_s=0.0, drift_gain=0.0, drift_offset=0.0, gradient=0.0,
+                       bloom=0.0, exposure_step_s=0.0, occluders=0, shadows=0, stray_lights=0, blinking_lights=0,
+                       reflections=0, codec="mjpg", line_pattern="solid")
 
 
 @functools.lru_cache(maxsize=8)
@@ -265,7 +212,8 @@ def _background_cached(config: SceneConfig) -> np.ndarray:
     H_world_image = np.linalg.inv(true_homography(config))
     h, w = config.height_px, config.width_px
     p, holes, seed = albedo_params(config)
-    albedo = render_albedo(H_world_image, h, w, _SUPERSAMPLE, p, holes, seed)
+    K, _, _ = _camera(config)
+    albedo = render_albedo(H_world_image, h, w, _SUPERSAMPLE, p, holes, seed, K, np.asarray(config.dist, float))
     vv, uu = np.mgrid[0:h, 0:w]
     r2 = ((uu - (w - 1) / 2) ** 2 + (vv - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2)
     radiance = albedo * (1.0 - config.vignetting * r2) * _EXPOSURE_LEVEL
@@ -304,6 +252,8 @@ class RenderedVideo:
     reference: Path
     frames_dir: Path | None
     n_frames: int
+    camera: Path | None = None
+    stray_lights: Path | None = None
 
 
 class CeilingScene:
@@ -317,18 +267,37 @@ class CeilingScene:
         self.config = config
         self.H_image_world = true_homography(config)
         self.H_world_image = np.linalg.inv(self.H_image_world)
+        self.camera = lens_camera(config)
         self._bg = _background(config)
         h, w = config.height_px, config.width_px
         self._xn = ((np.arange(w) - (w - 1) / 2) / ((w - 1) / 2)).astype(np.float32)
         self._yn = ((np.arange(h) - (h - 1) / 2) / ((h - 1) / 2)).astype(np.float32)
+        lap = np.linspace(0.0, 600.0, 6001)                           # the path, densely (every 0.1 s)
+        self.lights = stray_lights(config, self.project, robot_path(replace(config, path_phase_s=0.0), lap)[0])
+        self.occluders = occluders(config)
+        self.shadows = shadows(config)
+        self._exposure = exposure_levels(config)
+
+    def exposure(self, t: float) -> float:
+        """Auto-exposure level at time ``t`` s (1 without exposure steps)."""
+        return exposure_at(*self._exposure, t)
+
+    def occluded(self, t: float, uv) -> bool:
+        """Whether image point ``uv`` (2,) px is hidden by an occluder at time ``t``."""
+        return any(o.covers(t, uv) for o in self.occluders)
 
     @property
     def n_frames(self) -> int:
         return self.config.n_frames
 
     def project(self, xy) -> np.ndarray:
-        """Image positions (..., 2) in px of ceiling points ``xy`` (..., 2) in mm."""
-        return _apply_h(self.H_image_world, xy)
+        """Image positions (..., 2) in px of ceiling points ``xy`` (..., 2) in mm, in the real
+        (distorted) image."""
+        uv = _apply_h(self.H_image_world, xy)
+        if not self.camera.is_distorted:
+            return uv
+        shape = uv.shape
+        return self.camera.distort_points(uv.reshape(-1, 2)).reshape(shape)
 
     def reference_image(self) -> np.ndarray:
         """The ceiling without dots at nominal illumination, noiseless, uint8 (H, W, 3) BGR."""
@@ -355,8 +324,13 @@ class CeilingScene:
         if not two:
             xy2 = np.full_like(xy, np.nan)
         vis = np.column_stack([self._visible(xy), self._visible(xy2) if two else np.zeros(n, bool)])
-        return SceneTruth(frame=np.arange(n), time_s=t, xy_red=xy, xy_green=xy2, uv_red=self.project(xy),
-                          uv_green=self.project(xy2), heading_rad=np.angle(np.exp(1j * heading)), visible=vis)
+        uv, uv2 = self.project(xy), self.project(xy2)
+        if self.occluders:
+            for k in range(n):
+                vis[k, 0] &= not self.occluded(t[k], uv[k])
+                vis[k, 1] &= not self.occluded(t[k], uv2[k])
+        return SceneTruth(frame=np.arange(n), time_s=t, xy_red=xy, xy_green=xy2, uv_red=uv,
+                          uv_green=uv2, heading_rad=np.angle(np.exp(1j * heading)), visible=vis)
 
     def _visible(self, xy: np.ndarray) -> np.ndarray:
         _, reflects, _ = _ceiling_albedo(self.config, xy[:, 0], xy[:, 1], texture=False)
@@ -371,7 +345,8 @@ class CeilingScene:
         c = self.config
         t = k / c.fps
         rng = np.random.default_rng([c.seed, k])
-        g = 1.0 + c.drift_gain * math.sin(2 * math.pi * t / c.drift_period_s)
+        e = self.exposure(t)
+        g = e * (1.0 + c.drift_gain * math.sin(2 * math.pi * t / c.drift_period_s))
         off = c.drift_offset * math.sin(2 * math.pi * t / (0.7 * c.drift_period_s) + 1.0)
         th = 2 * math.pi * t / c.gradient_period_s
         gain_rows = (g * c.gradient * math.sin(th)) * self._yn
@@ -381,16 +356,79 @@ class CeilingScene:
             else np.full(n, 1 << (NOISE_LUT_BITS - 1), np.uint16)
         sigma = np.float32(c.noise_std)
         out = np.empty(self._bg.shape, np.uint8)
-        compose(self._bg, gain_rows.astype(np.float32), gain_cols.astype(np.float32), np.float32(off),
-                 bits, noise_lut(), sigma, out)
-        sprites = self._sprites(t)
+        shade = self._shade(t)
+        if shade is None:
+            compose(self._bg, gain_rows.astype(np.float32), gain_cols.astype(np.float32), np.float32(off),
+                    bits, noise_lut(), sigma, out)
+        else:
+            compose_shaded(self._bg, shade, gain_rows.astype(np.float32), gain_cols.astype(np.float32),
+                           np.float32(off), bits, noise_lut(), sigma, out)
+        sprites = self._sprites(t) + self._light_sprites(t)
         if sprites:
             bits3 = bits.reshape(self._bg.shape)
             for (r0, r1, c0, c1), add in sprites:
                 gain = (gain_rows[r0:r1, None] + gain_cols[None, c0:c1])[..., None]
+                if shade is not None:
+                    gain = gain * shade[r0:r1, c0:c1, None]
                 noise = sigma * noise_lut()[bits3[r0:r1, c0:c1]]
-                val = self._bg[r0:r1, c0:c1] * gain + off + noise + add
+                val = self._bg[r0:r1, c0:c1] * gain + off + noise + add * e
+                # sprites may overlap (two dots, a lamp): add this one to what is there
+                prev = out[r0:r1, c0:c1].astype(np.float32) - (self._bg[r0:r1, c0:c1] * gain + off + noise)
+                val = val + np.maximum(prev, 0.0) * (prev > 1.0)
                 out[r0:r1, c0:c1] = np.clip(np.rint(val), 0, 255).astype(np.uint8)
+        self._occlude(t, out, rng)
+        return out
+
+    def _shade(self, t: float) -> np.ndarray | None:
+        """Light factor (H, W) float32 of the shadows at time ``t``, or None without shadows."""
+        if not self.shadows:
+            return None
+        c = self.config
+        rows, cols = np.arange(c.height_px, dtype=np.float32), np.arange(c.width_px, dtype=np.float32)
+        shade = np.ones((c.height_px, c.width_px), np.float32)
+        for s in self.shadows:
+            shade *= s.factor(t, rows, cols)
+        return shade
+
+    def _occlude(self, t: float, out: np.ndarray, rng) -> None:
+        """Draw the occluders in view at time ``t`` over ``out`` (in place)."""
+        c = self.config
+        for o in self.occluders:
+            cen = o.centre(t)
+            if cen is None:
+                continue
+            a, b = o.axes_px
+            r0, r1 = max(int(cen[1] - 1.1 * b), 0), min(int(cen[1] + 1.1 * b) + 1, c.height_px)
+            c0, c1 = max(int(cen[0] - 1.1 * a), 0), min(int(cen[0] + 1.1 * a) + 1, c.width_px)
+            if r0 >= r1 or c0 >= c1:
+                continue
+            alpha = o.alpha(t, np.arange(r0, r1), np.arange(c0, c1))[..., None]
+            dark = o.grey * self.exposure(t) + c.noise_std * rng.standard_normal((r1 - r0, c1 - c0, 1))
+            win = out[r0:r1, c0:c1].astype(np.float32)
+            out[r0:r1, c0:c1] = np.clip(np.rint(win * (1 - alpha) + dark * alpha), 0, 255).astype(np.uint8)
+
+    def _light_sprites(self, t: float) -> list:
+        """Windows and added radiance of the stray lights on at time ``t``."""
+        out = []
+        c = self.config
+        for light in self.lights:
+            f = light.intensity(t)
+            if f <= 0:
+                continue
+            core, s_core, glow, s_glow = LIGHT_APPEARANCE[light.kind]
+            half = int(math.ceil(3.5 * s_glow))
+            u, v = light.uv
+            r0, c0 = int(round(v)) - half, int(round(u)) - half
+            r0c, c0c = max(r0, 0), max(c0, 0)
+            r1c, c1c = min(r0 + 2 * half + 1, c.height_px), min(c0 + 2 * half + 1, c.width_px)
+            if r0c >= r1c or c0c >= c1c:
+                continue
+            rows, cols = np.arange(r0c, r1c), np.arange(c0c, c1c)
+            add = np.zeros((r1c - r0c, c1c - c0c, 3))
+            for sigma, amp in ((s_core, core), (s_glow, glow)):
+                prof = np.outer(_pixel_gauss(rows, v, sigma), _pixel_gauss(cols, u, sigma)) * 2 * math.pi * sigma ** 2
+                add += prof[..., None] * np.asarray(amp)
+            out.append(((r0c, r1c, c0c, c1c), (f * add).astype(np.float32)))
         return out
 
     def frames(self, start: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
@@ -405,6 +443,9 @@ class CeilingScene:
         xy, heading = robot_path(c, t)
         d = np.column_stack([np.cos(heading), np.sin(heading)])
         if c.dots == ("line",):
+            if c.line_pattern == "dotted":                 # §III-C's dot line: line_dots dots over the length
+                offsets = np.linspace(-0.5, 0.5, c.line_dots) * c.line_length_mm
+                return [("red", xy + s * d) for s in offsets]
             half = 0.5 * c.line_length_mm * d
             return [("line", np.stack([xy - half, xy + half], 1))]
         pts = [(c.dots[0], xy)]
@@ -427,15 +468,23 @@ class CeilingScene:
                 continue
             uv = self.project(pts)                                   # (m, 2)
             uc = uv[m // 2]
-            r0, c0 = int(round(uc[1])) - _SPRITE_HALF_PX, int(round(uc[0])) - _SPRITE_HALF_PX
-            r1, c1 = r0 + 2 * _SPRITE_HALF_PX + 1, c0 + 2 * _SPRITE_HALF_PX + 1
+            half = max(_SPRITE_HALF_PX, int(math.ceil(3.5 * c.bloom_sigma_px))) if c.bloom > 0 else _SPRITE_HALF_PX
+            r0, c0 = int(round(uc[1])) - half, int(round(uc[0])) - half
+            r1, c1 = r0 + 2 * half + 1, c0 + 2 * half + 1
             r0c, c0c, r1c, c1c = max(r0, 0), max(c0, 0), min(r1, c.height_px), min(c1, c.width_px)
             if r0c >= r1c or c0c >= c1c:
                 continue
             core, glow = LASER_APPEARANCE[color]
             add = np.zeros((r1c - r0c, c1c - c0c, 3))
             rows, cols = np.arange(r0c, r1c), np.arange(c0c, c1c)
-            for sigma, amp in ((c.core_sigma_px, core), (c.glow_sigma_px, glow)):
+            layers = [(c.core_sigma_px, core), (c.glow_sigma_px, glow)]
+            if c.bloom > 0:
+                # blooming: the saturated core spreads (a wider white disc) and bleeds into a halo of
+                # the laser's colour; the same energy scale as the glow
+                layers = [(c.core_sigma_px * (1.0 + 0.35 * c.bloom), tuple(a * (1.0 + 0.5 * c.bloom) for a in core)),
+                          (c.glow_sigma_px * (1.0 + 0.2 * c.bloom), glow),
+                          (c.bloom_sigma_px, tuple(0.35 * c.bloom * a for a in glow))]
+            for sigma, amp in layers:
                 prof = np.zeros(add.shape[:2])
                 for u, v in uv:
                     prof += np.outer(_pixel_gauss(rows, v, sigma), _pixel_gauss(cols, u, sigma))
@@ -517,13 +566,37 @@ def write_calibration_csv(path: Path, points: np.ndarray) -> None:
             w.writerow([f"{X:.3f}", f"{Y:.3f}", f"{u:.4f}", f"{v:.4f}"])
 
 
+def write_lights_csv(path: Path, lights) -> None:
+    """``stray_lights.csv``: ``kind,x,y,u,v,period_s,phase_s`` per stray light (mm, px, s); a
+    blinking light is on during ``[phase_s + k·period_s, phase_s + (k + ½)·period_s)``."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["kind", "x", "y", "u", "v", "period_s", "phase_s"])
+        for light in lights:
+            w.writerow([light.kind, f"{light.xy[0]:.3f}", f"{light.xy[1]:.3f}", f"{light.uv[0]:.4f}",
+                        f"{light.uv[1]:.4f}", f"{light.period_s:g}", f"{light.phase_s:.6f}"])
+
+
+def _can_write(cv2, codec, folder: Path) -> bool:
+    fourcc, suffix = codec
+    probe = folder / f".codec-probe{suffix}"
+    w = cv2.VideoWriter(str(probe), cv2.VideoWriter_fourcc(*fourcc), 15.0, (64, 64))
+    ok = w.isOpened()
+    w.release()
+    probe.unlink(missing_ok=True)
+    return ok
+
+
 def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
                  progress: Callable | None = None) -> RenderedVideo:
     """Render the video of ``config`` into ``out_dir`` (created if needed).
 
-    Writes ``video.avi`` (Motion-JPEG, ``fps`` frames per second), ``truth.csv``,
-    ``calibration_points.csv`` (every grid corner in view, at least 18), ``reference.png``
-    (the ceiling without dots) and, with ``frames_png``, ``frames/000000.png`` ... (lossless).
+    Writes ``video.avi`` (``fps`` frames per second; Motion-JPEG, or the ``codec`` of the config:
+    ``video.mp4`` for mp4v/h264), ``truth.csv``, ``calibration_points.csv`` (every grid corner in
+    view, at least 18, where the real lens shows it), ``reference.png`` (the ceiling without dots,
+    lights or people), ``camera.json`` (the simulated lens, :func:`lens_camera`),
+    ``stray_lights.csv`` (``kind,x,y,u,v,period_s,phase_s``, mm, px, s; header only without lights) and,
+    with ``frames_png``, ``frames/000000.png`` ... (lossless).
     ``progress`` wraps the frame iterator (a progress bar), if given.
     """
     cv2 = require("cv2", "vision", "the ceiling video renderer")
@@ -538,19 +611,28 @@ def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
     if len(points) < 18:
         raise ConfigError(f"camera sees only {len(points)} grid corners (calibration needs at least 18): "
                           "widen the view (focal_px) or move the camera")
-    paths = RenderedVideo(video=out / "video.avi", truth=out / "truth.csv",
+    fourcc, suffix = CODECS[config.codec]
+    paths = RenderedVideo(video=out / f"video{suffix}", truth=out / "truth.csv",
                           calibration_points=out / "calibration_points.csv", reference=out / "reference.png",
-                          frames_dir=(out / "frames") if frames_png else None, n_frames=scene.n_frames)
+                          frames_dir=(out / "frames") if frames_png else None, n_frames=scene.n_frames,
+                          camera=out / "camera.json", stray_lights=out / "stray_lights.csv")
+    writer = cv2.VideoWriter(str(paths.video), cv2.VideoWriter_fourcc(*fourcc), config.fps,
+                             (config.width_px, config.height_px))
+    if not writer.isOpened():
+        writer.release()
+        can = [k for k in CODECS if k != config.codec and _can_write(cv2, CODECS[k], out)]
+        raise ConfigError(f"codec {config.codec}: OpenCV here cannot write {fourcc} video; "
+                          f"expected one of {', '.join(can) or 'none'}")
+    if config.codec == "mjpg":
+        writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
     write_calibration_csv(paths.calibration_points, points)
     write_truth_csv(paths.truth, scene.truth())
+    write_lights_csv(paths.stray_lights, scene.lights)
+    from .camera import save_camera
+    save_camera(scene.camera, paths.camera)
     cv2.imwrite(str(paths.reference), scene.reference_image())
     if paths.frames_dir is not None:
         paths.frames_dir.mkdir(exist_ok=True)
-    writer = cv2.VideoWriter(str(paths.video), cv2.VideoWriter_fourcc(*"MJPG"), config.fps,
-                             (config.width_px, config.height_px))
-    if not writer.isOpened():
-        raise InputFileError(f"{paths.video}: OpenCV cannot open a Motion-JPEG writer here")
-    writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
     try:
         frames = scene.frames()
         for k, frame in enumerate(progress(frames, total=scene.n_frames) if progress else frames):

@@ -4,12 +4,22 @@ One constant-velocity Kalman filter per dot colour in the world (ceiling) plane,
 state ``[x, y, vx, vy]``, continuous white-noise acceleration of spectral density
 ``accel_psd_mm2_s3`` (a ground robot: smooth motion, turns of a few hundred mm/s²), a
 measurement covariance per detection (from the calibration's reprojection rms pushed
-through the local Jacobian of the image-to-world homography), and a Mahalanobis gate
-(χ², 2 dof) that rejects outliers such as reflections. A detection that fails the gate
-but lies within ``gate_floor_mm`` of the prediction is a manoeuvre (the robot stopped,
-started or turned abruptly), not an outlier: the covariance is inflated and the filter
-follows it at once. After ``reinit_after`` consecutive rejected frames the filter restarts
-at the detection (the robot was carried elsewhere).
+through the local Jacobian of the image-to-world homography, scaled up when the
+measurements jitter more than that), and a Mahalanobis gate (χ², 2 dof) that rejects
+outliers such as reflections. A detection that fails the gate but lies within
+``gate_floor_mm`` of the prediction is a manoeuvre (the robot stopped, started or turned
+abruptly), not an outlier: the covariance is inflated and the filter follows it at once.
+
+Never ``ok`` on anything but the laser dot (DESIGN.md "Trust"): the gate never reaches
+farther than the robot can move since its last accepted position (``max_speed_mm_s``),
+however long the prediction ran; candidates carry the detector's verification
+(``eligible``: not a learned static light, a laser-like signature) and only verified ones
+start, resume or re-acquire a track; a track that coasted must see its dot moving as
+predicted (or still where it was last seen) before it is ``ok`` again; a lost track (or one
+whose candidates were all rejected ``reinit_after`` times) restarts only on a lone verified
+candidate that has been seen moving — never on the nearest of several blobs, never on a
+static one. A lone verified candidate within reach right after a sharp turn is taken in the
+same frame.
 
 Status of a frame, for the primary dot (red; its x, y are the track):
 
@@ -21,25 +31,27 @@ Status of a frame, for the primary dot (red; its x, y are the track):
     constant-velocity prediction.
 ``lost``
     no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
-    (empty in the CSV). The next detection re-initialises the filter.
+    (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
 
 A row is never ``ok`` without a dot. Heading (case B of the paper) is the direction from
 the red to the green dot, filtered by a circular constant-turn-rate filter on the unwrapped
 angle (innovations wrapped to (-π, π]); NaN with one dot, or when the green or red dot has
 not been seen for ``max_predict_s``.
 
-:class:`Tracker` works on world measurements (no video needed). :class:`MultiCameraTracker`
-(case D) takes image detections from several calibrated cameras, maps them to the world,
+:class:`Tracker` works on world measurements (no video needed).
+:class:`~posekit.ceiling.cameras.MultiCameraTracker` (case D, :mod:`posekit.ceiling.cameras`;
+also importable from here) takes image detections from several calibrated cameras, maps them to the world,
 picks one camera per frame (the active one while its dot stays clear of the image border,
 else the one whose dot is farthest from its border) and feeds one :class:`Tracker`.
 """
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ConfigError, GeometryError, TrajectoryError
+from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
 
 __all__ = [
     "STATUSES",
@@ -48,12 +60,8 @@ __all__ = [
     "DotState",
     "HeadingState",
     "Tracker",
-    "Camera",
-    "MultiCameraTracker",
     "cv_predict",
     "kf_update",
-    "homography_jacobian",
-    "border_distance",
 ]
 
 STATUSES = ("ok", "predicted", "lost")
@@ -94,14 +102,34 @@ class TrackerConfig:
         Predict through a dropout for at most this long, then report ``lost``.
     reinit_after : int
         After this many consecutive frames whose every candidate was gated out, the
-        filter restarts at the best candidate (the robot was moved by hand, or the
-        filter diverged).
+        prediction is no longer trusted: the dot is re-acquired like a lost one, on a
+        candidate that is verified (not flagged ineligible: a learned static light, a
+        signature unlike the laser's) and unambiguous (the only one); until then ``predicted``.
     init_speed_std_mm_s : float
         Std of the velocity of a freshly initialised filter, mm/s.
     heading_psd_rad2_s3 : float
         Spectral density of the white angular acceleration of the heading filter, rad²/s³.
     init_rate_std_rad_s : float
         Std of the turn rate of a freshly initialised heading filter, rad/s.
+    max_speed_mm_s : float
+        Fastest the dot can move, mm/s. The gate never reaches farther from the last accepted
+        position than ``gate_floor_mm + max_speed_mm_s * (time since it)``, however long the
+        prediction ran (a widening covariance must not accept noise), and a lone verified
+        candidate within that reach but outside the χ² gate (a sharp turn, a stop at a
+        corner) is re-acquired in the same frame.
+    confirm_after_s : float
+        After coasting longer than this (s), a candidate inside the gate resumes the track only
+        when the next frame shows it moving as the track was.
+    min_move_mm : float
+        A lone candidate starts a track only once it has moved this far (mm): a static blob
+        (a lamp, an LED, a glint) never does. A robot at rest is acquired when it moves (or,
+        after a dropout, where it was last seen). 0: a lone candidate starts the track at once
+        (world measurements known to be the dot, no stray light possible).
+    adapt_noise : bool
+        Scale the measurement covariance by a running mean of the normalised innovation
+        squared of accepted measurements (at least 1), so that ``std_mm`` stays honest when
+        the detections are noisier than the calibration says (compression, bloom, residual
+        lens distortion).
     """
 
     dots: tuple[str, ...] = ("red",)
@@ -115,6 +143,10 @@ class TrackerConfig:
     init_speed_std_mm_s: float = 500.0
     heading_psd_rad2_s3: float = 1.0
     init_rate_std_rad_s: float = 1.0
+    max_speed_mm_s: float = 1000.0
+    adapt_noise: bool = True
+    confirm_after_s: float = 0.25
+    min_move_mm: float = 8.0
 
     def __post_init__(self):
         dots = tuple(self.dots)
@@ -127,7 +159,8 @@ class TrackerConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a positive number, got {v!r}")
-        for name in ("min_meas_std_mm", "max_predict_s", "gate_floor_mm"):
+        for name in ("min_meas_std_mm", "max_predict_s", "gate_floor_mm", "max_speed_mm_s", "confirm_after_s",
+                     "min_move_mm"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a number >= 0, got {v!r}")
@@ -154,6 +187,18 @@ class DotState:
         Consecutive frames whose every candidate was gated out.
     last_d2 : float
         Squared Mahalanobis distance of the last associated candidate (NaN if none).
+    z_meas : ndarray, shape (2,) or None
+        Last accepted measurement, mm (the centre of the reach gate).
+    noise_scale : float
+        Factor (>= 1) on the measurement covariance learned from the innovations.
+    noise_stats : dict or None
+        The last accepted measurements and squared second differences behind ``noise_scale``.
+    pending : tuple or None
+        ``(t_s, xy)`` of a candidate seen once while coasting that may resume the track when
+        it is seen again, moving as predicted.
+    seen : list or None
+        ``[(t_s, (K, 2) xy), ...]``: the verified candidates of the last second without a
+        track, to tell which one moves.
     """
 
     x: np.ndarray | None = None
@@ -162,6 +207,11 @@ class DotState:
     t_meas_s: float = float("nan")
     n_rejected: int = 0
     last_d2: float = float("nan")
+    z_meas: np.ndarray | None = None
+    noise_scale: float = 1.0
+    noise_stats: dict | None = None
+    pending: tuple | None = None
+    seen: list | None = None
 
 
 @dataclass
@@ -192,13 +242,16 @@ class TrackRow:
     status : str
         ``"ok"``, ``"predicted"`` or ``"lost"`` (see the module docstring).
     std_mm : float
-        Square root of the largest eigenvalue of the position covariance, mm (NaN when lost).
+        1σ of the position: square root of the largest eigenvalue of the position
+        covariance, mm (NaN when lost).
     camera : int
         Index of the camera whose measurement was used this frame (-1 if none).
     measured : dict
         ``{colour: (x, y)}`` world measurements accepted this frame, mm.
     dots : dict
         ``{colour: (x, y, status)}`` estimate and status of every tracked dot.
+    robot : int
+        Which robot (0 with one robot; see :mod:`posekit.ceiling.multitrack`).
     """
 
     frame: int
@@ -211,110 +264,21 @@ class TrackRow:
     camera: int = -1
     measured: dict = field(default_factory=dict)
     dots: dict = field(default_factory=dict)
+    robot: int = 0
 
     def csv_fields(self) -> list[str]:
-        """``frame,time_s,x,y,heading_deg,status`` as strings; NaN becomes an empty field."""
+        """``frame,time_s,x,y,heading_deg,status,std_mm`` as strings; NaN becomes an empty field."""
         def f(v, fmt):
             return "" if not np.isfinite(v) else format(v, fmt)
         return [str(self.frame), f"{self.time_s:.6f}", f(self.x, ".3f"), f(self.y, ".3f"),
-                f(self.heading_deg, ".3f"), self.status]
+                f(self.heading_deg, ".3f"), self.status, f(self.std_mm, ".3f")]
 
-
-# --- Kalman kernels -----------------------------------------------------------------------
-
-def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """Constant-velocity prediction of ``[p_1..p_n, v_1..v_n]`` over ``dt``.
-
-    Parameters
-    ----------
-    x : ndarray, shape (2n,)
-        Positions then velocities (any unit u; velocities in u/s).
-    P : ndarray, shape (2n, 2n)
-        Covariance of ``x``.
-    dt : float
-        Time step, s (>= 0).
-    q : float
-        Spectral density of the white acceleration of each axis, u²/s³.
-
-    Returns
-    -------
-    x, P : ndarray
-        Predicted state and covariance (new arrays).
-    """
-    n = x.shape[0] // 2
-    x = x.copy()
-    x[:n] += dt * x[n:]
-    # F P Fᵀ with F = [[I, dt I], [0, I]], block-wise (cheaper than two matmuls)
-    P = P.copy()
-    P[:n, :] += dt * P[n:, :]
-    P[:, :n] += dt * P[:, n:]
-    a, b, c = dt ** 3 / 3.0 * q, dt ** 2 / 2.0 * q, dt * q      # continuous white-noise acceleration
-    for i in range(n):
-        P[i, i] += a
-        P[i, i + n] += b
-        P[i + n, i] += b
-        P[i + n, i + n] += c
-    return x, P
-
-
-def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray,
-              innovation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Kalman update with a measurement of the first ``m`` state components (Joseph form).
-
-    Parameters
-    ----------
-    x : ndarray, shape (k,)
-        Prior state.
-    P : ndarray, shape (k, k)
-        Prior covariance.
-    z : ndarray, shape (m,)
-        Measurement of ``x[:m]``.
-    R : ndarray, shape (m, m)
-        Measurement covariance.
-    innovation : ndarray, shape (m,), optional
-        Use this instead of ``z - x[:m]`` (a wrapped angle difference).
-
-    Returns
-    -------
-    x, P : ndarray
-        Posterior state and covariance.
-    """
-    m = z.shape[0]
-    nu = z - x[:m] if innovation is None else innovation
-    S = P[:m, :m] + R
-    K = (_inv_sym(S) @ P[:m, :]).T                # P Hᵀ S⁻¹ with H = [I 0]
-    x = x + K @ nu
-    IKH = np.eye(x.shape[0])
-    IKH[:, :m] -= K
-    P = IKH @ P @ IKH.T + K @ R @ K.T
-    return x, 0.5 * (P + P.T)
-
-
-def _inv_sym(S: np.ndarray) -> np.ndarray:
-    """Inverse of symmetric positive-definite matrices (..., m, m); closed form for m <= 2
-    (a general solver costs more than the whole filter step at this size)."""
-    m = S.shape[-1]
-    if m == 1:
-        return 1.0 / S
-    if m == 2:
-        a, b, d = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
-        det = a * d - b * b
-        inv = np.empty_like(S)
-        inv[..., 0, 0] = d / det
-        inv[..., 1, 1] = a / det
-        inv[..., 0, 1] = inv[..., 1, 0] = -b / det
-        return inv
-    return np.linalg.inv(S)
-
-
-def _mahalanobis2(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Squared Mahalanobis distances of innovations ``nu`` (K, m) under covariances ``S`` (K, m, m)."""
-    return np.einsum("ki,kij,kj->k", nu, _inv_sym(S), nu)
-
-
-def _wrap(a):
-    """Angle(s) wrapped to (-π, π]."""
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+    def json_record(self) -> dict:
+        """``{"frame", "time_s", "x", "y", "heading_deg", "status", "std_mm"}`` (NaN → None)."""
+        def f(v):
+            return float(v) if np.isfinite(v) else None
+        return {"frame": int(self.frame), "time_s": f(self.time_s), "x": f(self.x), "y": f(self.y),
+                "heading_deg": f(self.heading_deg), "status": self.status, "std_mm": f(self.std_mm)}
 
 
 # --- the world-plane tracker ---------------------------------------------------------------
@@ -330,6 +294,20 @@ def _as_candidates(value, colour: str) -> np.ndarray:
         raise GeometryError(f"Tracker.step: dots_world[{colour!r}] must have shape (2,) or (K, 2) "
                             f"(x, y in mm), got shape {np.shape(value)}")
     return z[np.all(np.isfinite(z), axis=1)]
+
+
+def _as_eligible(value, raw, k: int) -> np.ndarray:
+    """(K,) bool flags of the finite candidates (all True by default)."""
+    if value is None:
+        return np.ones(k, bool)
+    e = np.asarray(value, dtype=bool).reshape(-1)
+    if raw is not None:
+        zr = np.asarray(raw, dtype=float).reshape(-1, 2)
+        if e.shape[0] == zr.shape[0]:
+            e = e[np.all(np.isfinite(zr), axis=1)]
+    if e.shape[0] != k:
+        raise GeometryError(f"Tracker.step: eligible flags for {e.shape[0]} candidate(s), expected {k}")
+    return e
 
 
 def _as_covariances(value, k: int, colour: str, default_std: float, floor: float) -> np.ndarray:
@@ -357,11 +335,13 @@ class Tracker:
     Examples
     --------
     >>> tr = Tracker(TrackerConfig(dots=("red",)))
-    >>> tr.step(0.0, {"red": [100.0, 200.0]}).status
+    >>> tr.step(0.0, {"red": [100.0, 200.0]}).status     # seen once: not yet the laser
+    'lost'
+    >>> tr.step(1 / 15, {"red": [120.0, 200.0]}).status  # moving: a laser on a robot
     'ok'
-    >>> tr.step(0.1, {}).status              # dropout: constant-velocity prediction
+    >>> tr.step(0.1, {}).status                          # dropout: constant-velocity prediction
     'predicted'
-    >>> tr.step(1.2, None).status            # longer than max_predict_s
+    >>> tr.step(1.2, None).status                        # longer than max_predict_s
     'lost'
     """
 
@@ -401,10 +381,15 @@ class Tracker:
         self._pred_cache = (t_s, out)
         return dict(out)
 
+    def pending(self) -> dict[str, np.ndarray]:
+        """``{colour: xy (2,) mm}`` of a candidate the tracker is watching to resume a coasting
+        dot (seen once, waiting to be confirmed); it is not a stray light."""
+        return {c: st.pending[1].copy() for c, st in self.states.items() if st.pending is not None}
+
     # -- one frame -------------------------------------------------------------------------
     def step(self, t_s: float, dots_world: Mapping | np.ndarray | None,
              meas_cov: Mapping | None = None, *, frame: int | None = None,
-             camera: int = -1) -> TrackRow:
+             camera: int = -1, eligible: Mapping | None = None) -> TrackRow:
         """Advance to ``t_s`` and fuse this frame's detections.
 
         Parameters
@@ -423,6 +408,12 @@ class Tracker:
             Frame index of the row (default: a counter starting at 0).
         camera : int
             Recorded in the row.
+        eligible : mapping, optional
+            ``{colour: (K,) bool}``: which candidates passed the detector's verification
+            (not a learned static light, a laser-like signature). Only eligible candidates
+            start or re-acquire a track, and only they continue one that has been coasting;
+            an ineligible one continues a track only inside the χ² gate of the very next
+            frame (the dot passing over a lamp). Default: all eligible.
 
         Returns
         -------
@@ -460,7 +451,8 @@ class Tracker:
         for c in cfg.dots:
             z = _as_candidates(dots_world.get(c), c)
             R = _as_covariances(meas_cov.get(c), len(z), c, cfg.meas_std_mm, cfg.min_meas_std_mm)
-            accepted = self._update_dot(self.states[c], t_s, z, R)
+            el = _as_eligible(None if eligible is None else eligible.get(c), dots_world.get(c), len(z))
+            accepted = self._update_dot(self.states[c], t_s, z, R, el)
             if accepted is not None:
                 measured[c] = accepted
         for c in cfg.dots:
@@ -484,44 +476,205 @@ class Tracker:
                         measured={c: (float(v[0]), float(v[1])) for c, (v, _) in measured.items()},
                         dots=dots)
 
-    def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
-        """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None."""
+    def _start(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray) -> None:
+        st.pending = st.seen = None
+        st.x = np.array([z[0], z[1], 0.0, 0.0])
+        st.P = np.zeros((4, 4))
+        st.P[:2, :2] = R
+        st.P[2:, 2:] = self.config.init_speed_std_mm_s ** 2 * np.eye(2)
+        st.t_meas_s, st.n_rejected, st.last_d2 = t_s, 0, 0.0
+        st.z_meas = np.array(z, dtype=float)
+
+    def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray):
+        """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None.
+
+        While the track is fresh (the previous frame was accepted): (1) the candidate of
+        smallest Mahalanobis distance inside the χ² gate and within physical reach of the last
+        accepted position; else (2) a verified candidate within ``gate_floor_mm`` of the
+        prediction (a manoeuvre: the covariance is inflated); else (3) the only verified
+        candidate, if within reach (a sharp turn: the filter restarts there in this frame).
+
+        While it coasts (no dot for a while): only verified candidates inside the gate count,
+        and after ``confirm_after_s`` of coasting one sighting is not enough — the next frame
+        must show the candidate moving as the track was (a static lamp or glint that appears
+        where the dot is expected is not the dot).
+
+        When lost, or after ``reinit_after`` frames of rejected candidates: the one verified
+        candidate that moved by at least ``min_move_mm`` (and at most the reach) since the
+        previous frame's verified candidates starts the track — or the one that stayed still
+        within ``gate_floor_mm`` of where the dot was last accepted (the robot stopped while
+        hidden). Never a static blob elsewhere, never the nearest of several; two moving
+        candidates are ambiguous and start nothing.
+        """
         cfg = self.config
         if st.x is not None and not self._alive(st, t_s):
             st.x = st.P = None                      # lost: the next detection starts afresh
+        dt_pred = max(t_s - st.t_s, 0.0) if np.isfinite(st.t_s) else 0.0
         if st.x is not None:
-            st.x, st.P = cv_predict(st.x, st.P, max(t_s - st.t_s, 0.0), cfg.accel_psd_mm2_s3)
+            st.x, st.P = cv_predict(st.x, st.P, dt_pred, cfg.accel_psd_mm2_s3)
         st.t_s = t_s
         if len(z) == 0:
             st.last_d2 = float("nan")
             return None
-        if st.x is None:                            # first fix (or after lost): take the first candidate
-            st.x = np.array([z[0, 0], z[0, 1], 0.0, 0.0])
-            st.P = np.zeros((4, 4))
-            st.P[:2, :2] = R[0]
-            st.P[2:, 2:] = cfg.init_speed_std_mm_s ** 2 * np.eye(2)
-            st.t_meas_s, st.n_rejected, st.last_d2 = t_s, 0, 0.0
-            return z[0], R[0]
+        R = R * st.noise_scale
+        if st.x is None:
+            return self._acquire(st, t_s, z, R, eligible)
+        since = t_s - st.t_meas_s
+        fresh = since <= 1.5 * dt_pred + 1e-9
+        reach = cfg.gate_floor_mm + cfg.max_speed_mm_s * since
+        dist_last = np.hypot(*(z - st.z_meas).T) if st.z_meas is not None else np.zeros(len(z))
+        dist_pred = np.hypot(*(z - st.x[:2]).T)
         d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
-        k = int(np.argmin(d2))
-        st.last_d2 = float(d2[k])
-        if d2[k] > cfg.gate_chi2 and np.hypot(*(z[k] - st.x[:2])) <= cfg.gate_floor_mm:
-            # a manoeuvre (the robot stopped, started or turned abruptly), not an outlier:
-            # inflate the covariance until the innovation is consistent, then update
-            st.P = st.P * (d2[k] / cfg.gate_chi2)
-            d2[k] = cfg.gate_chi2
-        if d2[k] > cfg.gate_chi2:
-            st.n_rejected += 1
-            if st.n_rejected < cfg.reinit_after:
-                return None
-            st.x = np.array([z[k, 0], z[k, 1], 0.0, 0.0])     # consistently elsewhere: restart there
-            st.P = np.zeros((4, 4))
-            st.P[:2, :2] = R[k]
-            st.P[2:, 2:] = cfg.init_speed_std_mm_s ** 2 * np.eye(2)
+        st.last_d2 = float(d2.min())
+        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach)
+        near = eligible & (dist_pred <= cfg.gate_floor_mm)
+        lone = np.flatnonzero(eligible)
+        if fresh:
+            if in_gate.any():
+                k = int(np.argmin(np.where(in_gate, d2, np.inf)))
+                self._fuse(st, z[k], R[k], t_s=t_s)
+                return self._accepted(st, t_s, z[k], R[k])
+            if near.any():                          # a manoeuvre: inflate until consistent
+                k = int(np.argmin(np.where(near, d2, np.inf)))
+                self._fuse(st, z[k], R[k], inflate=d2[k] / cfg.gate_chi2, t_s=t_s)
+                return self._accepted(st, t_s, z[k], R[k])
+            if len(lone) == 1 and dist_last[lone[0]] <= reach:     # a sharp turn, unambiguous
+                k = int(lone[0])
+                self._start(st, t_s, z[k], R[k])
+                return z[k], R[k]
         else:
-            st.x, st.P = kf_update(st.x, st.P, z[k], R[k])
+            rest = dist_last <= cfg.gate_floor_mm       # where the dot was last seen (the robot stopped)
+            usable = (in_gate | near | rest) & eligible
+            if usable.any():
+                k = int(np.argmin(np.where(usable, d2, np.inf)))
+                if (cfg.min_move_mm == 0 or (since <= cfg.confirm_after_s + 1e-9 and (in_gate[k] or near[k]))
+                        or self._moves_with_track(st, t_s, z[k]) or self._rests_where_last_seen(st, t_s, z[k])):
+                    self._fuse(st, z[k], R[k], t_s=t_s)
+                    st.pending = None
+                    return self._accepted(st, t_s, z[k], R[k])
+                st.pending = (t_s, z[k].copy())
+                return None
+        st.n_rejected += 1
+        if st.n_rejected < cfg.reinit_after:
+            return None
+        return self._acquire(st, t_s, z, R, eligible)   # the prediction is not trusted any more
+
+    def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
         st.t_meas_s, st.n_rejected = t_s, 0
+        st.z_meas = np.array(z, dtype=float)
+        return z, R
+
+    def _moves_with_track(self, st: DotState, t_s: float, z: np.ndarray) -> bool:
+        """True if the pending sighting and ``z`` move as the coasting track predicts."""
+        if st.pending is None:
+            return False
+        t0, z0 = st.pending
+        dt = t_s - t0
+        if not 0 < dt <= 0.5:
+            return False
+        v_obs = (z - z0) / dt
+        v_pred = st.x[2:]
+        speed = float(np.hypot(*v_pred))
+        return float(np.hypot(*(v_obs - v_pred))) <= max(self.config.min_move_mm / dt, 0.5 * speed)
+
+    def _rests_where_last_seen(self, st: DotState, t_s: float, z: np.ndarray) -> bool:
+        """True if the pending sighting and ``z`` are the same still blob, within
+        ``gate_floor_mm`` of the last accepted position (the robot stopped while its dot was
+        hidden, e.g. turning on the spot behind an occluder)."""
+        if st.pending is None or st.z_meas is None:
+            return False
+        t0, z0 = st.pending
+        return (0 < t_s - t0 <= 1.0 and float(np.hypot(*(z - z0))) < self.config.min_move_mm
+                and float(np.hypot(*(z - st.z_meas))) <= self.config.gate_floor_mm)
+
+    def _acquire(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray):
+        """Start the track on the one verified candidate seen moving (or still where the dot
+        was last accepted) over the last second; None while there is none, or more than one.
+
+        Each current candidate is chained back through the verified candidates of the
+        previous frames (nearest within reach at each step, at most 1 s back); it is moving
+        when the chain's far end is at least ``min_move_mm`` away (a slow robot qualifies after
+        a few frames, a static lamp never), resting when the chain is at least two frames long,
+        still, and within ``gate_floor_mm`` of the last accepted position.
+        """
+        cfg = self.config
+        cand = np.flatnonzero(eligible)
+        if cfg.min_move_mm == 0:                    # no confirmation asked for: a lone one starts at once
+            if len(cand) != 1:
+                return None
+            k = int(cand[0])
+            self._start(st, t_s, z[k], R[k])
+            return z[k], R[k]
+        hist = [h for h in (st.seen or []) if 0 < t_s - h[0] <= 1.0]
+        st.seen = hist + [(t_s, z[cand].copy())]
+        if not hist or len(cand) == 0:
+            return None
+        moving, resting, vel = [], [], []
+        for k in cand:
+            p, t_p, length = z[k], t_s, 0
+            far = p
+            for t_h, z_h in reversed(hist):
+                if len(z_h) == 0:
+                    break
+                d = np.hypot(*(z_h - p).T)
+                m = int(np.argmin(d))
+                if d[m] > cfg.gate_floor_mm + cfg.max_speed_mm_s * (t_p - t_h):
+                    break
+                p, t_p, length = z_h[m], t_h, length + 1
+                far = p
+            move = float(np.hypot(*(z[k] - far)))
+            moving.append(length >= 1 and move >= cfg.min_move_mm)
+            resting.append(length >= 2 and move < cfg.min_move_mm and st.z_meas is not None
+                           and float(np.hypot(*(z[k] - st.z_meas))) <= cfg.gate_floor_mm)
+            vel.append((z[k] - far) / max(t_s - t_p, 1e-9))
+        ok = np.array(moving) | np.array(resting)
+        if np.count_nonzero(ok) != 1:
+            return None
+        n = int(np.flatnonzero(ok)[0])
+        k = int(cand[n])
+        self._start(st, t_s, z[k], R[k])
+        if moving[n]:
+            st.x[2:] = vel[n]
         return z[k], R[k]
+
+    def _fuse(self, st: DotState, z: np.ndarray, R: np.ndarray, inflate: float = 1.0,
+              t_s: float | None = None) -> None:
+        """Kalman update (the prior covariance inflated by ``inflate`` for a manoeuvre), and the
+        running scale of the measurement noise.
+
+        The scale comes from the jitter of the accepted measurements themselves: for three
+        consecutive, evenly spaced ones the second difference ``z₀ - 2 z₁ + z₂`` has covariance
+        ``6 σ² I`` (plus the motion's ``a Δt²``, which only errs on the safe side), so
+        ``σ² ≈ median |Δ²z|² / (6 · 2 ln 2)`` over the last 25; ``scale = σ² / (tr R / 2)``, at
+        least 1. Unlike innovation statistics it does not depend on the process noise, which
+        dominates the prediction at 15 frames/s.
+        """
+        if inflate > 1.0:
+            st.P = st.P * inflate
+        st.x, st.P = kf_update(st.x, st.P, z, R)
+        if not self.config.adapt_noise or t_s is None:
+            return
+        hist = st.noise_stats
+        if hist is None:
+            hist = st.noise_stats = {"z": [], "d2": []}
+        zs = hist["z"]
+        if zs:
+            gap = t_s - zs[-1][0]
+            prev = zs[-1][0] - zs[-2][0] if len(zs) > 1 else gap
+            if not 0 < gap <= 1.5 * prev:            # not consecutive frames: start again
+                zs.clear()
+        zs.append((t_s, np.array(z, dtype=float)))
+        if len(zs) == 3:
+            (t0, z0), (t1, z1), (t2, z2) = zs
+            if abs((t2 - t1) - (t1 - t0)) <= 0.2 * (t1 - t0):
+                dd = z0 - 2.0 * z1 + z2
+                hist["d2"].append(float(dd @ dd))
+                del hist["d2"][:-25]
+            zs.pop(0)
+        if len(hist["d2"]) >= 8:
+            var = float(np.median(hist["d2"])) / (6.0 * 2.0 * np.log(2.0))
+            trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
+            st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
 
     def _update_heading(self, t_s: float, measured: dict) -> float:
         """Circular filter of the red→green direction; returns degrees in (-180, 180] or NaN."""
@@ -557,238 +710,13 @@ class Tracker:
         return 180.0 if deg == -180.0 else deg
 
 
-# --- several cameras (case D) --------------------------------------------------------------
-
-def homography_jacobian(to_world, uv: np.ndarray, step_px: float = 0.5) -> np.ndarray:
-    """Jacobian of an image-to-world map at image points, by central differences.
-
-    Parameters
-    ----------
-    to_world : callable
-        ``(N, 2) px -> (N, 2) mm`` (``Calibration.image_to_world``).
-    uv : ndarray, shape (K, 2)
-        Image points, px.
-    step_px : float
-        Half step of the differences, px (exact to O(step²) for a homography).
-
-    Returns
-    -------
-    ndarray, shape (K, 2, 2)
-        ``d(x, y)/d(u, v)`` in mm/px.
-    """
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-    e = step_px * np.eye(2)
-    pts = np.concatenate([uv + e[0], uv - e[0], uv + e[1], uv - e[1]])
-    w = np.asarray(to_world(pts), dtype=float).reshape(4, -1, 2)
-    J = np.empty((uv.shape[0], 2, 2))
-    J[:, :, 0] = (w[0] - w[1]) / (2 * step_px)
-    J[:, :, 1] = (w[2] - w[3]) / (2 * step_px)
-    return J
+_CAMERA_NAMES = ("Camera", "MultiCameraTracker", "homography_jacobian", "border_distance")
 
 
-def border_distance(uv: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """Distance of image points to the nearest image border, px (negative outside).
-
-    Parameters
-    ----------
-    uv : ndarray, shape (K, 2)
-        Pixel coordinates (u right, v down; pixel centres at integers).
-    image_size : (int, int)
-        ``(width, height)``, px.
-    """
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-    w, h = image_size
-    return np.minimum.reduce([uv[:, 0] + 0.5, w - 0.5 - uv[:, 0], uv[:, 1] + 0.5, h - 0.5 - uv[:, 1]])
-
-
-@dataclass
-class Camera:
-    """One fixed camera of case D.
-
-    Attributes
-    ----------
-    calibration : object
-        Has ``image_to_world((N, 2) px) -> (N, 2) mm``, ``world_to_image`` and ``rms_px``
-        (a :class:`posekit.ceiling.calibration.Calibration`).
-    image_size : (int, int)
-        ``(width, height)`` of its frames, px.
-    name : str
-        For messages and reports.
-    detection_std_px : float
-        Floor of the per-axis std of a dot detection, px; the measurement std is
-        ``max(calibration.rms_px, detection_std_px)`` pushed through the homography.
-    """
-
-    calibration: object
-    image_size: tuple[int, int]
-    name: str = ""
-    detection_std_px: float = 0.1
-
-    def __post_init__(self):
-        cal = self.calibration
-        H = getattr(cal, "H_world_image", None)
-        self._H_wi = None if H is None else np.asarray(H, dtype=float)
-        H = getattr(cal, "H_image_world", None)
-        self._H_iw = None if H is None else np.asarray(H, dtype=float)
-        self._std_px = max(float(getattr(cal, "rms_px", 0.0) or 0.0), self.detection_std_px)
-
-    def measurement(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World positions (K, 2) mm and covariances (K, 2, 2) mm² of image points (K, 2) px.
-
-        The covariance is ``s² J Jᵀ`` with ``s = max(calibration.rms_px, detection_std_px)``
-        and ``J`` the Jacobian of the image-to-world homography at the point (analytic when
-        the calibration exposes ``H_world_image``, central differences otherwise).
-        """
-        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-        if self._H_wi is not None:
-            H = self._H_wi
-            q = uv @ H[:, :2].T + H[:, 2]
-            w = q[:, 2:3]
-            xy = q[:, :2] / w
-            J = (H[None, :2, :2] - xy[:, :, None] * H[None, 2:3, :2]) / w[:, :, None]
-        else:
-            xy = np.asarray(self.calibration.image_to_world(uv), dtype=float).reshape(-1, 2)
-            J = homography_jacobian(self.calibration.image_to_world, uv)
-        return xy, self._std_px ** 2 * J @ np.swapaxes(J, 1, 2)
-
-    def to_image(self, xy: np.ndarray) -> np.ndarray:
-        """Image points (K, 2) px of world points (K, 2) mm (NaN behind the camera)."""
-        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-        if self._H_iw is None:
-            try:
-                return np.asarray(self.calibration.world_to_image(xy), dtype=float).reshape(-1, 2)
-            except GeometryError:                 # beyond this camera's horizon
-                return np.full_like(xy, np.nan)
-        H = self._H_iw
-        q = xy @ H[:, :2].T + H[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(q[:, 2:3] > 0, q[:, :2] / q[:, 2:3], np.nan)
-
-
-class MultiCameraTracker:
-    """One world track from several calibrated cameras that each see part of the ceiling.
-
-    Each frame every camera reports its detections (image pixels). Detections are mapped
-    to the world plane with that camera's calibration; the primary dot of each camera is
-    gated against the track's prediction. The camera used is the previous one while its
-    accepted dot stays at least ``border_margin_px`` from its image border; otherwise the
-    camera whose accepted dot is farthest from its border (ties: smallest measurement
-    covariance). Only that camera's dots update the :class:`Tracker`; with one camera this
-    is the single-camera tracker with a position-dependent measurement covariance.
-
-    Parameters
-    ----------
-    cameras : sequence of Camera
-    config : TrackerConfig, optional
-    border_margin_px : float
-        Keep the active camera while its dot is at least this far from the border.
-    """
-
-    def __init__(self, cameras: Sequence[Camera], config: TrackerConfig | None = None,
-                 border_margin_px: float = 20.0):
-        if len(cameras) == 0:
-            raise ConfigError("MultiCameraTracker: expected at least one camera")
-        self.cameras = list(cameras)
-        self.tracker = Tracker(config)
-        self.border_margin_px = float(border_margin_px)
-        self.active = -1
-
-    @property
-    def config(self) -> TrackerConfig:
-        return self.tracker.config
-
-    def reset(self) -> None:
-        self.tracker.reset()
-        self.active = -1
-
-    def predicted_uv(self, t_s: float) -> list[dict[str, tuple[float, float]]]:
-        """Predicted image position of each live dot in each camera at ``t_s``.
-
-        Returns
-        -------
-        list of dict
-            Per camera ``{colour: (u, v)}`` px, only for dots whose prediction falls inside
-            that camera's image (the detector's region of interest); empty when lost.
-        """
-        pred = self.tracker.predict(t_s)
-        if not pred:
-            return [{} for _ in self.cameras]
-        colours = list(pred)
-        xy = np.array([pred[c][0] for c in colours])
-        out = []
-        for cam in self.cameras:
-            uv = cam.to_image(xy)
-            inside = np.all(np.isfinite(uv), axis=1)
-            inside[inside] = border_distance(uv[inside], cam.image_size) > 0
-            out.append({c: (float(uv[k, 0]), float(uv[k, 1])) for k, c in enumerate(colours) if inside[k]})
-        return out
-
-    def step(self, t_s: float, dots_image: Sequence[Mapping | None], *,
-             frame: int | None = None) -> TrackRow:
-        """Fuse one frame of detections from every camera.
-
-        Parameters
-        ----------
-        t_s : float
-            Frame time, s (the cameras are assumed synchronised).
-        dots_image : sequence of mapping or None
-            One entry per camera: ``{colour: uv}`` with ``uv`` shape (2,) or (K, 2),
-            image pixels; None when that camera was not read or saw nothing.
-
-        Returns
-        -------
-        TrackRow
-            With ``camera`` the index of the camera used (-1 if none).
-        """
-        if len(dots_image) != len(self.cameras):
-            raise ConfigError(f"MultiCameraTracker.step: expected detections of {len(self.cameras)} "
-                              f"camera(s), got {len(dots_image)}")
-        cfg = self.tracker.config
-        primary = cfg.dots[0]
-        pred = self.tracker.predict(t_s)
-        seen = {}                                # camera -> {colour: (xy (K, 2), R (K, 2, 2), border (K,))}
-        views = []                               # (camera, primary seen, border distance, trace R)
-        for i, (cam, det) in enumerate(zip(self.cameras, dots_image)):
-            if not det:
-                continue
-            meas = {}
-            for c, uv in det.items():
-                if c not in cfg.dots:
-                    continue
-                uv = np.asarray(uv, dtype=float).reshape(-1, 2)
-                uv = uv[np.all(np.isfinite(uv), axis=1)]
-                if len(uv):
-                    xy, R = cam.measurement(uv)
-                    meas[c] = (xy, R, border_distance(uv, cam.image_size))
-            if not meas:
-                continue
-            seen[i] = meas
-            key = primary if primary in meas else next(iter(meas))
-            xy, R, bd = meas[key]
-            if key in pred:                      # keep only candidates that pass the gate
-                p, Pp = pred[key]
-                d2 = _mahalanobis2(xy - p, Pp + cfg.min_meas_std_mm ** 2 * np.eye(2) + R)
-                ok = (d2 <= cfg.gate_chi2) | (np.hypot(*(xy - p).T) <= cfg.gate_floor_mm)
-                if not ok.any():
-                    continue
-                k = int(np.argmin(np.where(ok, d2, np.inf)))
-            else:
-                k = 0
-            views.append((i, key == primary, float(bd[k]), float(R[k, 0, 0] + R[k, 1, 1])))
-        if not views:
-            if not seen:
-                return self.tracker.step(t_s, None, frame=frame)
-            # nothing passed the gate: give the tracker the detections of the active (or the
-            # first seeing) camera so that its outlier and re-initialisation logic runs
-            chosen = self.active if self.active in seen else next(iter(seen))
-        else:
-            views.sort(key=lambda v: (not v[1], -v[2], v[3]))   # primary seen, far from border, small R
-            chosen = views[0][0]
-            for i, has_primary, bd, _ in views:
-                if i == self.active and has_primary and bd >= self.border_margin_px:
-                    chosen = i
-                    break
-            self.active = chosen
-        meas = seen[chosen]
-        return self.tracker.step(t_s, {c: m[0] for c, m in meas.items()}, {c: m[1] for c, m in meas.items()},
-                                 frame=frame, camera=chosen)
+def __getattr__(name):
+    """The multi-camera names live in :mod:`posekit.ceiling.cameras` (imported on first use:
+    that module builds on this one)."""
+    if name in _CAMERA_NAMES:
+        from . import cameras
+        return getattr(cameras, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

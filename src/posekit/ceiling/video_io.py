@@ -6,9 +6,20 @@ the frame rate from ``fps=``, else the video container, else
 :data:`DEFAULT_FPS` (the paper's camera; ``fps_source`` says which).
 Bad input is an :class:`~posekit.errors.InputFileError` with a one-line message naming
 the path: a missing path, a file OpenCV cannot decode as a video, an empty folder or one
-without images, an image file that does not decode, frames that change size.
+without images, frames that change size. An image in a folder that does not decode is not
+an error: its :class:`Frame` has ``image=None`` and the reason in ``error`` (the tracker
+writes a ``lost`` row and goes on). A video that ends before the frame count its header
+declares is read to its end; ``FrameSource.warnings`` then says how many frames were
+declared and how many decoded.
+
+Live input (:func:`open_live`): a camera index (``0``), a device (``/dev/video0``) or a
+stream URL (``rtsp://``, ``http://``, ...) read with ``cv2.VideoCapture``; each frame is
+stamped with the capture clock (seconds since the first frame). A video file can be played
+through the same path (``loop=``: as many passes), which is how the live path is tested.
 """
 
+import re
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +30,8 @@ from .._extras import require
 from ..errors import ConfigError, InputFileError
 from ..io import check_frame_size, check_input_file, read_image
 
-__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "Frame", "FrameSource", "open_frames", "list_images"]
+__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "Frame", "FrameSource", "LiveSource", "open_frames", "open_live",
+           "is_live_source", "list_images"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 """File suffixes (case-insensitive) taken as images in a folder."""
@@ -38,16 +50,19 @@ class Frame:
         Frame number from 0.
     time_s : float
         ``index / fps``, s.
-    image : ndarray, shape (H, W, 3), uint8
-        BGR image (a grey image is converted to BGR).
+    image : ndarray, shape (H, W, 3), uint8, or None
+        BGR image (a grey image is converted to BGR); None when the frame could not be decoded.
     name : str
         Image file name, or ``"frame N"`` for a video.
+    error : str
+        Why ``image`` is None (empty otherwise).
     """
 
     index: int
     time_s: float
-    image: np.ndarray
+    image: np.ndarray | None
     name: str
+    error: str = ""
 
 
 def list_images(folder: Path) -> list[Path]:
@@ -105,9 +120,18 @@ class FrameSource:
             raise InputFileError(f"{self.path}: no such file or folder; expected a video file or a folder of images")
         self.is_folder = self.path.is_dir()
         container_fps = 0.0
+        self.warnings: list[str] = []
+        self.decoded = 0
         if self.is_folder:
             self._files = list_images(self.path)
-            first = self._read_image(self._files[0])
+            first, why = None, ""
+            for p in self._files:
+                first, why = self._try_image(p)
+                if first is not None:
+                    break
+            if first is None:
+                raise InputFileError(f"{self.path}: none of the {len(self._files)} image file(s) decodes "
+                                     f"({why}); expected a folder of images")
             self._count = len(self._files)
         else:
             check_input_file(self.path, expected="a video file or a folder of images")
@@ -137,22 +161,29 @@ class FrameSource:
         else:
             self.fps, self.fps_source = DEFAULT_FPS, "default"
 
-    def _read_image(self, p: Path) -> np.ndarray:
-        img = read_image(p)  # the header's size is checked before decoding
+    def _try_image(self, p: Path) -> tuple[np.ndarray | None, str]:
+        """The image of ``p`` (BGR) and "", or None and why it could not be read."""
+        try:
+            img = read_image(p)  # the header's size is checked before decoding
+        except InputFileError as exc:
+            return None, str(exc)
         if img is None:
-            raise InputFileError(f"{p}: cannot decode this file as an image")
-        return img
+            return None, f"{p}: cannot decode this file as an image"
+        return _as_bgr(img), ""
 
     def __len__(self) -> int:
         return self._count
 
     def __iter__(self) -> Iterator[Frame]:
         size = self.image_size
+        self.decoded = 0
         if self.is_folder:
             for i, p in enumerate(self._files):
-                img = _as_bgr(self._read_image(p))
-                self._check_size(img, size, p.name)
-                yield Frame(i, i / self.fps, img, p.name)
+                img, why = self._try_image(p)
+                if img is not None:
+                    self._check_size(img, size, p.name)
+                    self.decoded += 1
+                yield Frame(i, i / self.fps, img, p.name, why)
             return
         cv2 = require("cv2", "vision", "reading video and images (ceiling track)")
         cap = cv2.VideoCapture(str(self.path))
@@ -164,8 +195,12 @@ class FrameSource:
                     break
                 img = _as_bgr(img)
                 self._check_size(img, size, f"frame {i}")
+                self.decoded += 1
                 yield Frame(i, i / self.fps, img, f"frame {i}")
                 i += 1
+            if self._count > 0 and i < self._count:
+                self.warnings.append(f"{self.path}: the header declares {self._count} frames but {i} were decoded "
+                                     "(a truncated or damaged video?); tracked the decoded frames")
         finally:
             cap.release()
 
@@ -199,3 +234,155 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
         ``fps`` is not positive.
     """
     return FrameSource(Path(path), fps)
+
+
+_URL = re.compile(r"^(rtsp|rtsps|rtmp|http|https|udp|tcp|srt)://", re.IGNORECASE)
+
+
+def is_live_source(source) -> bool:
+    """True for a camera index (``0``, ``"1"``), a video device (``/dev/video0``) or a stream
+    URL (``rtsp://``, ``http://``, ``https://``, ``udp://``, ``tcp://``, ``rtmp://``, ``srt://``)."""
+    if isinstance(source, int):
+        return True
+    text = str(source)
+    return text.isdigit() or bool(_URL.match(text)) or text.startswith("/dev/video")
+
+
+class LiveSource:
+    """Frames of a camera or a stream as they arrive, stamped with the capture clock.
+
+    Use :func:`open_live`. For a camera or a stream, ``time_s`` of a frame is the clock
+    (``time.monotonic``) when ``cv2.VideoCapture.read`` returned it, minus that of the first
+    frame. A video file played through this path (``loop`` passes, frames keep counting) is
+    stamped with its media time instead (frame / fps, continued across passes), since it
+    decodes faster than it was recorded. ``fps`` is the rate the device announces (or
+    ``fps=``). A read that fails is retried ``max_failures`` times (a stream that stalls)
+    before the source ends; ``max_frames`` stops after that many frames. ``warnings``
+    collects what the caller should print.
+    """
+
+    def __init__(self, source, *, loop: int = 1, max_frames: int | None = None, max_failures: int = 25,
+                 clock=time.monotonic, fps: float | None = None):
+        cv2 = require("cv2", "vision", "reading live video (ceiling track)")
+        self.source = source
+        self.path = str(source)
+        self.loop = int(loop)
+        self.max_frames = max_frames
+        self.max_failures = int(max_failures)
+        self.clock = clock
+        self.warnings: list[str] = []
+        self.decoded = 0
+        if self.loop < 1:
+            raise ConfigError(f"--loop must be at least 1, got {loop}")
+        if max_frames is not None and int(max_frames) < 1:
+            raise ConfigError(f"--max-frames must be at least 1, got {max_frames}")
+        self._cap = self._open()
+        ok, first = self._cap.read()
+        if not ok or first is None:
+            self._cap.release()
+            raise InputFileError(f"{self.path}: no frame from this camera or stream (not connected, busy, or a "
+                                 "format OpenCV cannot decode); expected a camera index, /dev/videoN or a stream URL")
+        self._first = _as_bgr(first)
+        self._t_first = None
+        self.image_size = (int(self._first.shape[1]), int(self._first.shape[0]))
+        announced = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        if fps is not None:
+            self.fps, self.fps_source = float(fps), "argument"
+        elif np.isfinite(announced) and 0 < announced < 1e4:
+            self.fps, self.fps_source = announced, "device"
+        else:
+            self.fps, self.fps_source = DEFAULT_FPS, "default"
+        self.is_file = not is_live_source(source)
+        if not self.is_file:
+            self.fps_source = "capture clock"
+
+    def _open(self):
+        cv2 = require("cv2", "vision", "reading live video (ceiling track)")
+        try:                                        # OpenCV's own warnings would break the one-line error
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        except AttributeError:
+            pass
+        src = self.source
+        if isinstance(src, str) and src.isdigit():
+            src = int(src)
+        elif isinstance(src, Path):
+            src = str(src)
+        cap = cv2.VideoCapture(src)
+        if not cap.isOpened():
+            cap.release()
+            raise InputFileError(f"{self.path}: cannot open this camera or stream; expected a camera index, "
+                                 "/dev/videoN, a stream URL (rtsp://, http://) or a video file")
+        return cap
+
+    def __iter__(self) -> Iterator[Frame]:
+        cap, img = self._cap, self._first
+        i, failures, passes = 0, 0, 1
+        try:
+            while True:
+                if img is not None:
+                    t = i / self.fps if self.is_file else self.clock()
+                    if self._t_first is None:
+                        self._t_first = t
+                    img = _as_bgr(img)
+                    if (img.shape[1], img.shape[0]) != self.image_size:
+                        yield Frame(i, t - self._t_first, None, f"frame {i}",
+                                    f"frame {i} is {img.shape[1]}x{img.shape[0]} px, expected "
+                                    f"{self.image_size[0]}x{self.image_size[1]}")
+                    else:
+                        self.decoded += 1
+                        yield Frame(i, t - self._t_first, img, f"frame {i}")
+                    i += 1
+                    failures = 0
+                    if self.max_frames is not None and i >= self.max_frames:
+                        return
+                ok, img = cap.read()
+                if ok and img is not None:
+                    continue
+                img = None
+                if passes < self.loop and self.is_file:
+                    cap.release()
+                    cap = self._cap = self._open()
+                    passes += 1
+                    continue
+                if self.is_file:
+                    return
+                failures += 1
+                if failures > self.max_failures:
+                    self.warnings.append(f"{self.path}: the stream stopped after {i} frames "
+                                         f"({self.max_failures} reads in a row failed)")
+                    return
+                time.sleep(0.01)
+        finally:
+            cap.release()
+
+    def close(self) -> None:
+        self._cap.release()
+
+
+def open_live(source, *, loop: int = 1, max_frames: int | None = None, fps: float | None = None,
+              clock=time.monotonic) -> LiveSource:
+    """Open a camera index, a device, a stream URL (or a video file played live) for tracking.
+
+    Parameters
+    ----------
+    source : int, str or Path
+        ``0`` / ``"0"`` (camera index), ``"/dev/video0"``, ``"rtsp://..."``, ``"http://..."``,
+        or a video file (played as if it were a camera, ``loop`` times).
+    loop : int
+        Passes over a video file (ignored for a camera or a stream).
+    max_frames : int, optional
+        Stop after this many frames (a camera never ends by itself).
+    fps : float, optional
+        Frame rate of a video file's media time (default: the container's); a camera or a
+        stream is stamped by ``clock``.
+    clock : callable
+        Returns seconds (``time.monotonic``).
+
+    Raises
+    ------
+    InputFileError
+        The camera or stream cannot be opened or gives no first frame.
+    ConfigError
+        ``loop`` < 1 or ``max_frames`` < 1.
+    """
+    return LiveSource(source, loop=loop, max_frames=max_frames, fps=fps, clock=clock)

@@ -1,4 +1,4 @@
-"""``posekit ceiling calibrate|simulate|track|demo``."""
+"""``posekit ceiling camera|calibrate|simulate|track|demo``."""
 
 __all__ = ["add_parser"]
 
@@ -8,9 +8,11 @@ def add_parser(sub):
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     from .ceiling_calibrate import add_calibrate_parser
+    from .ceiling_camera import add_camera_parser
     from .ceiling_demo import add_demo_parser
     from .ceiling_simulate import add_simulate_parser
     from .ceiling_track import add_track_parser
+    add_camera_parser(verbs)
     add_calibrate_parser(verbs)
     add_simulate_parser(verbs)
     add_track_parser(verbs)

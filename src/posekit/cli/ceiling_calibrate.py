@@ -19,6 +19,12 @@ def add_calibrate_parser(verbs):
     c.add_argument("points", metavar="POINTS.csv",
                    help="CSV 'X,Y,u,v': world points on the ceiling (mm) and their pixels")
     c.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
+    c.add_argument("--camera", metavar="CAMERA.json",
+                   help="lens of the camera (posekit ceiling camera): the points' pixels are undistorted first and "
+                        "the homography maps undistorted pixels (pass the same file to track); without it the "
+                        "camera is taken as distortion-free")
+    c.add_argument("--residuals", choices=("all", "worst", "none"), default="all",
+                   help="print the residual of every point (all, default), the 10 worst, or none")
     c.add_argument("--no-refine", dest="refine", action="store_false",
                    help="keep the DLT estimate (default: refine the reprojection error)")
     g = c.add_mutually_exclusive_group()
@@ -57,7 +63,10 @@ def _pair(text, option, lo, hi):
     return vals
 
 
-def _points_from_image(args, seeds, grid_mm, origin_mm):
+def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
+    """Crossings found in the reference image: (world (N, 2) mm, pixels as seen (N, 2), lines).
+    With ``camera`` the image is undistorted first (``cv2.undistort``, same K: straight T-bars),
+    the seeds with it, and the crossings are distorted back to the pixels as seen."""
     cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
     import numpy as np
 
@@ -70,14 +79,57 @@ def _points_from_image(args, seeds, grid_mm, origin_mm):
     if img is None:
         raise CalibrationError(f"{args.from_image}: cannot decode the image; expected an image file OpenCV reads")
     grid = CeilingGrid(grid_mm, origin_mm, args.bar_mm)
-    corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seeds.image_uv,
+    seed_uv = seeds.image_uv
+    if camera is not None:
+        from ..ceiling.calibration import undistort_calibration_points
+        img = cv2.undistort(img, camera.K, camera.dist, None, camera.K)
+        seed_uv = undistort_calibration_points(camera, seed_uv, seeds.lines)
+    corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seed_uv,
                                 polarity="light" if args.light_bars else "dark")
-    print(f"found {len(corners.image_uv)} grid crossings in {args.from_image}")
+    seen = corners.image_uv if camera is None else camera.distort_points(corners.image_uv)
+    print(f"found {len(corners.image_uv)} grid crossings in {args.from_image}"
+          + (" (undistorted with --camera)" if camera is not None else ""))
     if args.write_points:
-        write_points_csv(args.write_points, corners.world_xy, corners.image_uv)
+        write_points_csv(args.write_points, corners.world_xy, seen)
         print(f"wrote the crossings to {args.write_points}")
     lines = np.arange(len(corners.image_uv)) + 2 if args.write_points else None
-    return corners.world_xy, corners.image_uv, lines
+    return corners.world_xy, seen, lines
+
+
+def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
+    """Per-point residuals (px in the image, mm on the ceiling) and why RANSAC rejected each point."""
+    import numpy as np
+
+    from ..ceiling.calibration import point_residuals
+
+    e_px, e_mm = point_residuals(cal, world, image)
+    n = len(world)
+    rejected = np.flatnonzero(~cal.inliers)
+    lens = np.zeros(n, dtype=bool)
+    if radial is not None and radial.detected and radial.off_px is not None:
+        lens = radial.off_px <= args.threshold_px
+    if rejected.size:
+        n_lens = int(lens[rejected].sum())
+        why = []
+        if n_lens:
+            why.append(f"{n_lens} follow the radial pattern of lens distortion (not mis-clicks: use --camera)")
+        if rejected.size - n_lens:
+            why.append(f"{rejected.size - n_lens} are off the fit alone (mis-clicked or wrong X, Y?)")
+        print(f"RANSAC rejected {rejected.size} of {n} points (more than {args.threshold_px:g} px from the fit of "
+              f"the others): " + "; ".join(why))
+        if rejected.size > n / 3 and not n_lens:
+            print("posekit: warning: RANSAC rejected more than a third of the points: check the points, or raise "
+                  "--threshold-px if the clicks are coarse", file=sys.stderr)
+    if args.residuals == "none":
+        return
+    order = np.arange(n) if args.residuals == "all" else np.argsort(-np.nan_to_num(e_px, nan=np.inf))[:10]
+    print(("residual of each point" if args.residuals == "all" else "the 10 largest residuals")
+          + " (px in the image, mm on the ceiling):")
+    for k in order:
+        where = f"line {lines[k]}" if lines is not None else f"crossing {k}"
+        tag = "" if cal.inliers[k] else ("  rejected (lens pattern)" if lens[k] else "  rejected")
+        print(f"  {where}: X={world[k, 0]:g} Y={world[k, 1]:g} u={seen[k, 0]:g} v={seen[k, 1]:g}: "
+              f"{e_px[k]:.2f} px, {e_mm[k]:.1f} mm{tag}")
 
 
 def run_calibrate(args) -> int:
@@ -93,28 +145,40 @@ def run_calibrate(args) -> int:
     grid_mm = _pair(args.grid, "--grid", 10.0, 1e5)
     origin_mm = _pair(args.grid_origin, "--grid-origin", -1e6, 1e6)
     pts = read_points_csv(args.points)
+    camera = None
+    if args.camera:
+        from ..ceiling.camera import load_camera
+        camera = load_camera(args.camera)
     if args.from_image:
-        world, image, lines = _points_from_image(args, pts, grid_mm, origin_mm)
+        world, image, lines = _points_from_image(args, pts, grid_mm, origin_mm, camera)
     else:
         if args.write_points:
             raise ConfigError("--write-points needs --from-image")
         world, image, lines = pts.world_xy, pts.image_uv, pts.lines
+    seen = image
+    if camera is not None:
+        from ..ceiling.calibration import undistort_calibration_points
+        image = undistort_calibration_points(camera, seen, lines)
     cal = calibrate(world, image, refine=args.refine, ransac=args.ransac,
                     threshold_px=args.threshold_px, rng=args.seed)
+    cal.camera = camera
     n, n_in = cal.n_points, int(cal.inliers.sum())
     ransac_used = args.ransac if args.ransac is not None else n >= 6
     how = f"RANSAC at {args.threshold_px:g} px, " if ransac_used else ""
     how += "refined" if args.refine else "DLT only"
+    how += f", pixels undistorted with {args.camera}" if camera is not None else ", no lens model"
     print(f"calibrated from {n_in} of {n} points ({how}): rms {cal.rms_px:.3f} px in the image, "
           f"{cal.rms_world:.3f} world units (mm) on the ceiling")
-    rejected = np.flatnonzero(~cal.inliers)
-    if rejected.size:
-        err = np.linalg.norm(cal.world_to_image(world[rejected], invalid="nan") - image[rejected], axis=1)
-        print(f"rejected {rejected.size} point(s) as mismatched:")
-        for k, e in zip(rejected, err):
-            where = f"line {lines[k]}" if lines is not None else f"crossing {k}"
-            print(f"  {where}: X={world[k, 0]:g} Y={world[k, 1]:g} u={image[k, 0]:g} v={image[k, 1]:g} "
-                  f"({e:.1f} px from the fit)")
+    radial = None
+    if camera is None:
+        from ..ceiling.calibration import radial_pattern
+        radial = radial_pattern(world, image)
+    _print_residuals(args, cal, world, image, seen, lines, radial)
+    if radial is not None and radial.detected:
+        print(f"posekit: warning: looks like lens distortion: calibrate the camera (posekit ceiling camera) and "
+              f"pass --camera; a plain homography leaves {radial.rms_px:.1f} px rms that grows with the distance "
+              f"from the image centre (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}, "
+              f"{100 * radial.explained:.0f} % of the residuals)", file=sys.stderr)
     out = Path(args.out)
     cal.to_json(out)
     print(f"wrote {out}", file=sys.stdout)

@@ -13,7 +13,16 @@ def add_demo_parser(verbs):
     d.add_argument("--out", default="posekit-ceiling-demo",
                    help="output folder (default posekit-ceiling-demo, replaced on each run)")
     add_overwrite(d, "posekit-ceiling-demo")
-    d.add_argument("--dots", default="red,green", help="'red' or 'red,green' (default: both, for the heading)")
+    d.add_argument("--dots", default="red,green",
+                   help="'red', 'red,green' (default: both, for the heading) or 'line' (case C, §III-C)")
+    d.add_argument("--line-pattern", choices=("dotted", "solid"), default="dotted",
+                   help="with --dots line: the paper's dotted line (default) or a solid line")
+    d.add_argument("--realistic", action="store_true",
+                   help="render what a real camera sees (lens distortion, bloom, exposure steps, MPEG-4, a person, "
+                        "shadows, stray red lights, reflections: see 'posekit ceiling simulate --help'); the lens "
+                        "is then calibrated from rendered chessboard views unless --camera is given")
+    d.add_argument("--camera", metavar="CAMERA.json",
+                   help="lens model (posekit ceiling camera) to calibrate and track with, instead of the demo's own")
     add_deprecated(d, "--seconds", "--duration-s", "seconds", _DURATION)
     d.add_argument("--duration-s", dest="seconds", type=_DURATION, default=None,
                    help="length of the rendered video, (0, 3600] s (default: the renderer's)")
@@ -29,7 +38,8 @@ def run_demo(args) -> int:
     check_flags(args)
     out_folder(args)
     with staged(args) as tmp:
-        report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"))
+        report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"),
+                      camera=args.camera, realistic=args.realistic, line_pattern=args.line_pattern)
         summary = report.summary().replace(str(tmp), str(args.out))
     print(summary)
     return 0

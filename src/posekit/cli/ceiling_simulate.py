@@ -5,7 +5,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
-from ._flags import bounded_float, check_flags, seed
+from ._flags import bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_simulate_parser", "run_simulate"]
 
@@ -19,8 +19,13 @@ def add_simulate_parser(verbs):
     s = verbs.add_parser(
         "simulate", help="render a synthetic ceiling video (laser dots of a robot driving a rectangle)",
         description="Render a 4 m x 6 m tiled ceiling seen by a fixed 864x480 camera while a robot with "
-                    "laser pointers drives the paper's 2.4 m x 4.4 m rectangle. Writes video.avi (MJPG), "
-                    "truth.csv, calibration_points.csv (X,Y,u,v of grid corners), reference.png.")
+                    "laser pointers drives the paper's 2.4 m x 4.4 m rectangle. Writes video.avi (MJPG; "
+                    "video.mp4 with --codec mp4v), truth.csv, calibration_points.csv (X,Y,u,v of grid "
+                    "corners where the lens shows them), reference.png, camera.json (the simulated lens: "
+                    "K, dist) and stray_lights.csv. --realistic turns on what a real camera sees: lens "
+                    "distortion k1=-0.2, a blooming dot, auto-exposure steps, MPEG-4 compression, a person "
+                    "and shadows crossing the view, a steady and a blinking red LED, two reflections; each "
+                    "flag below overrides one effect (0 turns it off).")
     s.add_argument("--out", required=True, help="output folder")
     add_overwrite(s)
     s.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same video; default 0)")
@@ -32,9 +37,28 @@ def add_simulate_parser(verbs):
     s.add_argument("--holes", action="store_true", default=True,
                    help="air-conditioning vents where a dot vanishes (default)")
     s.add_argument("--no-holes", dest="holes", action="store_false", help="a ceiling without vents")
-    s.add_argument("--noise-std", type=bounded_float(0.0, 255.0, "grey levels"), default=2.0,
-                   help="sensor noise, 0..255 grey levels (default 2)")
+    s.add_argument("--noise-std", type=bounded_float(0.0, 255.0, "grey levels"), default=None,
+                   help="sensor noise, 0..255 grey levels (default 2; 3 with --realistic)")
     s.add_argument("--frames-png", action="store_true", help="also write every frame as frames/NNNNNN.png")
+    r = s.add_argument_group("realism (default: off; --realistic: the values in brackets)")
+    r.add_argument("--realistic", action="store_true", help="turn on the realistic set of effects below")
+    r.add_argument("--config", metavar="SCENE.yaml",
+                   help="YAML mapping of scene settings (keys of SceneConfig, e.g. dist, bloom, occluders, "
+                        "stray_lights, codec, focal_px); flags given on the command line win")
+    r.add_argument("--distortion", metavar="K1,K2,P1,P2,K3",
+                   help="lens distortion (OpenCV model, about the image centre) [-0.2,0.04,0.0008,-0.0006,0]")
+    r.add_argument("--bloom", type=bounded_float(0.0, 5.0), help="blooming of the saturated dot, 0..5 [1]")
+    r.add_argument("--exposure-step-s", type=bounded_float(0.0, 3600.0, "s"),
+                   help="mean interval of auto-exposure steps, 0 (none)..3600 s [8]")
+    r.add_argument("--occluders", type=bounded_int(0, 20), help="people crossing the view, hiding the dot [1]")
+    r.add_argument("--shadows", type=bounded_int(0, 20), help="soft shadows drifting over the ceiling [2]")
+    r.add_argument("--stray-lights", type=bounded_int(0, 20), help="steady red LEDs on the ceiling [1]")
+    r.add_argument("--blinking-lights", type=bounded_int(0, 20), help="blinking red LEDs [1]")
+    r.add_argument("--reflections", type=bounded_int(0, 20), help="specular glints of lamps [2]")
+    r.add_argument("--codec", choices=("mjpg", "mp4v", "xvid", "h264"),
+                   help="video compression [mp4v]; h264 only where OpenCV has an encoder (not here)")
+    r.add_argument("--line-pattern", choices=("solid", "dotted"),
+                   help="with --dots line: a solid line or the paper's dotted line (5 dots) (default solid)")
     s.set_defaults(func=run_simulate)
     return s
 
@@ -58,8 +82,58 @@ def _moved(paths, old: Path, new: Path):
     return paths._replace(**{k: move(v) for k, v in paths._asdict().items()})
 
 
+_FLAG_KEYS = {"bloom": "bloom", "exposure_step_s": "exposure_step_s", "occluders": "occluders",
+              "shadows": "shadows", "stray_lights": "stray_lights", "blinking_lights": "blinking_lights",
+              "reflections": "reflections", "codec": "codec", "line_pattern": "line_pattern"}
+
+
+def parse_distortion(text: str) -> tuple:
+    """'k1,k2,p1,p2,k3' (or 4 values) -> 5 floats; one-line ConfigError naming --distortion."""
+    import math
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) not in (4, 5) or not all(math.isfinite(v) and abs(v) <= 10 for v in vals):
+        raise ConfigError(f"--distortion: expected 5 comma-separated numbers k1,k2,p1,p2,k3 within ±10, "
+                          f"got '{text[:80]}'")
+    return vals + (0.0,) * (5 - len(vals))
+
+
+def scene_config(args, dots):
+    """The SceneConfig of the flags: defaults, then --realistic, then --config, then the flags given."""
+    import dataclasses
+
+    from ..ceiling.render import REALISTIC, SceneConfig
+    from ..io import load_yaml
+
+    values = dict(REALISTIC) if args.realistic else {}
+    if args.config:
+        data = load_yaml(args.config, expected="a YAML mapping of scene settings", error=ConfigError)
+        if not isinstance(data, dict):
+            raise ConfigError(f"{args.config}: expected a mapping of scene settings (e.g. 'bloom: 1')")
+        known = {f.name for f in dataclasses.fields(SceneConfig)}
+        for key in data:
+            if key not in known:
+                raise ConfigError(f"{args.config}: unknown setting '{str(key)[:40]}'; expected keys of "
+                                  "SceneConfig (e.g. dist, bloom, occluders, stray_lights, codec, focal_px)")
+        values.update(data)
+    values.update(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes)
+    if args.noise_std is not None:
+        values["noise_std"] = args.noise_std
+    if args.distortion is not None:
+        values["dist"] = parse_distortion(args.distortion)
+    for flag, key in _FLAG_KEYS.items():
+        if getattr(args, flag) is not None:
+            values[key] = getattr(args, flag)
+    try:
+        return SceneConfig(**values)
+    except TypeError as exc:
+        raise ConfigError(f"--config: {exc}") from None
+
+
 def run_simulate(args) -> int:
-    from ..ceiling.render import SceneConfig, render_video
+    from ..ceiling.render import render_video
 
     dots = DOT_CHOICES.get(args.dots.replace(" ", "").lower())
     if dots is None:
@@ -70,13 +144,21 @@ def run_simulate(args) -> int:
     if args.duration_s * args.fps > MAX_FRAMES:
         raise ConfigError(f"--duration-s {args.duration_s:g} × --fps {args.fps:g} = {args.duration_s * args.fps:.0f} "
                           f"frames; expected at most {MAX_FRAMES}")
-    config = SceneConfig(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes,
-                         noise_std=args.noise_std)
+    config = scene_config(args, dots)
     out_folder(args)
     with staged(args) as tmp:
         paths = render_video(config, tmp, frames_png=args.frames_png, progress=_progress)
     paths = _moved(paths, tmp, Path(args.out))
     print(f"wrote {paths.n_frames} frames ({config.width_px}x{config.height_px}, {config.fps:g} fps) to "
           f"{paths.video}; truth {paths.truth.name}, calibration {paths.calibration_points.name}, "
-          f"reference {paths.reference.name}" + (f", frames in {paths.frames_dir}" if paths.frames_dir else ""))
+          f"reference {paths.reference.name}, lens {paths.camera.name}"
+          + (f", frames in {paths.frames_dir}" if paths.frames_dir else ""))
+    effects = [name for name, on in (
+        (f"distortion k1={config.dist[0]:g}", any(config.dist)), (f"bloom {config.bloom:g}", config.bloom > 0),
+        (f"exposure steps every ~{config.exposure_step_s:g} s", config.exposure_step_s > 0),
+        (f"{config.occluders} occluder(s)", config.occluders), (f"{config.shadows} shadow(s)", config.shadows),
+        (f"{config.stray_lights} steady + {config.blinking_lights} blinking red light(s)",
+         config.stray_lights + config.blinking_lights),
+        (f"{config.reflections} reflection(s)", config.reflections), (f"codec {config.codec}", True)) if on]
+    print("effects: " + ", ".join(effects))
     return 0

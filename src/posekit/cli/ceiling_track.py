@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from ._flags import bounded_float, check_flags
+from ._flags import bounded_float, bounded_int, check_flags
 
 __all__ = ["add_track_parser", "run_track"]
 
@@ -24,60 +24,135 @@ def _frame_progress(total=None, desc="track"):
 
 
 def add_track_parser(verbs):
-    t = verbs.add_parser("track", help="track the laser dot(s) in a video or a folder of images")
-    t.add_argument("input", help="video file, or folder of images sorted by name")
+    t = verbs.add_parser("track", help="track the laser dot(s) in a video, a folder of images, a camera or a stream")
+    t.add_argument("input", help="video file, folder of images sorted by name, camera index (0), /dev/videoN, or a "
+                                 "stream URL (rtsp://, http://)")
     t.add_argument("--calibration", action="append", required=True, metavar="CAL.json",
                    help="calibration JSON of INPUT (`posekit ceiling calibrate`); repeat it once per "
                         "--input2 for several cameras, in the same order")
+    t.add_argument("--camera", action="append", default=None, metavar="CAMERA.json",
+                   help="lens model of the camera (`posekit ceiling camera`): dot centroids are undistorted "
+                        "before the homography (calibrate with the same --camera); once for all inputs or once per "
+                        "input")
     t.add_argument("--input2", action="append", default=[], metavar="INPUT",
                    help="video or image folder of a further camera covering another part of the ceiling "
                         "(case D; synchronised frame by frame with INPUT); may be repeated")
-    t.add_argument("--dots", default="red", help="'red' (position), 'red,green' (position and heading) or 'line' "
-                        "(one laser line: position and heading, its sense from the motion)")
+    t.add_argument("--dots", default="red", help="'red' (position), 'red,green' (position and heading), 'line' "
+                        "(one laser line: position and heading, its sense from the motion) or 'red,red' (two robots "
+                        "with one red dot each, as --robots 2)")
+    t.add_argument("--robots", type=bounded_int(1, 8), default=None,
+                   help="robots with one red dot each, 1..8 (default 1): one track per robot, column 'robot'")
     t.add_argument("--line-method", choices=["moments", "hough"], default="moments",
                    help="with --dots line: measure the segment by its principal axis (default, most precise) "
                         "or by a Hough transform of its centre line")
     t.add_argument("--fps", type=bounded_float(0.01, 1e4, "Hz"), default=None,
-                   help="frame rate for the timestamps, 0.01..10000 Hz (default: the video's, or 15 for an image "
-                        "folder)")
+                   help="frame rate for the timestamps of a file, 0.01..10000 Hz (default: the video's, or 15 for an "
+                        "image folder); live input is stamped with the capture clock")
     t.add_argument("--max-predict-s", type=bounded_float(0.0, 3600.0, "s"), default=1.0,
                    help="predict through a dropout for at most this long, then 'lost', 0..3600 s (default 1 s)")
-    t.add_argument("--out", required=True, metavar="TRACK.csv",
-                   help="output CSV frame,time_s,x,y,heading_deg,status (mm, s, degrees)")
+    t.add_argument("--out", default=None, metavar="TRACK.csv",
+                   help="output CSV frame,time_s,x,y,heading_deg,status,std_mm (mm, s, degrees), written row by "
+                        "row and renamed into place at the end or on Ctrl-C; required unless --jsonl or --udp")
+    t.add_argument("--jsonl", default=None, metavar="FILE|-",
+                   help="also write one JSON object per frame {frame,time_s,x,y,heading_deg,status,std_mm}, "
+                        "flushed as soon as the frame is done ('-': stdout)")
+    t.add_argument("--udp", default=None, metavar="HOST:PORT",
+                   help="also send each frame's JSON object as a UDP datagram (loopback only unless --allow-remote)")
+    t.add_argument("--allow-remote", action="store_true", help="allow a --udp host that is not this machine")
+    t.add_argument("--live", action="store_true",
+                   help="read INPUT through the live path even if it is a video file (capture-clock timestamps)")
+    t.add_argument("--loop", type=bounded_int(1, 1_000_000), default=1,
+                   help="with --live and a video file: play it this many times (default 1)")
+    t.add_argument("--max-frames", type=bounded_int(1, 10**9), default=None,
+                   help="stop after this many frames (a camera never ends by itself; Ctrl-C stops too)")
     t.set_defaults(func=run_track)
 
 
 def run_track(args) -> int:
-    from ..ceiling.pipeline import parse_dots, track_video, write_track_csv
+    import signal
+
+    from ..ceiling.live import TrackOutputs
+    from ..ceiling.pipeline import parse_dots, track_video
     from ..ceiling.track import TrackerConfig
-    from ..ceiling.video_io import DEFAULT_FPS
+    from ..ceiling.video_io import DEFAULT_FPS, is_live_source
     from ..errors import ConfigError
 
     inputs = [args.input, *args.input2]
     if len(args.calibration) != len(inputs):
         raise ConfigError(f"--calibration given {len(args.calibration)} time(s) for {len(inputs)} input(s); "
                           "give one calibration per camera, in the order INPUT, --input2 ...")
-    dots = parse_dots(args.dots)
+    check_flags(args)
+    robots = args.robots
+    if args.dots.replace(" ", "") == "red,red":
+        if robots not in (None, 2):
+            raise ConfigError(f"--dots red,red means two robots; got --robots {robots}")
+        robots, dots = 2, ("red",)
+    else:
+        dots = parse_dots(args.dots)
+    robots = 1 if robots is None else robots
+    if robots > 1 and (dots != ("red",) or args.input2):
+        raise ConfigError("--robots: several robots are tracked with one red dot each (--dots red) and one camera")
     try:
         config = TrackerConfig(dots=dots, max_predict_s=args.max_predict_s)
     except ConfigError:
         raise ConfigError(f"--max-predict-s must be a number >= 0, got {args.max_predict_s:g}") from None
-    check_flags(args)
-    out = Path(args.out)
-    if out.is_dir():
+    if args.out is None and args.jsonl is None and args.udp is None:
+        raise ConfigError("no output: give --out TRACK.csv, --jsonl FILE|- or --udp HOST:PORT")
+    out = None if args.out is None else Path(args.out)
+    if out is not None and out.is_dir():
         raise ConfigError(f"--out {out}: is a folder; expected a CSV file name")
+    if args.camera is not None and len(args.camera) not in (1, len(inputs)):
+        raise ConfigError(f"--camera given {len(args.camera)} time(s) for {len(inputs)} input(s); give it once for "
+                          "all inputs or once per input")
+    lenses = None if args.camera is None else (args.camera if len(args.camera) > 1 else args.camera[0])
+    live = args.live or any(is_live_source(s) for s in inputs)
     options = {"method": args.line_method} if dots == ("line",) and args.line_method != "moments" else None
-    result = track_video(inputs, args.calibration, dots, fps=args.fps, config=config,
-                         detector_options=options, progress=_frame_progress())
+    outputs = TrackOutputs(out, args.jsonl, args.udp, allow_remote=args.allow_remote, robots=robots)
+    say = sys.stderr if outputs.to_stdout else sys.stdout
+    interrupted, result = False, None
+    old_term = None
     try:
-        write_track_csv(result.rows, out)
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
-    c = result.counts()
-    if result.fps_source == "default":
-        print(f"posekit: note: no frame rate in the input; timestamps assume {DEFAULT_FPS:g} fps "
-              "(pass --fps)", file=sys.stderr)
-    print(f"{len(result)} frames: {c['ok']} ok, {c['predicted']} predicted, {c['lost']} lost; "
-          f"{result.fps:.0f} frames/s end to end ({result.processing_ms:.2f} ms/frame without decoding); "
-          f"wrote {out}")
+        old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+    except ValueError:                       # not the main thread (tests): Ctrl-C only
+        pass
+    try:
+        common = dict(fps=args.fps, camera=lenses, loop=args.loop, max_frames=args.max_frames, live=args.live,
+                      progress=None if live else _frame_progress())
+        if robots > 1:
+            from ..ceiling.multitrack import track_robots_video
+            result = track_robots_video(inputs[0], args.calibration[0], robots, config=config,
+                                        on_row=outputs.write, **common)
+        else:
+            result = track_video(inputs, args.calibration, dots, config=config, detector_options=options,
+                                 on_row=outputs.write, **common)
+    except KeyboardInterrupt:
+        interrupted = True
+    except BaseException:
+        outputs.close(discard=True)
+        raise
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+    outputs.close()                          # the CSV is renamed into place, complete, even after Ctrl-C
+    c = outputs.counts
+    if result is not None:
+        for w in result.warnings:
+            print(f"posekit: warning: {w}", file=sys.stderr)
+        if result.fps_source == "default":
+            print(f"posekit: note: no frame rate in the input; timestamps assume {DEFAULT_FPS:g} fps "
+                  "(pass --fps)", file=sys.stderr)
+    where = ", ".join(x for x in (str(out) if out else "", "stdout" if outputs.to_stdout else
+                                  (args.jsonl or ""), f"udp {args.udp}" if args.udp else "") if x)
+    speed = "" if result is None else (f"; {result.fps:.0f} frames/s end to end ({result.processing_ms:.2f} ms/frame "
+                                      "without decoding)")
+    what = f"{outputs.frames} frames" if robots == 1 else f"{outputs.frames // robots} frames x {robots} robots"
+    stop = "interrupted after " if interrupted else ""
+    print(f"{stop}{what}: {c['ok']} ok, {c['predicted']} predicted, {c['lost']} lost{speed}; wrote {where}",
+          file=say)
+    if interrupted and not live:
+        return 130                           # a file not read whole
     return 0
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt

@@ -1,0 +1,112 @@
+"""``posekit ceiling camera``: lens calibration (K, distortion) from chessboard images."""
+
+import re
+import sys
+from pathlib import Path
+
+from ..errors import CalibrationError, ConfigError
+from ._flags import bounded_float, check_flags
+
+__all__ = ["add_camera_parser", "run_camera", "parse_board"]
+
+#: Most images one calibration reads.
+MAX_VIEWS = 500
+#: Below this fraction of the image covered by the boards, the summary warns.
+LOW_COVERAGE = 0.5
+
+
+def add_camera_parser(verbs):
+    """Add the ``camera`` verb to the ``ceiling`` sub-parsers ``verbs``."""
+    c = verbs.add_parser(
+        "camera", help="lens calibration (K, distortion) from chessboard images",
+        description="Calibrate the ceiling camera's lens with OpenCV from images of a printed chessboard "
+                    "(pinhole K and distortion k1, k2, p1, p2, k3). Views where the board is not found are "
+                    "named and skipped; at least 3 must remain. Hold the board close to the image corners "
+                    "too: the summary reports how much of the image the corners cover. Use the result with "
+                    "--camera on 'calibrate', 'track' and 'demo'.")
+    c.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (one camera, one resolution)")
+    c.add_argument("--board", required=True, metavar="COLSxROWS",
+                   help="inner corners of the chessboard, e.g. 9x6 (a board of 10x7 squares)")
+    c.add_argument("--square-mm", required=True, type=bounded_float(0.1, 1e4, "mm"),
+                   help="side of one square, 0.1..10000 mm")
+    c.add_argument("--out", required=True, metavar="CAMERA.json", help="camera file to write")
+    c.add_argument("--k3", action="store_true",
+                   help="also estimate k3 (wide-angle lenses, boards seen into the corners); default k3 = 0, "
+                        "which extrapolates better beyond the area the boards covered")
+    c.set_defaults(func=run_camera)
+    return c
+
+
+def parse_board(text: str) -> tuple[int, int]:
+    """'9x6' -> (9, 6): inner corners, each 2..100; one-line ConfigError naming --board."""
+    m = re.fullmatch(r"\s*(\d{1,4})\s*[xX×,]\s*(\d{1,4})\s*", text or "")
+    if not m or not all(2 <= int(g) <= 100 for g in m.groups()):
+        raise ConfigError(f"--board: expected the inner corners as COLSxROWS, each 2..100 (e.g. 9x6), "
+                          f"got '{str(text)[:40]}'")
+    return int(m.group(1)), int(m.group(2))
+
+
+def _views(paths):
+    """(name, grey image or None) per path, read through posekit.io (size limits, one-line errors)."""
+    from .._extras import require
+    from ..errors import InputFileError
+    from ..io import read_image
+    cv2 = require("cv2", "vision", "posekit ceiling camera")
+
+    for p in paths:
+        try:
+            img = read_image(p, cv2.IMREAD_GRAYSCALE, error=CalibrationError)
+        except (CalibrationError, InputFileError) as exc:
+            print(f"posekit: warning: {exc}; view skipped", file=sys.stderr)
+            img = None
+            yield str(p), img, True
+            continue
+        yield str(p), img, False
+
+
+def run_camera(args) -> int:
+    """Run ``posekit ceiling camera``; returns the exit code (0)."""
+    from ..ceiling.camera import calibrate_camera, save_camera
+
+    check_flags(args)
+    board = parse_board(args.board)
+    if len(args.images) > MAX_VIEWS:
+        raise ConfigError(f"{len(args.images)} images; expected at most {MAX_VIEWS}")
+    unreadable = []
+
+    def views():
+        for name, img, bad in _views(args.images):
+            if bad:
+                unreadable.append(name)
+                continue
+            yield name, img
+
+    result = calibrate_camera(views(), board, args.square_mm, fix_k3=not args.k3)
+    for name, why in result.skipped:
+        print(f"posekit: warning: {name}: {why}; view skipped", file=sys.stderr)
+    cam = result.camera
+    K, d = cam.K, cam.dist
+    n_all = len(result.used) + len(result.skipped) + len(unreadable)
+    print(f"calibrated the lens from {len(result.used)} of {n_all} views ({board[0]}x{board[1]} inner corners, "
+          f"{args.square_mm:g} mm squares): rms {cam.rms_px:.3f} px")
+    print(f"  fx {K[0, 0]:.2f} px, fy {K[1, 1]:.2f} px, cx {K[0, 2]:.2f} px, cy {K[1, 2]:.2f} px "
+          f"({cam.image_size[0]}x{cam.image_size[1]})")
+    print(f"  k1 {d[0]:+.5f}, k2 {d[1]:+.5f}, p1 {d[2]:+.6f}, p2 {d[3]:+.6f}, k3 {d[4]:+.5f}"
+          + ("" if args.k3 else " (fixed)"))
+    worst = int(result.per_view_rms_px.argmax())
+    print(f"  per view rms: median {float(_median(result.per_view_rms_px)):.3f} px, worst "
+          f"{result.per_view_rms_px[worst]:.3f} px ({result.used[worst]})")
+    print(f"  coverage: the boards cover {100 * result.coverage:.0f} % of the image, "
+          f"{result.cells_hit} of 9 cells of a 3x3 grid")
+    if result.coverage < LOW_COVERAGE or result.cells_hit < 9:
+        print("posekit: warning: the corners do not reach every part of the image; the distortion there is "
+              "extrapolated: add views with the board near the uncovered edges and corners", file=sys.stderr)
+    out = Path(args.out)
+    save_camera(cam, out)
+    print(f"wrote {out}")
+    return 0
+
+
+def _median(x):
+    import numpy as np
+    return np.median(x)
