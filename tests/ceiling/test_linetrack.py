@@ -173,3 +173,33 @@ def test_cli_track_line(capsys, tmp_path, method):
     assert known.sum() >= 25
     assert np.abs(dh_deg(t["heading_deg"][known], np.radians(truth.heading_deg[known]))).max() < 3.0
     assert np.hypot(t["x"] - truth.xy[:, 0], t["y"] - truth.xy[:, 1]).max() < 8.0
+
+
+def test_cli_track_dotted_line(capsys, tmp_path):
+    """§III-C: `track --dots line --line-method dotted` on the dotted line `simulate` renders; the
+    solid-line measurement finds no segment in it (so the method must be chosen)."""
+    render = pytest.importorskip("posekit.ceiling.render")
+    from posekit.ceiling.calibration import calibrate, read_points_csv
+    from posekit.ceiling.demo import read_truth_csv
+    from posekit.cli.ceiling_track import add_track_parser
+    cfg = render.SceneConfig(dots=("line",), duration_s=4.0, path_phase_s=12.0, line_pattern="dotted")
+    paths = render.render_video(cfg, tmp_path)
+    p = read_points_csv(paths.calibration_points)
+    calibrate(p.world_xy, p.image_uv).to_json(tmp_path / "cal.json")
+    parser = argparse.ArgumentParser()
+    add_track_parser(parser.add_subparsers(dest="verb"))
+    counts = {}
+    for method in ("dotted", "moments"):
+        out = tmp_path / f"track-{method}.csv"
+        args = parser.parse_args(["track", str(paths.video), "--calibration", str(tmp_path / "cal.json"),
+                                  "--dots", "line", "--line-method", method, "--out", str(out)])
+        assert args.func(args) == 0
+        capsys.readouterr()
+        t = read_track_csv(out)
+        counts[method] = int(np.sum(t["status"] == "ok"))
+    truth = read_truth_csv(paths.truth)
+    t = read_track_csv(tmp_path / "track-dotted.csv")
+    ok = t["status"] == "ok"
+    assert counts["dotted"] >= 50 and counts["moments"] == 0, counts
+    err = np.hypot(t["x"][ok] - truth.xy[ok, 0], t["y"][ok] - truth.xy[ok, 1])
+    assert err.mean() < 1.5 and err.max() < 5.0

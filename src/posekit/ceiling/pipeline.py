@@ -406,6 +406,10 @@ def make_detectors(dots, n: int, detector_options: dict | None = None):
         return None
     from .detect import DotDetector, LineDetector
     if dots == LINE_DOTS:
+        if detector_options.get("method") == "dotted":          # the §III-C dotted line
+            from .linetrack import DottedLineDetector
+            rest = {k: v for k, v in detector_options.items() if k != "method"}
+            return [DottedLineDetector(**rest) for _ in range(n)]
         return [LineDetector(**detector_options) for _ in range(n)]
     return [DotDetector(colors=dots, **detector_options) for _ in range(n)]
 

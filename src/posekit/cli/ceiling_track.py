@@ -42,9 +42,10 @@ def add_track_parser(verbs):
                         "with one red dot each, as --robots 2)")
     t.add_argument("--robots", type=bounded_int(1, 8), default=None,
                    help="robots with one red dot each, 1..8 (default 1): one track per robot, column 'robot'")
-    t.add_argument("--line-method", choices=["moments", "hough"], default="moments",
-                   help="with --dots line: measure the segment by its principal axis (default, most precise) "
-                        "or by a Hough transform of its centre line")
+    t.add_argument("--line-method", choices=["moments", "hough", "dotted"], default="moments",
+                   help="with --dots line: measure a solid segment by its principal axis (default, most precise) "
+                        "or by a Hough transform of its centre line; 'dotted' for the paper's §III-C dotted line "
+                        "(a row of dots, as `ceiling simulate --dots line --line-pattern dotted` renders)")
     t.add_argument("--fps", type=bounded_float(0.01, 1e4, "Hz"), default=None,
                    help="frame rate for the timestamps of a file, 0.01..10000 Hz (default: the video's, or 15 for an "
                         "image folder); live input is stamped with the capture clock")
