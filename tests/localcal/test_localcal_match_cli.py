@@ -121,3 +121,67 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 1 and err.startswith(f"posekit: error: --out {tmp_path / 'no' / 'r.json'}: cannot write in")
     assert err.count("\n") == 1
+
+
+# ------------------------------------------------------------------ verdict, uncertainty, matcher (issue 14)
+def test_match_json_carries_verdict_and_uncertainty(tmp_path):
+    out = tmp_path / "r.json"
+    cam, gt = DATA / "fr2_desk_ORB.txt", DATA / "fr2_desk_groundtruth.txt"
+    rc = main(["localcal", "match", str(cam), str(gt), "--max-dt", "0.01", "--out", str(out)])
+    assert rc == 0
+    res = json.loads(out.read_text())
+    assert list(res)[:9] == [*KEYS, "status", "reasons", "std_rot_deg", "std_t_mm"]
+    assert res["status"] == "ok" and res["reasons"] == []
+    assert len(res["std_rot_deg"]) == 3 and len(res["std_t_mm"]) == 3
+    assert all(0 < v < 1.0 for v in res["std_rot_deg"]) and all(0 < v < 30.0 for v in res["std_t_mm"])
+
+
+def test_suspect_match_writes_the_json_then_exits_1(tmp_path, capsys):
+    """A camera 240 mm from the tool on a turning path: the hand-eye case, flagged."""
+    from tests.localcal.test_localcal_verdict import lever
+    src, dst, T = lever(3)
+    write_tum(tmp_path / "cam.tum", src)
+    write_tum(tmp_path / "kin.tum", dst)
+    out = tmp_path / "r.json"
+    rc = main(["localcal", "match", str(tmp_path / "cam.tum"), str(tmp_path / "kin.tum"), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == 1
+    res = json.loads(out.read_text())
+    assert res["status"] == "suspect"
+    assert any("use `posekit localcal handeye`" in r for r in res["reasons"])
+    assert captured.err.startswith("posekit: suspect match: ") and captured.err.count("\n") == 1
+    assert f"wrote {out}" in captured.out
+
+
+def test_camera_file_in_millimetres_is_a_one_line_error(tmp_path, capsys):
+    rng = np.random.default_rng(21)
+    pose, dur = asymmetric_planar_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    src, dst = make_pair(rng, pose, dur, T_B_W=T, offset_s=0.0)
+    W = src.T.copy()
+    W[:, :3, 3] *= 1000.0
+    write_tum(tmp_path / "cam.tum", Trajectory(src.t_s, W))
+    write_tum(tmp_path / "kin.tum", dst)
+    rc = main(["localcal", "match", str(tmp_path / "cam.tum"), str(tmp_path / "kin.tum"), "--out",
+               str(tmp_path / "r.json")])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.count("\n") == 1
+    assert err.startswith(f"posekit: error: {tmp_path / 'cam.tum'} moves 993x as far as {tmp_path / 'kin.tum'}")
+    assert "is " + str(tmp_path / "cam.tum") + " in millimetres? trajectory files are in metres" in err
+    assert not (tmp_path / "r.json").exists()
+
+
+@pytest.mark.parametrize("matcher", ["cpd", "hybrid"])
+def test_matcher_option_without_timestamps(tmp_path, matcher):
+    from tests.localcal.test_localcal_verdict import base
+    src, dst, T, _ = base(31, "smooth")
+    write_tum(tmp_path / "cam.tum", src)
+    write_tum(tmp_path / "kin.tum", dst)
+    out = tmp_path / "r.json"
+    rc = main(["localcal", "match", str(tmp_path / "cam.tum"), str(tmp_path / "kin.tum"), "--no-timestamps",
+               "--matcher", matcher, "--format", "tum", "--out", str(out)])
+    assert rc == 0
+    res = json.loads(out.read_text())
+    assert res["matcher"] == matcher and res["mode"] == "no-timestamps"
+    assert rotation_error_deg(np.array(res["R"]), T[:3, :3]) < 0.3
+    assert np.linalg.norm(np.array(res["t_mm"]) - T[:3, 3]) < 3.0

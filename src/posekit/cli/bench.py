@@ -9,7 +9,7 @@ from ._flags import bounded_int, check_flags
 
 __all__ = ["add_parser", "BENCHMARKS"]
 
-BENCHMARKS = ("profiler", "ceiling", "seam", "robots")
+BENCHMARKS = ("profiler", "ceiling", "seam", "robots", "localcal")
 #: Most samples of one benchmark (profiles, frames, filter steps or calls; each benchmark takes at
 #: least its own minimum).
 MAX_COUNT = 10_000
@@ -22,6 +22,9 @@ def add_parser(sub):
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.add_argument("--count", type=bounded_int(1, MAX_COUNT, "samples"), default=None,
                    help=f"number of samples, 1..{MAX_COUNT} (default: the benchmark's)")
+    p.add_argument("--rows", type=bounded_int(100, 10_000_000, "rows"), default=None,
+                   help="localcal only: poses per trajectory file, 100..1e7 (default 200,000; the issue's "
+                        "size is 1000000)")
     p.set_defaults(func=run)
 
 
@@ -50,7 +53,8 @@ def run(args) -> int:
     check_flags(args)
     names = BENCHMARKS if args.name == "all" else (args.name,)
     for name in names:
-        results = _load(name).run(count=args.count, verbose=not args.json)
+        extra = {"rows": args.rows} if name == "localcal" and getattr(args, "rows", None) else {}
+        results = _load(name).run(count=args.count, verbose=not args.json, **extra)
         if args.json:
             for row in results:
                 print(json.dumps(row))

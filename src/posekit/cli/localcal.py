@@ -1,4 +1,4 @@
-"""``posekit localcal match|simulate|demo``."""
+"""``posekit localcal match|handeye|simulate|demo``."""
 
 __all__ = ["add_parser"]
 
@@ -8,8 +8,10 @@ def add_parser(sub):
                                         "with motion-based local calibration")
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
+    from .localcal_handeye import add_handeye_parser
     from .localcal_match import add_match_parser
     from .localcal_simulate import add_demo_parser, add_simulate_parser
     add_match_parser(verbs)
+    add_handeye_parser(verbs)
     add_simulate_parser(verbs)
     add_demo_parser(verbs)

@@ -4,6 +4,7 @@ import json
 import sys
 
 from ._flags import bounded_float, check_flags
+from .localcal_inputs import add_trajectory_args, read_trajectory_args
 
 __all__ = ["add_match_parser", "run_match"]
 
@@ -13,10 +14,11 @@ def add_match_parser(verbs):
     p = verbs.add_parser(
         "match", help="transform from a camera (VO/SLAM) trajectory to the kinematic (base) frame",
         description="Match a camera trajectory (VO/SLAM world frame) with the kinematic TCP trajectory "
-                    "(robot base frame), both TUM files (timestamp tx ty tz qx qy qz qw, s, m). Writes "
-                    "{R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm, ...}: p_base = R p_camera + t.")
-    p.add_argument("camera", metavar="CAMERA.tum", help="camera poses in the VO/SLAM world frame")
-    p.add_argument("kinematic", metavar="KINEMATIC.tum", help="TCP poses in the robot base frame")
+                    "(robot base frame). Writes {R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm, status, "
+                    "reasons, std_rot_deg, std_t_mm, ...}: p_base = R p_camera + t; std_* are 1 sigma about the "
+                    "base axes. Exit 1 when the verdict is suspect (the file is written first).")
+    p.add_argument("camera", metavar="CAMERA", help="camera poses in the VO/SLAM world frame")
+    p.add_argument("kinematic", metavar="KINEMATIC", help="TCP poses in the robot base frame")
     p.add_argument("--out", required=True, metavar="RESULT.json", help="result file to write")
     p.add_argument("--no-timestamps", dest="timestamps", action="store_false",
                    help="ignore the timestamps: correspondence-free point-set registration")
@@ -31,25 +33,28 @@ def add_match_parser(verbs):
                    help="also estimate a scale (Sim(3)), for a monocular VO trajectory")
     p.add_argument("--outlier-fraction", type=bounded_float(0.0, 0.5, hi_open=True), default=0.05, metavar="F",
                    help="expected fraction of gross outliers, [0, 0.5) (default 0.05)")
+    p.add_argument("--matcher", choices=("cpd", "hybrid"), default="cpd",
+                   help="fine matcher with --no-timestamps: cpd (positions) or hybrid (positions and "
+                        "orientations, hybrid-mixture style) (default cpd)")
+    add_trajectory_args(p)
     p.set_defaults(func=run_match)
     return p
 
 
 def run_match(args) -> int:
-    """Run ``posekit localcal match``; returns the exit code (0)."""
+    """Run ``posekit localcal match``; returns the exit code (0 ok, 1 suspect)."""
     import numpy as np
 
     from ..geometry import rotation_angle_between
     from ..localcal.registration.match import match_trajectories
-    from ..localcal.registration.tum import read_tum
 
     check_flags(args)
-    src = read_tum(args.camera)
-    dst = read_tum(args.kinematic)
+    src = read_trajectory_args(args, args.camera, role="camera")
+    dst = read_trajectory_args(args, args.kinematic, role="kinematic")
     reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
                              time_offset_s=args.time_offset, max_offset_s=args.max_offset,
                              with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
-                             names=(str(args.camera), str(args.kinematic)))
+                             matcher=args.matcher, names=(str(args.camera), str(args.kinematic)))
     from ..io import write_text_atomic
 
     out = write_text_atomic(args.out, json.dumps(reg.to_json(), indent=2) + "\n")
@@ -62,5 +67,10 @@ def run_match(args) -> int:
           + (f", scale {reg.scale:.5f}" if args.with_scale else ""))
     print(f"rmse {reg.rmse_mm:.2f} mm; mean |e| x,y,z " + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
           + " mm; max |e| " + ", ".join(f"{v:.2f}" for v in reg.max_abs_err_mm) + " mm")
+    print("std (1 sigma, base axes): rotation " + ", ".join(f"{v:.3g}" for v in reg.std_rot_deg)
+          + " deg; t " + ", ".join(f"{v:.3g}" for v in reg.std_t_mm) + " mm")
     print(f"wrote {out}", file=sys.stdout)
+    if reg.status != "ok":
+        print(f"posekit: suspect match: {'; '.join(reg.reasons)}", file=sys.stderr)
+        return 1
     return 0

@@ -38,7 +38,18 @@ def add_simulate_parser(verbs):
     s.add_argument("--workers", type=workers, default=None,
                    help="worker processes of the local cluster, 1..256 (--scheduler local; default: one per core)")
     s.add_argument("--no-timestamps", action="store_true",
-                   help="trajectory method: match VO and encoder trajectories without timestamps")
+                   help="trajectory method: match VO and encoder trajectories without timestamps "
+                        "(correspondence-free, as the paper does)")
+    s.add_argument("--matcher", default="cpd", choices=["cpd", "hybrid"],
+                   help="with --no-timestamps: the fine matcher, cpd (rigid CPD on positions, default) or hybrid "
+                        "(positions and orientations, as the paper's hybrid mixture model)")
+    s.add_argument("--calibration-tilt-deg", type=bounded_float(0.0, 45.0, "deg"), default=0.0,
+                   help="trajectory method: tilt the calibration path's inner waypoints by this angle, 0..45 deg "
+                        "(default 0: the paper's orientation-holding path)")
+    s.add_argument("--registration", default="auto", choices=["auto", "match", "handeye"],
+                   help="trajectory method: how VO is registered to the robot: match (the paper's trajectory "
+                        "matching), handeye (camera mount and VO frame together, for a camera off the tool "
+                        "point on a rotating path) or auto (default: handeye when the path tilts)")
     s.add_argument("--occlude-ooi", default="never",
                    help="hide the OOI from the camera: never (default), calibration (during the circle or "
                         "the calibration path) or always")
@@ -75,6 +86,12 @@ def add_demo_parser(verbs):
 
 
 def _camera_options(s):
+    s.add_argument("--no-distortion", action="store_true",
+                   help="rectified camera images (default: the lens distortion is rendered and undistorted "
+                        "in the detection)")
+    s.add_argument("--vo", default="stereo", choices=["stereo", "isotropic"],
+                   help="VO error model: stereo (default; noise and drift grow with depth, ZED2-like baseline) "
+                        "or isotropic (1 mm white noise, 3 mm per sqrt(m) drift: the first simulator's)")
     s.add_argument("--camera-hz", type=bounded_float(0.001, MAX_CAMERA_HZ, "Hz"), default=10.0,
                    help="camera images per second along the circular path, 0.001..100 Hz (line method; default 10)")
     s.add_argument("--plot-hz", type=bounded_float(0.0, MAX_CAMERA_HZ, "Hz"), default=2.0,
@@ -91,7 +108,16 @@ def _config(args, **extra):
     if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
         raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
     check_flags(args)
-    return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, **extra)
+    vo = {}
+    if args.vo == "isotropic":
+        from ..localcal.sim.vo import VONoise
+        vo = {"vo_stereo": None, "vo_noise_mm": VONoise.noise_mm, "vo_noise_rad": VONoise.noise_rad,
+              "vo_drift_mm_per_sqrt_m": VONoise.drift_mm_per_sqrt_m,
+              "vo_drift_rad_per_sqrt_m": VONoise.drift_rad_per_sqrt_m}
+    elif args.vo != "stereo":
+        raise ConfigError(f"--vo: expected stereo or isotropic, got '{args.vo}'")
+    return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, lens_distortion=not args.no_distortion,
+                         **vo, **extra)
 
 
 def _robot_options(args) -> dict:
@@ -177,7 +203,13 @@ def run_simulate(args) -> int:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
     if args.occlude_ooi not in OCCLUSIONS:
         raise ConfigError(f"--occlude-ooi: expected one of {' | '.join(OCCLUSIONS)}, got '{args.occlude_ooi}'")
+    if args.matcher != "cpd" and not args.no_timestamps:
+        raise ConfigError(f"--matcher {args.matcher} is the matcher without timestamps; add --no-timestamps")
+    if args.registration == "handeye" and args.no_timestamps:
+        raise ConfigError("--registration handeye needs timestamps; drop --no-timestamps")
     config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi,
+                     matcher=args.matcher, calibration_tilt_deg=args.calibration_tilt_deg,
+                     registration=args.registration,
                      **_robot_options(args))
     out_folder(args)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,

@@ -15,10 +15,12 @@ tum, registration (alignment, association, coarse, cpd)
     never-mirrored coarse alignment + rigid CPD).
 arm, camera, scene, vo
     The simulator: hydraulic long-reach arm with non-kinematic errors, ZED2-like camera with
-    OpenCV ArUco rendering and detection, the work cell, a drifting VO.
+    lens distortion and OpenCV ArUco rendering and detection, the work cell (camera ~0.5 m off
+    the tool point), a stereo VO whose noise and drift grow with depth.
 episode, experiments, plots
-    One look-then-move episode, repeated runs with the paper's Tables 2–4, figures and
-    ``report.html`` (``plots`` imports matplotlib only when drawing; not re-exported here).
+    One look-then-move episode (:func:`run_localcal_episode` → :class:`LocalcalEpisode`),
+    repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and ``report.html``
+    (``plots`` imports matplotlib only when drawing; not re-exported here).
 """
 
 from .methods.line_method import (
@@ -50,6 +52,7 @@ from .sim.arm import (
 )
 from .sim.camera import (
     ARUCO_DICTIONARY,
+    ZED2_720P_DISTORTION,
     CameraIntrinsics,
     MarkerDetector,
     marker_corners,
@@ -61,8 +64,8 @@ from .sim.episode import (
     OCCLUSIONS,
     START_Q,
     EpisodeConfig,
-    EpisodeResult,
-    run_episode,
+    LocalcalEpisode,
+    run_localcal_episode,
 )
 from .sim.experiments import (
     PAPER_TABLE2_MEAN,
@@ -83,7 +86,7 @@ from .sim.scene import (
     observe,
     ooi_pose,
 )
-from .sim.vo import VONoise, simulate_vo
+from .sim.vo import StereoNoise, VONoise, depth_along_axis, simulate_vo
 
 __all__ = [
     # methods
@@ -118,6 +121,7 @@ __all__ = [
     "NonKinematicErrors",
     "sample_nonkinematic_errors",
     "ARUCO_DICTIONARY",
+    "ZED2_720P_DISTORTION",
     "CameraIntrinsics",
     "MarkerDetector",
     "marker_corners",
@@ -131,15 +135,17 @@ __all__ = [
     "marker_errors",
     "observe",
     "ooi_pose",
+    "StereoNoise",
     "VONoise",
+    "depth_along_axis",
     "simulate_vo",
     # episodes and experiments
     "METHODS",
     "OCCLUSIONS",
     "START_Q",
     "EpisodeConfig",
-    "EpisodeResult",
-    "run_episode",
+    "LocalcalEpisode",
+    "run_localcal_episode",
     "ExperimentResult",
     "run_experiment",
     "table_columns",

@@ -7,7 +7,9 @@ Figures after the paper:
 * Fig. 8-like (trajectory method): the reference path, the encoder-based TCP positions and
   the VO camera positions after the local calibration;
 * Fig. 7/9-like: the image-based position errors between the tool marker and the OOI over
-  time, with the look-then-move updates marked.
+  time, with the look-then-move updates marked;
+* Fig. 5-like: the image-based rotation errors (XYZ Euler angles) between the tool marker and
+  the OOI over time, before and after the orientation adjustment.
 """
 
 import html
@@ -38,6 +40,7 @@ __all__ = [
     "TABLE_TITLES",
     "plot_circle_path",
     "plot_errors_over_time",
+    "plot_orientation_errors",
     "plot_trajectory_matching",
     "tables_text",
     "write_experiment",
@@ -148,6 +151,32 @@ def plot_errors_over_time(episode, path):
     return save_figure(fig, path)
 
 
+def plot_orientation_errors(episode, path):
+    """Fig. 5-like figure: image-based rotation errors (signed XYZ Euler angles, deg) between
+    the tool marker and the OOI over time, the orientation adjustment marked.
+
+    The paper plots failed samples as zeros; here they are gaps (not seen by the camera).
+    """
+    plt = pyplot()
+    tl = episode.timeline
+    t = np.asarray(tl["t_s"])
+    rot = np.asarray(tl.get("rot_deg", np.full((len(t), 3), np.nan))).reshape(-1, 3)
+    fig, ax = plt.subplots(figsize=(10, 4))
+    for i, axis in enumerate("xyz"):
+        ax.plot(t, rot[:, i], ".-", ms=3, lw=0.8, label=f"e_θ{axis}")
+    for j, (t_ev, label) in enumerate(tl["events"]):
+        ax.axvline(t_ev, color="0.5", ls="--", lw=0.8)
+        ax.text(t_ev, 0.98 - 0.1 * (j % 2), " " + label, transform=ax.get_xaxis_transform(), fontsize=7,
+                va="top", color="0.3")
+    ax.axhline(0.0, color="k", lw=0.5)
+    after = ", ".join(f"{v:.2f}" for v in np.asarray(episode.rotation_after_deg, float))
+    ax.set(xlabel="time (s)", ylabel="rotation error (deg)",
+           title=f"Orientation adjustment: tool marker vs OOI, XYZ Euler (|after| = {after} deg; gaps: not seen)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    return save_figure(fig, path)
+
+
 # --------------------------------------------------------------------------- files
 
 def _num(v, col):
@@ -181,6 +210,18 @@ def _paper_rows(method: str, updates: int) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
+def _settings_html(settings: dict) -> str:
+    if not settings:
+        return ""
+    st = settings.get("vo_stereo")
+    vo = ("stereo VO (baseline {baseline_mm:g} mm, f {focal_px:g} px, σ_px {pixel_noise_px:g}, σ_d "
+          "{disparity_noise_px:g} px, {features} features, drift {drift_mm_per_sqrt_m:g} mm/√m lateral)".format(**st)
+          if st else "isotropic VO noise")
+    return (f"<p>Simulated: robot {html.escape(str(settings['robot']))}; "
+            f"{'lens distortion' if settings['lens_distortion'] else 'rectified images'}; {html.escape(vo)}; "
+            f"trajectory matching {settings['matching']}.</p>")
+
+
 def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dict:
     """Write the tables (CSV), ``results.json``, the figures (PNG) and ``report.html``.
 
@@ -206,6 +247,7 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     record = {
         "method": result.method, "seed": result.seed, "runs": len(result.episodes), "updates": result.updates,
         "wall_s": result.wall_s,
+        "simulation": simulation_settings(result),
         "tables": result.tables,
         "matching": [ep.matching if ep is not None else None for ep in result.episodes]
         if result.method == "trajectory" else None,
@@ -215,6 +257,9 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     figures = []
     first = next((ep for ep in result.episodes if ep is not None), None)
     if first is not None:
+        files["fig5"] = plot_orientation_errors(first, out / "fig5_orientation.png")
+        figures.append((files["fig5"], "Fig. 5-like: image-based rotation errors before and after the orientation "
+                                       "adjustment, run 1"))
         if result.method == "line":
             files["fig6"] = plot_circle_path(first, out / "fig6_circle_path.png")
             figures.append((files["fig6"], "Fig. 6-like: circular path, reference vs completed, run 1"))
@@ -236,18 +281,91 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     intro = (f"<p>{len(result.episodes)} simulated look-then-move episodes, seed {result.seed}, "
              f"{result.updates} update(s) each; wall time {result.wall_s:.1f} s."
              + (f" Command: <code>{html.escape(command)}</code>" if command else "") + "</p>"
+             + _settings_html(simulation_settings(result)) +
              "<p>Errors are those the camera measures between the tool marker and the OOI (absolute, in "
              "the camera frame); the <em>truth</em> tables give the simulator's true errors.</p>")
     files["report"] = write_html(out, title, intro, sections)
     return files
 
 
+def _paper_line(name: str) -> str:
+    """The paper's numbers for a table, one line (empty for the truth tables)."""
+    def fmt(vals, deg=0):
+        return "  ".join((f"{v:.2f}" if i < deg else f"{v:.1f}") for i, v in enumerate(vals))
+    if name == "table2":
+        return "paper mean (Table 2): rot x/y/z [deg], e_x/e_y [mm], depth e_z [mm]: " + fmt(PAPER_TABLE2_MEAN, 3)
+    if name == "table3":
+        return ("paper (Table 3): mean x/y/z " + fmt(PAPER_TABLE3["mean"]) + " mm; max x/y/z "
+                + fmt(PAPER_TABLE3["max"]) + " mm")
+    if name == "table4":
+        return "paper mean (Table 4): 1st input e_x/e_y/e_z, 2nd input e_x/e_y/e_z [mm]: " + fmt(PAPER_TABLE4_MEAN)
+    return ""
+
+
+def simulation_settings(result: ExperimentResult) -> dict:
+    """What the simulated episodes modelled (camera, VO, matching), from the first episode's config."""
+    ep = next((e for e in result.episodes if e is not None), None)
+    if ep is None:
+        return {}
+    c = ep.config
+    st = c.vo_stereo
+    return {
+        "robot": c.robot,
+        "lens_distortion": bool(c.lens_distortion),
+        "matching": "timestamps" if c.use_timestamps else f"correspondence-free ({c.matcher})",
+        "vo_model": "stereo" if st is not None else "isotropic",
+        "vo_stereo": None if st is None else {
+            "baseline_mm": st.baseline_mm, "focal_px": st.focal_px, "pixel_noise_px": st.pixel_noise_px,
+            "disparity_noise_px": st.disparity_noise_px, "features": st.features, "corr_s": st.corr_s,
+            "drift_mm_per_sqrt_m": st.drift_mm_per_sqrt_m, "disparity_bias_px": st.disparity_bias_px},
+        "vo_noise_mm": c.vo_noise_mm, "vo_drift_mm_per_sqrt_m": c.vo_drift_mm_per_sqrt_m,
+    }
+
+
 def tables_text(result: ExperimentResult, *, truth: bool = False) -> str:
-    """The experiment's tables as text (the CLI prints this)."""
+    """The experiment's tables as text, each followed by the paper's numbers (the CLI prints this)."""
     parts = []
     for name, rows in result.tables.items():
         if name.endswith("_truth") and not truth:
             continue
-        parts.append(format_table(rows, table_columns(name, result.updates), TABLE_TITLES.get(name, name)))
+        text = format_table(rows, table_columns(name, result.updates), TABLE_TITLES.get(name, name))
+        paper = _paper_line(name)
+        parts.append(text + ("\n" + paper if paper else ""))
+    verdicts = registration_verdicts(result)
+    if verdicts:
+        parts.append(verdicts)
+    settings = simulation_settings(result)
+    if settings:
+        st = settings["vo_stereo"]
+        vo = (f"stereo VO (baseline {st['baseline_mm']:g} mm, depth error {_depth_sigmas(st)})" if st
+              else "isotropic VO")
+        parts.append(f"simulated: {'lens distortion' if settings['lens_distortion'] else 'rectified images'}, {vo}, "
+                     f"matching {settings['matching']}")
     return "\n\n".join(parts)
+
+
+def _depth_sigmas(st: dict) -> str:
+    """Per-frame depth sigma of the stereo VO at 0.5, 1 and 2 m, e.g. '0.4/1.6/6.3 mm at 0.5/1/2 m'."""
+    from posekit.localcal.sim.vo import StereoNoise
+
+    model = StereoNoise(**{k: st[k] for k in ("baseline_mm", "focal_px", "pixel_noise_px", "disparity_noise_px",
+                                              "features")})
+    z = model.sigma_mm([500.0, 1000.0, 2000.0])[:, 2]
+    return "/".join(f"{v:.1f}" for v in z) + " mm at 0.5/1/2 m"
+
+
+def registration_verdicts(result: ExperimentResult) -> str:
+    """One line: how many runs' registrations (match or hand-eye) were ``ok`` / ``suspect``, with
+    the first reason; empty for the line method or when the registration gives no verdict."""
+    if result.method != "trajectory":
+        return ""
+    recs = [ep.matching for ep in result.episodes if ep is not None and ep.matching]
+    statuses = [r.get("status") for r in recs if r.get("status")]
+    if not statuses:
+        return ""
+    mode = recs[0].get("mode", "timestamps")
+    line = (f"registration verdict ({mode}): {statuses.count('ok')} ok, {statuses.count('suspect')} suspect "
+            f"of {len(statuses)}")
+    first = next((r["reasons"][0] for r in recs if r.get("status") == "suspect" and r.get("reasons")), None)
+    return line + (f"; e.g. {first}" if first else "")
 

@@ -102,13 +102,15 @@ def orientation_reference(T_B_F, T_C_O, T_C_M, *, R_F_C=None) -> np.ndarray:
     return T_ref
 
 
-def rotation_errors_deg(T_C_O, T_C_M) -> np.ndarray:
+def rotation_errors_deg(T_C_O, T_C_M, *, signed: bool = False) -> np.ndarray:
     """Image-based absolute rotation errors between the tool marker and the OOI (Table 2).
 
     Parameters
     ----------
     T_C_O, T_C_M : array_like, shape (..., 4, 4)
         OOI and tool-marker poses in the camera frame, mm.
+    signed : bool
+        Return the signed angles (Fig. 5) instead of their absolute values.
 
     Returns
     -------
@@ -121,4 +123,5 @@ def rotation_errors_deg(T_C_O, T_C_M) -> np.ndarray:
     R_M_O = np.swapaxes(T_C_M[..., :3, :3], -1, -2) @ T_C_O[..., :3, :3]
     shape = R_M_O.shape[:-2]
     euler = Rotation.from_matrix(R_M_O.reshape(-1, 3, 3)).as_euler("xyz", degrees=True)
-    return np.abs(euler).reshape(shape + (3,))
+    euler = euler.reshape(shape + (3,))
+    return euler if signed else np.abs(euler)

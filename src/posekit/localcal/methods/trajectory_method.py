@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.errors import ConfigError, TrajectoryError
-from posekit.geometry import check_rotation_matrix, check_transform
+from posekit.geometry import check_rotation_matrix, check_transform, matrix_from_rotation_vector
 
 __all__ = [
     "PATH_LENGTHS_MM",
@@ -36,11 +36,14 @@ STANDOFF_MM = 100.0
 _MIN_SPREAD_MM = 1.0
 
 
-def asymmetric_path(T_B_F, lengths_mm=PATH_LENGTHS_MM, *, xi=PATH_XI_RAD) -> np.ndarray:
+def asymmetric_path(T_B_F, lengths_mm=PATH_LENGTHS_MM, *, xi=PATH_XI_RAD, tilt_rad: float = 0.0) -> np.ndarray:
     """Waypoints of the planar calibration path, eq. (17)–(19).
 
     ``p_{i+1} = p_i + L_i (cos ξ_i n + sin ξ_i s)`` from ``p_1`` = the TCP position, with
-    ``ξ_i`` cycling through ``xi`` (0 and π/4 in the paper).
+    ``ξ_i`` cycling through ``xi`` (0 and π/4 in the paper). The paper holds the orientation;
+    with ``tilt_rad > 0`` the inner waypoints are tilted by that angle about the TCP's ``n``,
+    ``s``, ``-n``, ``-s`` axes in turn (the last waypoint returns to the start orientation), so
+    that a hand-eye calibration can see the camera's lever arm.
 
     Parameters
     ----------
@@ -50,11 +53,14 @@ def asymmetric_path(T_B_F, lengths_mm=PATH_LENGTHS_MM, *, xi=PATH_XI_RAD) -> np.
         Segment lengths ``L_i``, mm (signed).
     xi : sequence of float
         Segment angles in rad, used cyclically.
+    tilt_rad : float
+        Tilt of the inner waypoints, rad (0: the paper's orientation-holding path).
 
     Returns
     -------
     T_B_path : ndarray, shape (K + 1, 4, 4)
-        Waypoint TCP poses in B (the start first), all with the orientation of ``T_B_F``, mm.
+        Waypoint TCP poses in B (the start first), with the orientation of ``T_B_F`` (tilted at the
+        inner waypoints when ``tilt_rad > 0``), mm.
 
     Raises
     ------
@@ -68,6 +74,8 @@ def asymmetric_path(T_B_F, lengths_mm=PATH_LENGTHS_MM, *, xi=PATH_XI_RAD) -> np.
     T_B_F = check_transform(T_B_F, name="T_B_F")
     L = np.asarray(lengths_mm, dtype=np.float64).reshape(-1)
     angles = np.asarray(xi, dtype=np.float64).reshape(-1)
+    if not (np.ndim(tilt_rad) == 0 and np.isfinite(tilt_rad) and 0.0 <= tilt_rad <= np.pi / 4):
+        raise ConfigError(f"calibration path: tilt must be between 0 and pi/4 rad, got {tilt_rad!r}")
     if not np.all(np.isfinite(L)) or angles.size == 0 or not np.all(np.isfinite(angles)):
         raise ConfigError("calibration path: expected finite segment lengths (mm) and angles xi (rad)")
     if L.size < 2:
@@ -83,6 +91,10 @@ def asymmetric_path(T_B_F, lengths_mm=PATH_LENGTHS_MM, *, xi=PATH_XI_RAD) -> np.
                               "(expected a planar path that spans two directions, e.g. xi alternating 0 and pi/4)")
     path = np.broadcast_to(T_B_F, (len(points), 4, 4)).copy()
     path[:, :3, 3] = points
+    if tilt_rad > 0:
+        axes = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+        k = np.arange(1, len(points) - 1)
+        path[k, :3, :3] = T_B_F[:3, :3] @ matrix_from_rotation_vector(tilt_rad * axes[(k - 1) % 4])
     return path
 
 

@@ -31,6 +31,8 @@ INLIER_SIGMAS = 6.0
 _CHI3_MEDIAN = 1.5382
 #: A path whose second principal extent is below this fraction of the first is a straight line.
 LINE_RATIO = 0.01
+#: Largest number of points :func:`robust_principal_axes` fits its axes to (evenly subsampled).
+_AXES_MAX_POINTS = 50_000
 #: A path whose first principal extent (std) is below this, mm, does not move.
 STILL_MM = 1e-3
 
@@ -62,8 +64,8 @@ def umeyama(src, dst, *, weights=None, with_scale: bool = False):
         ``src`` and ``dst`` not of one shape (N, 3) with N >= 3, a value not finite, or weights
         that are not N finite values >= 0 with a positive sum.
     """
-    src = np.asarray(src, dtype=np.float64)
-    dst = np.asarray(dst, dtype=np.float64)
+    src = np.ascontiguousarray(src, dtype=np.float64)     # a strided view (T[:, :3, 3]) is 10x slower
+    dst = np.ascontiguousarray(dst, dtype=np.float64)
     if src.ndim != 2 or src.shape[1] != 3 or dst.shape != src.shape or len(src) < 3:
         raise GeometryError(f"umeyama: expected src and dst of one shape (N, 3) with N >= 3, "
                             f"got {src.shape} and {dst.shape}")
@@ -123,8 +125,8 @@ def robust_umeyama(src, dst, *, with_scale: bool = False, outlier_fraction: floa
     residuals : ndarray, shape (N,)
         ``|dst - (s R src + t)|`` of every pair, mm.
     """
-    src = np.asarray(src, dtype=np.float64)
-    dst = np.asarray(dst, dtype=np.float64)
+    src = np.ascontiguousarray(src, dtype=np.float64)
+    dst = np.ascontiguousarray(dst, dtype=np.float64)
     n = len(src)
     R, t, s = umeyama(src, dst, with_scale=with_scale)
     res = np.linalg.norm(dst - (s * src @ R.T + t), axis=1)
@@ -148,7 +150,8 @@ def robust_principal_axes(p, n_iter: int = 3):
     """Centroid and principal axes of a point set, ignoring gross outliers.
 
     Points beyond a Mahalanobis distance of 4 (chi-square 3-dof 99.9 % is 16.3) from the current
-    mean and covariance are dropped, three times.
+    mean and covariance are dropped, three times. Sets larger than ``_AXES_MAX_POINTS`` are
+    evenly subsampled for the axes (``keep`` still covers every point).
 
     Parameters
     ----------
@@ -166,7 +169,11 @@ def robust_principal_axes(p, n_iter: int = 3):
     keep : ndarray, shape (N,), bool
         The points used.
     """
+    p = full = np.ascontiguousarray(p, dtype=np.float64)
+    if len(p) > _AXES_MAX_POINTS:              # a long trajectory: the axes of an even subsample
+        p = p[thin_indices(len(p), _AXES_MAX_POINTS)]
     keep = np.ones(len(p), dtype=bool)
+    cov_r = np.eye(3)
     for _ in range(n_iter):
         mean = p[keep].mean(axis=0)
         cov = np.cov(p[keep].T, bias=True)
@@ -178,8 +185,13 @@ def robust_principal_axes(p, n_iter: int = 3):
             break
         keep = new
     mean = p[keep].mean(axis=0)
-    lam, V = np.linalg.eigh(np.cov(p[keep].T, bias=True))
+    cov = np.cov(p[keep].T, bias=True)
+    lam, V = np.linalg.eigh(cov)
     order = np.argsort(lam)[::-1]
+    if full is not p:
+        d = full - mean
+        cov_r = cov + np.eye(3) * (1e-9 * np.trace(cov) + 1e-12)
+        keep = np.einsum("ij,ij->i", d @ np.linalg.inv(cov_r), d) <= 16.3
     return mean, V[:, order], np.sqrt(np.clip(lam[order], 0.0, None)), keep
 
 
@@ -204,6 +216,9 @@ def body_rotation_spread(R_src, R_dst, R) -> float:
     """
     if len(R_src) == 0:
         return float("nan")
+    if len(R_src) > _AXES_MAX_POINTS:          # a median: an even subsample of a long trajectory
+        k = thin_indices(len(R_src), _AXES_MAX_POINTS)
+        R_src, R_dst = R_src[k], R_dst[k]
     Xs = np.swapaxes(R_src, 1, 2) @ R.T @ R_dst
     return float(np.median(rotation_angle_between(Xs, nearest_rotation(Xs.sum(0)), check=False)))
 

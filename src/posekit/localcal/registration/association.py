@@ -25,6 +25,9 @@ _OFFSET_AMBIGUOUS_DEG = 2.0
 #: this fraction of the dst path's extent (std along its main axis). When nothing fits (e.g. a
 #: mirror image) every offset ties and the residuals already tell the user.
 _OFFSET_FIT_FRACTION = 0.05
+#: When even the best offset leaves a median residual above this fraction of the extent, nothing
+#: fits (random data: 190 %; a true offset 0.6 s beyond the search edge: 24 %).
+_OFFSET_NOTHING_FITS = 0.5
 
 
 def associate(t_src, t_dst, *, max_dt_s: float = 0.02, offset_s: float = 0.0):
@@ -183,6 +186,12 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     best = int(np.argmin(cost))
     if grid.size == 1:
         return float(grid[0])
+    extent = robust_principal_axes(p_dst)[2][0]
+    if best in (0, grid.size - 1) and cost[best] > _OFFSET_NOTHING_FITS * extent:
+        raise TrajectoryError(
+            f"no clock offset within ±{max_offset_s:g} s makes {names[0]} and {names[1]} agree: the best "
+            f"({grid[best]:+.3f} s) leaves a median residual of {cost[best]:.1f} mm, {cost[best] / extent:.0%} of "
+            f"the path's extent; they do not record the same motion (or the offset lies beyond: --max-offset)")
     if best in (0, grid.size - 1):
         raise TrajectoryError(
             f"the clock offset between {names[0]} and {names[1]} fits best at the edge of the search "
@@ -190,7 +199,7 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
             f"(max_offset_s, --max-offset) or give the offset (time_offset_s, --time-offset)")
     tied = np.flatnonzero(cost <= _OFFSET_TIE_FACTOR * cost[best])
     angles = np.rad2deg(rotation_angle_between(fits[best][1], np.array([fits[k][1] for k in tied]), check=False))
-    fits_well = cost[best] <= _OFFSET_FIT_FRACTION * robust_principal_axes(p_dst)[2][0]
+    fits_well = cost[best] <= _OFFSET_FIT_FRACTION * extent
     if fits_well and angles.max() > _OFFSET_AMBIGUOUS_DEG:
         k = int(tied[np.argmax(angles)])
         raise TrajectoryError(

@@ -19,6 +19,12 @@ bending
     ``c_i = bending_rad_per_m[i]`` the compliance in rad per metre of lever arm. The droop is
     therefore largest with the booms stretched out horizontally and vanishes with the load
     straight above/below the joint.
+boom vibration
+    A long hydraulic boom is a lightly damped spring: each bending joint gets a further
+    deflection ``δ`` obeying ``δ̈ + 2ζω δ̇ + ω² δ = -g α`` with ``α`` that joint's angular
+    acceleration (``flex_hz = ω / 2π``, ``flex_damping = ζ``, ``flex_gain = g``): accelerating
+    a boom bends it back, and it rings on after the move (~1–2 Hz, a few % damping for a crane
+    of this size — an assumption). The encoders do not see it; the camera and VO do.
 
 Motion (eq. 4–6, 25): a move is a quintic point-to-point Cartesian path (position and
 orientation about a fixed axis) sampled every ``dt_s``; resolved-rate control on the nominal
@@ -37,8 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from posekit.errors import ConfigError, GeometryError
-from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix
-from posekit.localcal._checks import rigid_transform as _rigid
+from posekit.geometry import check_transform, matrix_from_rotation_vector, rotation_vector_from_matrix
 from posekit.localcal.sim._arm_kernel import simulate_moves
 from posekit.robots import KinematicChain, hiab033, quintic_trajectory
 
@@ -86,12 +91,21 @@ class NonKinematicErrors:
         Compliance of the bending joints: droop angle in rad per metre of TCP lever arm, >= 0.
     bending_joints : tuple of int
         Joint indices (0-based) that droop; (1, 2) = lift and tilt of the HIAB033 model.
+    flex_hz : float
+        Natural frequency of the boom vibration of the bending joints, Hz (0: rigid booms).
+    flex_damping : float
+        Its damping ratio ζ, in (0, 1].
+    flex_gain : float
+        Its participation ``g`` (>= 0): the deflection per unit joint acceleration is ``g / ω²``.
     """
 
     joint_offsets_rad: np.ndarray
     backlash_rad: np.ndarray
     bending_rad_per_m: np.ndarray
     bending_joints: tuple[int, ...] = (1, 2)
+    flex_hz: float = 0.0
+    flex_damping: float = 0.1
+    flex_gain: float = 1.0
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -116,6 +130,11 @@ class NonKinematicErrors:
             raise ConfigError(
                 f"bending_rad_per_m: expected {len(joints)} finite values >= 0, got {bend.tolist()}"
             )
+        for name, lo, hi in (("flex_hz", 0.0, 100.0), ("flex_damping", 1e-6, 1.0), ("flex_gain", 0.0, 100.0)):
+            v = getattr(self, name)
+            if not (np.ndim(v) == 0 and np.isfinite(v) and lo <= v <= hi):
+                raise ConfigError(f"{name}: expected a number in {lo:g}..{hi:g}, got {v!r}")
+            set_(self, name, float(v))
         set_(self, "joint_offsets_rad", off)
         set_(self, "backlash_rad", back)
         set_(self, "bending_rad_per_m", bend)
@@ -140,7 +159,8 @@ def sample_nonkinematic_errors(rng=None, scale: float = 1.0, n_joints: int = 6) 
     N(0, 2 mrad) on the wrist; backlash widths U(1, 3) mrad on the booms and slewing joint,
     U(0.5, 1.5) mrad on the wrist; droop compliance U(0.8, 1.4) mrad/m on the lift joint and
     U(1.0, 1.8) mrad/m on the tilt joint (≈ 4 + 4 mrad of droop at ~4.5 m / ~2.5 m lever
-    arms, i.e. ~2–3 cm at the tip).
+    arms, i.e. ~2–3 cm at the tip); boom vibration at U(1.0, 2.0) Hz with U(5, 12) % damping
+    (participation ``scale``; none when ``scale = 0``).
 
     Parameters
     ----------
@@ -165,7 +185,10 @@ def sample_nonkinematic_errors(rng=None, scale: float = 1.0, n_joints: int = 6) 
     offsets = rng.normal(0.0, np.where(big, 1.5e-3, 2.0e-3))
     backlash = np.where(big, rng.uniform(1.0e-3, 3.0e-3, n), rng.uniform(0.5e-3, 1.5e-3, n))
     bending = np.array([rng.uniform(0.8e-3, 1.4e-3), rng.uniform(1.0e-3, 1.8e-3)])
-    return NonKinematicErrors(scale * offsets, scale * backlash, scale * bending)
+    flex_hz, flex_damping = rng.uniform(1.0, 2.0), rng.uniform(0.05, 0.12)   # drawn last: earlier draws unchanged
+    return NonKinematicErrors(scale * offsets, scale * backlash, scale * bending,
+                              flex_hz=flex_hz if scale > 0 else 0.0, flex_damping=flex_damping,
+                              flex_gain=float(scale))
 
 
 class ArmLog(NamedTuple):
@@ -185,6 +208,20 @@ class ArmLog(NamedTuple):
     q_measured: np.ndarray
     T_B_F_nominal: np.ndarray
     T_B_F_true: np.ndarray
+
+
+def _flex_discretisation(errors: NonKinematicErrors, dt: float):
+    """Exact zero-order-hold step ``x ← Φ x + Γ α`` of ``δ̈ + 2ζω δ̇ + ω² δ = -g α``; None when rigid."""
+    if errors.flex_hz <= 0 or errors.flex_gain <= 0:
+        return None
+    from scipy.linalg import expm
+
+    w, z = 2.0 * np.pi * errors.flex_hz, errors.flex_damping
+    M = np.zeros((3, 3))
+    M[0, 1] = 1.0
+    M[1, 0], M[1, 1], M[1, 2] = -w * w, -2.0 * z * w, -errors.flex_gain
+    E = expm(M * dt)
+    return E[:2, :2].copy(), E[:2, 2].copy()
 
 
 def _concat_logs(logs: list[ArmLog]) -> ArmLog:
@@ -307,7 +344,11 @@ class LongReachArm:
             # the link rests somewhere inside its dead band at the start
             "q_link": q0 + state_rng.uniform(-1.0, 1.0, n) * half,
             "q_meas": q0 + self._rng.normal(0.0, self.encoder_noise_rad, n),
+            # boom vibration: (deflection rad, rate rad/s) per bending joint; the last two commands
+            "flex": np.zeros((2, len(self.errors.bending_joints))),
+            "q_cmd_hist": np.stack([q0, q0]),
         }
+        self._flex_step = _flex_discretisation(self.errors, self.dt_s)
 
     # ------------------------------------------------------------------ state
     @property
@@ -342,16 +383,18 @@ class LongReachArm:
         return self.model.forward_kinematics(self._state["q_meas"], check=False)
 
     def true_pose(self) -> np.ndarray:
-        """The true ``T_B_F`` (joint offsets, backlash state, bending), (4, 4), mm."""
-        return self.true_kinematics(self._state["q_link"])
+        """The true ``T_B_F`` (joint offsets, backlash state, bending, boom vibration), (4, 4), mm."""
+        return self.true_kinematics(self._state["q_link"], self._state["flex"][0])
 
-    def true_kinematics(self, q_link) -> np.ndarray:
+    def true_kinematics(self, q_link, flex_rad=None) -> np.ndarray:
         """True TCP poses for link-side joint angles (before offsets and droop).
 
         Parameters
         ----------
         q_link : array_like, shape (n,) or (N, n)
             Actuator angles after the backlash dead band, rad.
+        flex_rad : array_like, shape (m,) or (N, m), optional
+            Boom vibration deflection of each bending joint, rad (none by default).
 
         Returns
         -------
@@ -369,7 +412,29 @@ class LongReachArm:
             torque_mm = np.einsum("...k,...k->...", z, np.cross(p - o, -_UP))
             q = q.copy()
             q[..., idx] += e.bending_rad_per_m * torque_mm / 1000.0
+        if flex_rad is not None:
+            q = q.copy()
+            q[..., list(e.bending_joints)] += flex_rad
         return self.model.forward_kinematics(q, check=False)
+
+    def _flex(self, q_cmd) -> np.ndarray:
+        """Boom deflection after each step of a move, (K, m) rad, from the commanded joints (K, n)."""
+        st = self._state
+        idx = list(self.errors.bending_joints)
+        hist = np.vstack([st["q_cmd_hist"], q_cmd])
+        st["q_cmd_hist"] = hist[-2:].copy()
+        if self._flex_step is None:
+            return np.zeros((len(q_cmd), len(idx)))
+        Phi, Gam = self._flex_step
+        qc = hist[:, idx]
+        alpha = (qc[2:] - 2.0 * qc[1:-1] + qc[:-2]) / self.dt_s ** 2
+        x = st["flex"].copy()
+        out = np.empty((len(q_cmd), len(idx)))
+        for k in range(len(q_cmd)):
+            x = Phi @ x + Gam[:, None] * alpha[k]
+            out[k] = x[0]
+        st["flex"] = x
+        return out
 
     # ------------------------------------------------------------------ motion
     def _default_duration(self, T0: np.ndarray, T1: np.ndarray) -> float:
@@ -400,19 +465,21 @@ class LongReachArm:
         K, n = len(t_rel), self.n_joints
         noise = self._rng.normal(0.0, self.encoder_noise_rad, (K, n))
         q_meas0, q_link0, t0 = st["q_meas"].copy(), st["q_link"].copy(), st["t"]
-        q_meas, q_link, _ = simulate_moves(
+        flex0 = st["flex"][0].copy()
+        q_meas, q_link, q_cmd = simulate_moves(
             *self._kernel_model, p, R, twist, par["gains"], 1e-3, self.dt_s,
             par["kv"], par["lag"], par["v_max"], par["half_play"], noise,
             st["q_cmd"], st["q_act"], st["v"], st["q_link"], st["q_meas"],
         )
         st["t"] = t0 + t_rel[-1]
+        flex = np.vstack([flex0, self._flex(q_cmd)])
         q_meas = np.vstack([q_meas0, q_meas])
         q_link = np.vstack([q_link0, q_link])
         return ArmLog(
             np.concatenate([[t0], t0 + t_rel]),
             q_meas,
             self.model.forward_kinematics(q_meas, check=False),
-            self.true_kinematics(q_link),
+            self.true_kinematics(q_link, flex),
         )
 
     def move_to(self, T_B_ref, *, duration_s: float | None = None, settle_s: float = 1.5) -> ArmLog:
@@ -445,7 +512,9 @@ class LongReachArm:
         ConfigError
             ``duration_s <= 0`` or ``settle_s < 0``.
         """
-        T1 = _rigid(T_B_ref, "T_B_ref")
+        T1 = check_transform(T_B_ref, name="T_B_ref")
+        if T1.shape != (4, 4):
+            raise GeometryError(f"T_B_ref: expected one (4, 4) transform, got shape {T1.shape}")
         T0 = self.model.forward_kinematics(self._state["q_cmd"], check=False)
         duration_s, settle_s = self._check_times(duration_s, settle_s, T0, T1)
         log = self._run(*self._cartesian_path(T0, T1, duration_s, settle_s))
@@ -494,8 +563,7 @@ class LongReachArm:
             ) from None
         if path.ndim != 3 or path.shape[1:] != (4, 4) or path.shape[0] == 0:
             raise GeometryError(f"T_B_path: expected shape (K, 4, 4) with K >= 1, got shape {path.shape}")
-        for k in range(path.shape[0]):
-            _rigid(path[k], f"T_B_path[{k}]")
+        check_transform(path, name="T_B_path")      # names the first bad waypoint
         logs = []
         for k in range(path.shape[0]):
             T0 = self.model.forward_kinematics(self._state["q_cmd"], check=False)

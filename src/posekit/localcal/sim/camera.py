@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from posekit._extras import lazy
-from posekit.errors import ConfigError, EstimationError, InputFileError
-from posekit.localcal._checks import rigid_transform as _rigid
+from posekit.errors import ConfigError, EstimationError, GeometryError, InputFileError
+from posekit.geometry import check_transform
 
 cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 
@@ -40,6 +40,7 @@ __all__ = [
     "MarkerDetector",
     "marker_corners",
     "render_markers",
+    "ZED2_720P_DISTORTION",
     "zed2_720p",
 ]
 
@@ -54,9 +55,15 @@ def _dictionary():
     return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, ARUCO_DICTIONARY))
 
 
+#: Lens distortion ``(k1, k2, p1, p2, k3)`` of :func:`zed2_720p` with ``distorted=True``: the
+#: order of magnitude of a ZED 2 left lens's factory calibration at HD720 (about -0.04 radial,
+#: ~45 px at the image corners) — an assumption, not one unit's calibration.
+ZED2_720P_DISTORTION = (-0.04, 0.01, 3e-4, -2e-4, -0.004)
+
+
 @dataclass(frozen=True)
 class CameraIntrinsics:
-    """Pinhole intrinsics of a rectified camera image.
+    """Pinhole intrinsics with OpenCV lens distortion.
 
     Parameters
     ----------
@@ -66,6 +73,8 @@ class CameraIntrinsics:
         Principal point, px (pixel centres at integer coordinates, OpenCV convention).
     width, height : int
         Image size, px.
+    distortion : tuple of 5 float
+        OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)``; zeros for a rectified image.
     """
 
     fx: float
@@ -74,6 +83,7 @@ class CameraIntrinsics:
     cy: float
     width: int
     height: int
+    distortion: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self):
         vals = (self.fx, self.fy, self.cx, self.cy)
@@ -85,6 +95,16 @@ class CameraIntrinsics:
             raise ConfigError(
                 f"camera intrinsics: expected integer width, height >= 16 px, got {self.width}x{self.height}"
             )
+        try:
+            d = tuple(float(v) for v in self.distortion)
+        except (TypeError, ValueError):
+            d = ()
+        if len(d) != 5 or not all(np.isfinite(v) and abs(v) < 10.0 for v in d):
+            raise ConfigError(
+                f"camera intrinsics: expected 5 finite distortion coefficients (k1, k2, p1, p2, k3) with "
+                f"|value| < 10, got {self.distortion!r}"
+            )
+        object.__setattr__(self, "distortion", d)
 
     @property
     def K(self) -> np.ndarray:
@@ -93,16 +113,45 @@ class CameraIntrinsics:
 
     @property
     def dist(self) -> np.ndarray:
-        """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)``, shape (5,): zeros (rectified)."""
-        return np.zeros(5)
+        """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)``, shape (5,)."""
+        return np.array(self.distortion)
 
-    def project(self, p_C) -> np.ndarray:
+    @property
+    def distorted(self) -> bool:
+        """True when the lens has any distortion."""
+        return any(v != 0.0 for v in self.distortion)
+
+    def distort_normalized(self, xy) -> np.ndarray:
+        """OpenCV's distortion of normalized image coordinates.
+
+        Parameters
+        ----------
+        xy : array_like, shape (..., 2)
+            Ideal normalized coordinates ``(X/Z, Y/Z)``.
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+            Distorted normalized coordinates.
+        """
+        k1, k2, p1, p2, k3 = self.distortion
+        xy = np.asarray(xy, dtype=np.float64)
+        x, y = xy[..., 0], xy[..., 1]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        return np.stack([x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                         y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y], axis=-1)
+
+    def project(self, p_C, *, distort: bool = True) -> np.ndarray:
         """Pixel coordinates of points in the camera frame.
 
         Parameters
         ----------
         p_C : array_like, shape (..., 3)
             Points in the camera frame C, mm (z > 0 in front of the camera).
+        distort : bool
+            Apply the lens distortion (the pixel where the point appears); False gives the
+            ideal pinhole pixel.
 
         Returns
         -------
@@ -110,21 +159,54 @@ class CameraIntrinsics:
             Pixel coordinates (u right, v down), px.
         """
         p = np.asarray(p_C, dtype=np.float64)
-        return np.stack(
-            [self.fx * p[..., 0] / p[..., 2] + self.cx, self.fy * p[..., 1] / p[..., 2] + self.cy],
-            axis=-1,
-        )
+        xy = p[..., :2] / p[..., 2:3]
+        if distort and self.distorted:
+            xy = self.distort_normalized(xy)
+        return np.stack([self.fx * xy[..., 0] + self.cx, self.fy * xy[..., 1] + self.cy], axis=-1)
 
 
-def zed2_720p() -> CameraIntrinsics:
-    """Left lens of a ZED 2 stereo camera at 720p (HD720, 1280×720), rectified.
+def zed2_720p(*, distorted: bool = False) -> CameraIntrinsics:
+    """Left lens of a ZED 2 stereo camera at 720p (HD720, 1280×720).
 
-    ``fx = fy = 528 px``, ``cx = 640 px``, ``cy = 360 px``, no distortion (the ZED SDK delivers
-    rectified images). The focal length is representative of the factory calibration files
-    of ZED 2 units at HD720 (about 527–530 px, i.e. ~100° × 69° field of view after
-    rectification); it is not one unit's calibration.
+    ``fx = fy = 528 px``, ``cx = 640 px``, ``cy = 360 px``. The focal length is representative
+    of the factory calibration files of ZED 2 units at HD720 (about 527–530 px, i.e. ~100° ×
+    69° field of view); it is not one unit's calibration. By default the image is rectified
+    (no distortion, as the ZED SDK delivers it); ``distorted=True`` gives the raw lens with
+    :data:`ZED2_720P_DISTORTION`.
     """
-    return CameraIntrinsics(fx=528.0, fy=528.0, cx=640.0, cy=360.0, width=1280, height=720)
+    dist = ZED2_720P_DISTORTION if distorted else (0.0,) * 5
+    return CameraIntrinsics(fx=528.0, fy=528.0, cx=640.0, cy=360.0, width=1280, height=720, distortion=dist)
+
+
+@functools.lru_cache(maxsize=4)
+def _ideal_pixel_map(intr: CameraIntrinsics) -> tuple[np.ndarray, float]:
+    """Ideal (undistorted) pixel coordinates of every pixel of a distorted image, cached.
+
+    Returns ``(map, r2_max)``: map (H, W, 2) float32 px, and the largest squared normalized
+    radius the image covers (points beyond it are out of view).
+    """
+    from scipy.ndimage import map_coordinates
+
+    H, W = intr.height, intr.width
+    step_px = 4                      # exact on a 4 px grid, bilinear between (error < 1e-3 px: the map is smooth)
+    uc = np.arange(0, W + step_px, step_px, dtype=np.float64)
+    vc = np.arange(0, H + step_px, step_px, dtype=np.float64)
+    u, v = np.meshgrid(uc, vc)
+    xd = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy], axis=-1)
+    xy = xd.copy()
+    for _ in range(50):  # fixed point x <- x + (xd - distort(x)); converges for moderate distortion
+        step = xd - intr.distort_normalized(xy)
+        xy += step
+        if np.max(np.abs(step)) < 1e-7:  # ~5e-5 px
+            break
+    rows, cols = np.meshgrid(np.arange(H) / step_px, np.arange(W) / step_px, indexing="ij")
+    xy = np.stack([map_coordinates(xy[..., k], [rows, cols], order=1) for k in range(2)], axis=-1)
+    r2_max = float(np.max(np.sum(xy * xy, axis=-1)))
+    m = np.empty((H, W, 2), np.float32)
+    m[..., 0] = intr.fx * xy[..., 0] + intr.cx
+    m[..., 1] = intr.fy * xy[..., 1] + intr.cy
+    m.setflags(write=False)
+    return m, r2_max
 
 
 def marker_corners(size_mm: float) -> np.ndarray:
@@ -270,6 +352,14 @@ def _merge_boxes(boxes: list) -> list[tuple[list[int], list[int]]]:
     return groups
 
 
+def _one_transform(T, name: str) -> np.ndarray:
+    """One (4, 4) rigid transform (:func:`posekit.geometry.check_transform`, no batch)."""
+    T = check_transform(T, name=name)
+    if T.shape != (4, 4):
+        raise GeometryError(f"{name}: expected one (4, 4) transform, got shape {T.shape}")
+    return T
+
+
 def _checked_markers(markers) -> tuple[list[int], np.ndarray, np.ndarray]:
     """Validate ``(marker_id, size_mm, T_C_M)`` items: ids (N,), sizes (N,) mm, T_C_M (N, 4, 4)."""
     ids, sizes, Ts = [], [], []
@@ -299,7 +389,7 @@ def _checked_markers(markers) -> tuple[list[int], np.ndarray, np.ndarray]:
     except (TypeError, ValueError, IndexError):
         ok = False
     if not ok:
-        T = np.stack([_rigid(T_C_M, f"markers[{k}] T_C_M") for k, T_C_M in enumerate(Ts)])
+        T = np.stack([_one_transform(T_C_M, f"markers[{k}] T_C_M") for k, T_C_M in enumerate(Ts)])
     return ids, np.asarray(sizes), T
 
 
@@ -380,12 +470,28 @@ def render_markers(
     front = np.einsum("ni,ni->n", R[:, :, 2], t) < 0.0  # seen from the front
     front &= np.all(p_C[:, 4:, 2] >= _NEAR_MM, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        uv_all = intr.project(p_C)
+        uv_all = intr.project(p_C, distort=False)  # ideal pinhole pixels
     uv = uv_all[:, :4].copy()
     uv[front] += rng.normal(0.0, noise_px, (np.count_nonzero(front), 4, 2))  # far first
     # box of each quiet zone in the image (clipped), texture px per cell
     uv_quiet = np.clip(np.nan_to_num(uv_all[:, 4:]), -1e6, 1e6)  # finite for markers behind too
     lo, hi = uv_quiet.min(axis=1), uv_quiet.max(axis=1)
+    if intr.distorted:
+        # the distorted quiet-zone outline (edges bow): 5 points per edge; a marker reaching
+        # beyond the field of view the image covers is not drawn (the distortion polynomial
+        # folds back there)
+        _, r2_max = _ideal_pixel_map(intr)
+        s_ = np.linspace(0.0, 1.0, 5)[:, None]
+        q = corners_M[:, 4:]
+        outline = np.concatenate([q[:, j][:, None] * (1 - s_) + q[:, (j + 1) % 4][:, None] * s_ for j in range(4)],
+                                 axis=1)
+        o_C = outline @ np.swapaxes(R, 1, 2) + t[:, None, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xy = o_C[..., :2] / o_C[..., 2:3]
+            inside = np.all(np.sum(xy * xy, axis=-1) < 1.05 * r2_max, axis=1)
+            uv_d = np.clip(np.nan_to_num(intr.project(o_C)), -1e6, 1e6)
+        front &= inside
+        lo, hi = uv_d.min(axis=1), uv_d.max(axis=1)
     boxes = np.concatenate(
         [np.maximum(np.floor(lo) - 1, 0), np.minimum(np.ceil(hi) + 2, [W, H])], axis=1
     ).astype(np.int64)
@@ -420,9 +526,19 @@ def render_markers(
     for (px0, py0, px1, py1), members in _merge_boxes(patches):
         patch = bg[py0:py1, px0:px1].copy()
         for tex, Hm, (x0, y0, x1, y1) in (drawn[i] for i in members):  # far markers first
-            Hm = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0], [0.0, 0.0, 1.0]]) @ Hm
-            warped = cv2.warpPerspective(tex, Hm, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR)
-            mask = cv2.warpPerspective(_ones(tex.shape[0]), Hm, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR)
+            if intr.distorted:  # each distorted pixel samples the texture at its ideal position
+                ideal = _ideal_pixel_map(intr)[0][y0:y1, x0:x1]
+                Hi = np.linalg.inv(Hm)
+                den = Hi[2, 0] * ideal[..., 0] + Hi[2, 1] * ideal[..., 1] + Hi[2, 2]
+                mx = ((Hi[0, 0] * ideal[..., 0] + Hi[0, 1] * ideal[..., 1] + Hi[0, 2]) / den).astype(np.float32)
+                my = ((Hi[1, 0] * ideal[..., 0] + Hi[1, 1] * ideal[..., 1] + Hi[1, 2]) / den).astype(np.float32)
+                warped = cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                mask = cv2.remap(_ones(tex.shape[0]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                 borderValue=0)
+            else:
+                Hm = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0], [0.0, 0.0, 1.0]]) @ Hm
+                warped = cv2.warpPerspective(tex, Hm, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR)
+                mask = cv2.warpPerspective(_ones(tex.shape[0]), Hm, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR)
             roi = patch[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
             roi += mask * (warped - roi)
         if blur_px > 0:  # optics

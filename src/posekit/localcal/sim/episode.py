@@ -10,16 +10,20 @@ An episode:
      (eq. 13–16) and a move; every further update is the paper's servo variant: the
      currently measured planar distance along the same direction,
      ``p_ref = p_now + p_u d_ε,now``;
-   * ``'trajectory'``: the asymmetric planar path (eq. 17–19) tracked by a simulated VO
-     (W = the first camera frame), matched to the encoder TCP trajectory
-     (:func:`~posekit.localcal.registration.match.match_trajectories`), then ``updates`` times:
-     look, eq. (20)–(22), move (VO keeps running for ``R_W_C``);
+   * ``'trajectory'``: the asymmetric planar path (eq. 17–19) tracked by a simulated stereo
+     VO (W = the first camera frame; errors growing with the depth of the wall), matched to
+     the encoder TCP trajectory with timestamps or correspondence-free
+     (:func:`~posekit.localcal.registration.match.match_trajectories`) — or, on a path that
+     tilts, registered together with the camera's mount by hand-eye calibration
+     (:func:`~posekit.localcal.registration.handeye.calibrate_handeye`) — then ``updates``
+     times: look, eq. (20)–(22), move (VO keeps running for ``R_W_C``);
 
 4. after each update a final look gives the image-based errors (the paper's tables) and the
    simulator gives the true ones.
 
-The camera is sampled along every motion at ``camera_hz`` for the line method's distance
-errors and for the error-over-time plots (Fig. 7/9).
+The camera (lens distortion rendered, undistorted in the detection; ~0.47 m off the tool
+point) is sampled along every motion at ``camera_hz`` for the line method's distance errors
+and for the error-over-time plots (Fig. 5, 7, 9).
 """
 
 from dataclasses import dataclass, field
@@ -27,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, EstimationError
+from posekit.geometry import invert_transform
 from posekit.localcal.methods.line_method import (
     CIRCLE_POINTS,
     CIRCLE_RADIUS_MM,
@@ -41,9 +46,10 @@ from posekit.localcal.methods.trajectory_method import (
     calibrate_trajectories,
     trajectory_reference,
 )
-from posekit.localcal.sim.vo import VONoise, simulate_vo
+from posekit.localcal.sim.vo import StereoNoise, VONoise, depth_along_axis, simulate_vo
 
-__all__ = ["METHODS", "OCCLUSIONS", "START_Q", "EpisodeConfig", "EpisodeResult", "run_episode"]
+__all__ = ["MATCHERS", "METHODS", "OCCLUSIONS", "REGISTRATIONS", "START_Q", "EpisodeConfig", "LocalcalEpisode",
+           "run_localcal_episode"]
 
 #: Range adjustment methods.
 METHODS = ("line", "trajectory")
@@ -55,6 +61,10 @@ METHODS = ("line", "trajectory")
 START_Q = (0.0, 0.55, -1.1, 0.0, 0.35, 0.0)
 #: When the OOI can be hidden from the camera (:attr:`EpisodeConfig.occlude_ooi`).
 OCCLUSIONS = ("never", "calibration", "always")
+#: How the trajectory method registers VO to the robot (:attr:`EpisodeConfig.registration`).
+REGISTRATIONS = ("auto", "match", "handeye")
+#: Fine matchers without timestamps (:attr:`EpisodeConfig.matcher`).
+MATCHERS = ("cpd", "hybrid")
 
 
 @dataclass(frozen=True)
@@ -73,16 +83,43 @@ class EpisodeConfig:
         Camera samples per second along the circular path (the line method's distance errors).
     plot_hz : float
         Camera samples per second along the other motions (only for the error plots; 0 = none).
+    vo_stereo : StereoNoise or None
+        The stereo VO's depth-dependent noise and drift (ZED2-like baseline 120 mm, focal of
+        the camera; :class:`~posekit.localcal.sim.vo.StereoNoise`), with the scene depth of
+        every pose measured to the wall the OOI is on; None for the isotropic model only.
     vo_noise_mm, vo_noise_rad, vo_drift_mm_per_sqrt_m, vo_drift_rad_per_sqrt_m, vo_stride,
     vo_time_offset_s, vo_outlier_fraction :
-        Simulated VO errors (see :func:`posekit.localcal.sim.vo.simulate_vo`).
+        Isotropic VO errors added to the stereo ones (a floor; see
+        :func:`posekit.localcal.sim.vo.simulate_vo`), the VO rate and clock, outliers.
+    lens_distortion : bool
+        The camera's images have lens distortion (:data:`~posekit.localcal.sim.camera.ZED2_720P_DISTORTION`,
+        rendered distorted, undistorted in the detection with the known intrinsics); False gives
+        rectified images.
     use_timestamps : bool
-        Match the trajectories with timestamps (default) or correspondence-free.
+        Match the trajectories with timestamps (default) or correspondence-free (the paper's
+        coarse alignment + point-set matching: ``match_trajectories(..., use_timestamps=False)``).
+    matcher : {'cpd', 'hybrid'}
+        The fine matcher without timestamps: rigid CPD on the positions, or the hybrid-mixture
+        style matcher that also uses the orientations (the paper's [31]); see
+        :func:`~posekit.localcal.registration.match.match_trajectories`.
+    calibration_tilt_deg : float
+        Tilt of the trajectory method's calibration path at its inner waypoints, deg (0: the
+        paper's orientation-holding path; see
+        :func:`~posekit.localcal.methods.trajectory_method.asymmetric_path`).
+    registration : {'auto', 'match', 'handeye'}
+        How the trajectory method gets ``R_B_W``: ``'match'`` the paper's trajectory matching of
+        the positions; ``'handeye'`` the hand-eye calibration
+        (:func:`posekit.localcal.registration.handeye.calibrate_handeye`: the camera mount and
+        ``T_B_W`` together, for a camera that is not at the tool point — the simulated camera
+        is ~0.47 m from it — on a path that rotates); ``'auto'`` hand-eye when the path
+        rotates (``calibration_tilt_deg > 0``), matching otherwise.
     error_scale : float
         Scales the arm's sampled non-kinematic errors (1 = ~2–6 cm at the tip).
     ooi_distance_mm : float
         Distance of the OOI in front of the camera at the start pose, mm (the scene puts it
         ~0.36 m off the tool marker laterally, outside the circle, as the line method needs).
+        Default 760 mm: the tool marker is 420 mm in front of the camera, so the depth between
+        the tool marker and the OOI is the paper's (Table 2, last column: 338 mm on average).
     occlude_ooi : {'never', 'calibration', 'always'}
         Hide the OOI from the camera never, during the calibration path (circle or planar
         path), or always (to exercise the errors of a marker that is never seen).
@@ -106,16 +143,21 @@ class EpisodeConfig:
     b_mm: float = STANDOFF_MM
     camera_hz: float = 10.0
     plot_hz: float = 2.0
-    vo_noise_mm: float = VONoise.noise_mm
-    vo_noise_rad: float = VONoise.noise_rad
-    vo_drift_mm_per_sqrt_m: float = VONoise.drift_mm_per_sqrt_m
-    vo_drift_rad_per_sqrt_m: float = VONoise.drift_rad_per_sqrt_m
+    vo_stereo: StereoNoise | None = StereoNoise()
+    vo_noise_mm: float = 0.2
+    vo_noise_rad: float = float(np.deg2rad(0.02))
+    vo_drift_mm_per_sqrt_m: float = 0.0
+    vo_drift_rad_per_sqrt_m: float = 0.0
     vo_stride: int = VONoise.stride
     vo_time_offset_s: float = 0.0
     vo_outlier_fraction: float = VONoise.outlier_fraction
+    lens_distortion: bool = True
     use_timestamps: bool = True
+    matcher: str = "cpd"
+    calibration_tilt_deg: float = 0.0
+    registration: str = "auto"
     error_scale: float = 1.0
-    ooi_distance_mm: float = 1000.0
+    ooi_distance_mm: float = 760.0
     occlude_ooi: str = "never"
     keep_images: bool = False
     robot: str = "hiab033"
@@ -128,12 +170,27 @@ class EpisodeConfig:
             raise ConfigError(f"camera_hz must be > 0, got {self.camera_hz!r}")
         if not self.plot_hz >= 0:
             raise ConfigError(f"plot_hz must be >= 0, got {self.plot_hz!r}")
+        if self.vo_stereo is not None and not isinstance(self.vo_stereo, StereoNoise):
+            raise ConfigError(f"vo_stereo: expected a StereoNoise or None, got {type(self.vo_stereo).__name__}")
+        if self.matcher not in MATCHERS:
+            raise ConfigError(f"matcher: expected one of {' | '.join(MATCHERS)}, got {self.matcher!r}")
+        if self.registration not in REGISTRATIONS:
+            raise ConfigError(f"registration: expected one of {' | '.join(REGISTRATIONS)}, got {self.registration!r}")
+        if not (np.ndim(self.calibration_tilt_deg) == 0 and 0.0 <= self.calibration_tilt_deg <= 45.0):
+            raise ConfigError(f"calibration_tilt_deg: expected 0 to 45 deg, got {self.calibration_tilt_deg!r}")
+        if self.uses_handeye and not self.use_timestamps:
+            raise ConfigError("registration: hand-eye calibration needs timestamps (use_timestamps=True)")
         if self.occlude_ooi not in OCCLUSIONS:
             raise ConfigError(f"occlude_ooi: expected one of {' | '.join(OCCLUSIONS)}, got {self.occlude_ooi!r}")
 
+    @property
+    def uses_handeye(self) -> bool:
+        """The trajectory method calibrates with hand-eye (see ``registration``)."""
+        return self.registration == "handeye" or (self.registration == "auto" and self.calibration_tilt_deg > 0)
+
 
 @dataclass
-class EpisodeResult:
+class LocalcalEpisode:
     """Outcome of one episode.
 
     Attributes
@@ -152,9 +209,12 @@ class EpisodeResult:
     true_errors_mm : ndarray, shape (updates, 3)
         The true error of the tool marker vs the OOI in the camera frame, mm.
     matching : dict or None
-        Trajectory method: ``Registration.to_json()`` (Table 3's errors).
+        Trajectory method: ``Registration.to_json()`` (Table 3's errors, the verdict), or with
+        hand-eye ``HandEyeResult.to_json()`` plus ``mode='handeye'`` and Table 3's
+        ``mean_abs_err_mm``/``max_abs_err_mm`` (VO's TCP positions vs the encoder TCP).
     timeline : dict
-        ``t_s`` (K,), ``e_C_mm`` (K, 3) image-based errors along the episode (NaN unseen),
+        ``t_s`` (K,), ``e_C_mm`` (K, 3) image-based position errors along the episode (NaN
+        unseen), ``rot_deg`` (K, 3) the signed XYZ Euler rotation errors (deg, Fig. 5),
         ``events``: list of (t_s, label).
     logs : dict
         Paths for the figures (base-frame positions, mm; see :mod:`posekit.localcal.plots`).
@@ -184,7 +244,7 @@ class _Camera:
         self.cell, self.detector, self.rng = cell, detector, rng
         self.keep_images = config.keep_images
         self.hide_ooi = config.occlude_ooi == "always"
-        self.t, self.e = [], []
+        self.t, self.e, self.rot = [], [], []
         self.events = []
         self.images = []
 
@@ -199,8 +259,10 @@ class _Camera:
     def _record(self, t, obs):
         if obs.T_C_O is not None and obs.T_C_M is not None:
             self.e.append(obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3])
+            self.rot.append(rotation_errors_deg(obs.T_C_O, obs.T_C_M, signed=True))
         else:
             self.e.append(np.full(3, np.nan))
+            self.rot.append(np.full(3, np.nan))
         self.t.append(float(t))
 
     def look(self, arm, label=None):
@@ -233,7 +295,7 @@ class _Camera:
 
     def timeline(self):
         return {"t_s": np.asarray(self.t), "e_C_mm": np.asarray(self.e).reshape(-1, 3),
-                "events": list(self.events)}
+                "rot_deg": np.asarray(self.rot).reshape(-1, 3), "events": list(self.events)}
 
 
 def _require(obs, what: str):
@@ -264,7 +326,7 @@ def _setup(seed, config):
                                         n_joints=model.n_joints)
     arm = LongReachArm(model, errors, q0=q0, seed=np.random.default_rng(s_arm))
     cell = default_workcell(arm, np.random.default_rng(s_cell), distance_mm=config.ooi_distance_mm)
-    detector = MarkerDetector(zed2_720p(), cell.sizes_mm)
+    detector = MarkerDetector(zed2_720p(distorted=config.lens_distortion), cell.sizes_mm)
     camera = _Camera(cell, detector, np.random.default_rng(s_cam), config)
     vo_seed = int(np.random.default_rng(s_vo).integers(2**63 - 1))
     return arm, cell, camera, vo_seed
@@ -292,7 +354,8 @@ def _truth(cell, arm):
 
 # --------------------------------------------------------------------------- the episode
 
-def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig | None = None) -> EpisodeResult:
+def run_localcal_episode(method: str, seed=0, *, updates: int = 2,
+                         config: EpisodeConfig | None = None) -> LocalcalEpisode:
     """Run one look-then-move episode of a range adjustment method on the simulator.
 
     Parameters
@@ -307,7 +370,7 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
 
     Returns
     -------
-    EpisodeResult
+    LocalcalEpisode
 
     Raises
     ------
@@ -345,8 +408,8 @@ def run_episode(method: str, seed=0, *, updates: int = 2, config: EpisodeConfig 
         errors, true_errors, matching, logs = _line(arm, cell, camera, config, updates)
     else:
         errors, true_errors, matching, logs = _trajectory(arm, cell, camera, config, updates, vo_seed)
-    return EpisodeResult(method, config, rot_before, rot_after, true_rot_after, np.asarray(errors),
-                         np.asarray(true_errors), matching, camera.timeline(), logs, camera.images)
+    return LocalcalEpisode(method, config, rot_before, rot_after, true_rot_after, np.asarray(errors),
+                           np.asarray(true_errors), matching, camera.timeline(), logs, camera.images)
 
 
 def _goal_B(cell, arm):
@@ -397,11 +460,22 @@ def _line(arm, cell, camera, config, updates):
     return errors, true_errors, None, logs
 
 
+def _handeye_record(he, t_vo, p_B_vo, kinematic) -> dict:
+    """Table 3's errors for a hand-eye calibration: VO's TCP positions in B vs the encoder TCP
+    at the same times (nearest kinematic sample after the clock offset), with the hand-eye JSON."""
+    t = np.asarray(t_vo) + he.time_offset_s
+    j = np.clip(np.searchsorted(kinematic.t_s, t), 1, len(kinematic.t_s) - 1)
+    j -= (t - kinematic.t_s[j - 1]) < (kinematic.t_s[j] - t)
+    e = np.abs(p_B_vo - kinematic.T[j, :3, 3])
+    return {**he.to_json(), "mode": "handeye", "mean_abs_err_mm": e.mean(axis=0).tolist(),
+            "max_abs_err_mm": e.max(axis=0).tolist()}
+
+
 def _trajectory(arm, cell, camera, config, updates, vo_seed):
     from posekit.localcal.registration.tum import Trajectory
 
     T_start = arm.nominal_pose()
-    path = asymmetric_path(T_start, config.path_lengths_mm)
+    path = asymmetric_path(T_start, config.path_lengths_mm, tilt_rad=np.deg2rad(config.calibration_tilt_deg))
     camera.events.append((float(arm.t_s), "calibration path"))
     camera.hidden(config.occlude_ooi in ("calibration", "always"))
     log = arm.follow(path)
@@ -415,15 +489,31 @@ def _trajectory(arm, cell, camera, config, updates, vo_seed):
         t = np.concatenate([h[0] for h in history])
         T = np.concatenate([h[1] for h in history])
         keep = np.r_[True, np.diff(t) > 0]                 # consecutive logs share a sample
+        depth = depth_along_axis(T[keep], cell.T_B_O) if config.vo_stereo is not None else None
         return simulate_vo(T[keep], t[keep], vo_seed, noise_mm=config.vo_noise_mm, noise_rad=config.vo_noise_rad,
+                           stereo=config.vo_stereo, depth_mm=depth,
                            drift_mm_per_sqrt_m=config.vo_drift_mm_per_sqrt_m,
                            drift_rad_per_sqrt_m=config.vo_drift_rad_per_sqrt_m, stride=config.vo_stride,
                            time_offset_s=config.vo_time_offset_s, outlier_fraction=config.vo_outlier_fraction)
 
     vo_calib = vo()
     kinematic = Trajectory(t_s=log.t_s, T=log.T_B_F_nominal)
-    reg = calibrate_trajectories(vo_calib, kinematic, use_timestamps=config.use_timestamps,
-                                 names=("VO camera", "encoder TCP"))
+    if config.uses_handeye:
+        from posekit.localcal.registration.handeye import calibrate_handeye
+
+        he = calibrate_handeye(vo_calib, kinematic, names=("VO camera", "encoder TCP"))
+        R_B_W = he.T_base_world[:3, :3]
+        # VO's TCP positions in B: Z T_W_C X^-1 (the camera's lever arm removed)
+        T_B_F_vo = he.T_base_world @ vo_calib.T @ invert_transform(he.T_tool_camera, check=False)
+        matching = _handeye_record(he, vo_calib.t_s, T_B_F_vo[:, :3, 3], kinematic)
+        vo_tcp_B = T_B_F_vo[:, :3, 3]
+    else:
+        free = {} if config.use_timestamps else {"matcher": config.matcher}
+        reg = calibrate_trajectories(vo_calib, kinematic, use_timestamps=config.use_timestamps,
+                                     names=("VO camera", "encoder TCP"), **free)
+        R_B_W = reg.R
+        matching = reg.to_json()
+        vo_tcp_B = reg.scale * vo_calib.T[:, :3, 3] @ reg.R.T + reg.t_mm
     camera.events.append((float(arm.t_s), "matched"))
     errors, true_errors, references = [], [], []
     obs = camera.look(arm, None)
@@ -431,7 +521,7 @@ def _trajectory(arm, cell, camera, config, updates, vo_seed):
         _require(obs, f"before update {k + 1}")
         delta = obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3]
         R_W_C = vo().T[-1, :3, :3]                          # VO keeps tracking the camera
-        T_ref = trajectory_reference(arm.nominal_pose(), reg.R, R_W_C, delta, b_mm=config.b_mm)
+        T_ref = trajectory_reference(arm.nominal_pose(), R_B_W, R_W_C, delta, b_mm=config.b_mm)
         references.append(T_ref[:3, 3])
         move = arm.move_to(T_ref)
         history.append((move.t_s, move.T_B_F_true @ T_F_C))
@@ -440,13 +530,12 @@ def _trajectory(arm, cell, camera, config, updates, vo_seed):
         _require(obs, f"after update {k + 1}")
         errors.append(obs.T_C_O[:3, 3] - obs.T_C_M[:3, 3])
         true_errors.append(_truth(cell, arm)[0])
-    p_vo = vo_calib.T[:, :3, 3]
     logs = {
         "T_B_F_start": T_start,
         "reference_path_B": path[:, :3, 3],
         "path_nominal_B": log.T_B_F_nominal[:, :3, 3],
         "path_true_B": log.T_B_F_true[:, :3, 3],
-        "vo_calibrated_B": reg.scale * p_vo @ reg.R.T + reg.t_mm,
+        "vo_calibrated_B": vo_tcp_B,
         "references_B": np.asarray(references),
     }
-    return errors, true_errors, reg.to_json(), logs
+    return errors, true_errors, matching, logs

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, PosekitError
-from posekit.localcal.sim.episode import METHODS, EpisodeConfig, EpisodeResult, run_episode
+from posekit.localcal.sim.episode import METHODS, EpisodeConfig, LocalcalEpisode, run_localcal_episode
 from posekit.sweep import SERIAL, run_tasks, task_seed
 
 __all__ = [
@@ -55,7 +55,7 @@ class ExperimentResult:
         The experiment's seed (run i uses ``task_seed(seed, i)``).
     updates : int
         Look-then-move updates per episode.
-    episodes : list of EpisodeResult or None
+    episodes : list of LocalcalEpisode or None
         One per run, in order (None for a failed run).
     failures : list of str or None
         The error of each run (None when it succeeded).
@@ -115,7 +115,7 @@ def _nan_row(cols):
     return {c: math.nan for c in cols}
 
 
-def _values(ep: EpisodeResult, base: str, truth: bool, updates: int) -> list[float]:
+def _values(ep: LocalcalEpisode, base: str, truth: bool, updates: int) -> list[float]:
     if base == "table3":
         m = ep.matching
         return list(m["mean_abs_err_mm"]) + list(m["max_abs_err_mm"])
@@ -163,7 +163,7 @@ def _tables_for(method: str, episodes, failures, updates: int) -> dict:
 def _run_task(task):
     """One episode (top level, picklable, for :func:`posekit.sweep.run_tasks`)."""
     try:
-        return run_episode(task["method"], task["seed"], updates=task["updates"], config=task["config"]), None
+        return run_localcal_episode(task["method"], task["seed"], updates=task["updates"], config=task["config"]), None
     except PosekitError as exc:
         return None, f"{type(exc).__name__}: {exc}"
 

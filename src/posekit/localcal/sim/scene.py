@@ -25,7 +25,8 @@ Default layout (:func:`default_workcell`, HIAB033-like crane at its start pose)
   ``(-100, -150)`` mm in the OOI plane (above, lower left and lower right of the OOI centre
   in the image).
 * So the tool marker starts (350, -180, 580) mm from the OOI in the camera frame (nominal
-  layout). Checked by rendering (seeds 0–9, OOI at 0.8, 1.0 and 1.2 m): all four markers are
+  layout, OOI at 1 m; the episodes put it at 0.76 m, the paper's Table 2 depth). Checked by
+  rendering (seeds 0–9, OOI at 0.76, 0.8, 1.0 and 1.2 m): all four markers are
   detected at the start pose, along a 20 cm circle in the local (n, s) plane, and with the
   tool marker driven to 100 mm in front of the OOI.
 """
@@ -44,8 +45,7 @@ from posekit.geometry import (
     matrix_from_rotation_vector,
     rotation_vector_from_matrix,
 )
-from posekit.localcal._checks import rigid_transform
-from posekit.localcal.sim.camera import MarkerDetector, marker_corners, render_markers
+from posekit.localcal.sim.camera import MarkerDetector, _one_transform, marker_corners, render_markers
 
 cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 
@@ -113,7 +113,7 @@ class Workcell:
     def __post_init__(self):
         set_ = object.__setattr__
         for name in ("T_F_C", "T_F_M", "T_B_O"):
-            set_(self, name, rigid_transform(getattr(self, name), name))
+            set_(self, name, _one_transform(getattr(self, name), name))
         ids = tuple(int(i) for i in self.ooi_marker_ids)
         if not ids or len(set(ids)) != len(ids) or self.tool_marker_id in ids:
             raise ConfigError(
@@ -125,7 +125,7 @@ class Workcell:
                 f"T_O_markers: expected one transform for each OOI marker {list(ids)}, "
                 f"got ids {sorted(self.T_O_markers)}"
             )
-        T_O = {int(i): rigid_transform(T, f"T_O_markers[{i}]") for i, T in self.T_O_markers.items()}
+        T_O = {int(i): _one_transform(T, f"T_O_markers[{i}]") for i, T in self.T_O_markers.items()}
         sizes = {}
         for i in (self.tool_marker_id,) + ids:
             if i not in self.sizes_mm:
@@ -154,7 +154,7 @@ class Workcell:
         T_B_F_true : array_like, shape (4, 4)
             True TCP pose in the base frame, mm.
         """
-        T_B_F = rigid_transform(T_B_F_true, "T_B_F_true")
+        T_B_F = _one_transform(T_B_F_true, "T_B_F_true")
         T_C_O = invert_transform(T_B_F @ self.T_F_C, check=False) @ self.T_B_O
         out = [(self.tool_marker_id, self.sizes_mm[self.tool_marker_id], self._T_C_M.copy())]
         for i in self.ooi_marker_ids:

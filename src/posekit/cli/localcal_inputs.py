@@ -1,0 +1,88 @@
+"""Trajectory input flags shared by the ``localcal`` verbs that read two trajectories.
+
+``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC`` and ``--rate HZ`` apply to both inputs;
+``--camera-format``/``--kinematic-format``, ``--camera-topic``/``--kinematic-topic`` and
+``--camera-rate``/``--kinematic-rate`` override them for one input (e.g. two topics of the same
+bag, or a KITTI camera file beside a TUM kinematic log). The format defaults to the suffix.
+"""
+
+from ._flags import bounded_float, check_flags
+
+__all__ = ["ROLES", "add_trajectory_args", "read_trajectory_args"]
+
+#: The positional arguments the per-input flags are named after.
+ROLES = ("camera", "kinematic")
+_FORMATS = ("tum", "kitti", "euroc", "rosbag")
+
+
+def add_trajectory_args(parser, roles=ROLES) -> None:
+    """Add the trajectory-format flags to ``parser``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The verb's parser; its positional arguments are named after ``roles``.
+    roles : sequence of str
+        Names of the inputs that get per-input overrides (``--<role>-format`` etc.).
+    """
+    g = parser.add_argument_group(
+        "trajectory formats",
+        "TUM (.tum/.txt: timestamp tx ty tz qx qy qz qw, s, m), KITTI (3x4 [R|t] per line, m, no time), "
+        "EuRoC ground-truth CSV (.csv: ns, m, qw qx qy qz), ROS 1/2 bags (.bag/.db3/.mcap or a bag folder)")
+    g.add_argument("--format", choices=_FORMATS, default=None,
+                   help="format of both inputs (default: from each file's suffix)")
+    g.add_argument("--topic", default=None, metavar="TOPIC",
+                   help="pose topic of a bag input: PoseStamped, Odometry or TransformStamped "
+                        "(default: the bag's only pose topic)")
+    g.add_argument("--rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None, metavar="HZ",
+                   help="frame rate of a KITTI input (which carries no time), (0, 1e6] Hz")
+    for role in roles:
+        g.add_argument(f"--{role}-format", choices=_FORMATS, default=None, help=f"format of {role.upper()} only")
+        g.add_argument(f"--{role}-topic", default=None, metavar="TOPIC", help=f"bag topic of {role.upper()} only")
+        g.add_argument(f"--{role}-rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None,
+                       metavar="HZ", help=f"KITTI frame rate of {role.upper()} only")
+
+
+def _role(args, path, role):
+    if role is not None:
+        return role
+    matches = [r for r in ROLES if getattr(args, r, None) is not None and str(getattr(args, r)) == str(path)]
+    if len(matches) > 1:               # one bag for both inputs: camera first, then kinematic
+        done = getattr(args, "_trajectory_roles_read", set())
+        matches = [r for r in matches if r not in done] or matches
+    return matches[0] if matches else None
+
+
+def read_trajectory_args(args, path, role: str | None = None):
+    """Read ``path`` with the format flags in ``args``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed by a parser that :func:`add_trajectory_args` extended.
+    path : str or Path
+        The input.
+    role : str, optional
+        Which input this is (``"camera"``/``"kinematic"``), for the per-input overrides;
+        found by comparing ``path`` with ``args.camera``/``args.kinematic`` by default; when both
+        name the same file (two topics of one bag), the first call reads CAMERA and the second
+        KINEMATIC — pass ``role`` to make it explicit.
+
+    Returns
+    -------
+    posekit.localcal.registration.tum.Trajectory
+        Timestamps in s, poses in mm.
+    """
+    from ..localcal.registration.formats import read_trajectory
+
+    check_flags(args)
+    role = _role(args, path, role)
+
+    def pick(name):
+        own = getattr(args, f"{role}_{name}", None) if role else None
+        return own if own is not None else getattr(args, name, None)
+
+    traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"))
+    if role is not None:
+        args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
+    return traj

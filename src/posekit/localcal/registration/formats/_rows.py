@@ -1,0 +1,125 @@
+"""Checks shared by the trajectory readers: finite values, unit quaternions, and the conversion of
+metres and ``[w, x, y, z]`` quaternions into a millimetre :class:`Trajectory`."""
+
+import numpy as np
+
+from posekit.errors import InputFileError
+from posekit.geometry import matrix_from_quaternion
+
+from ..tum import QUATERNION_NORM_TOL, Trajectory
+
+__all__ = ["parse_numbers", "trajectory_from_rows"]
+
+
+def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool = False,
+                  separator: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Numeric rows of a text file, skipping blank lines and ``#`` comments.
+
+    Parameters
+    ----------
+    path : Path
+        The file, for messages.
+    text : str
+        Its contents.
+    n_fields : int
+        Numbers expected per row (the first ``n_fields`` are kept when ``at_least``).
+    what : str
+        The row layout for messages, e.g. ``"12 numbers 'r11 r12 r13 tx ... r33 tz'"``.
+    separator : str, optional
+        Field separator; whitespace (and commas) by default.
+
+    Returns
+    -------
+    rows : ndarray, shape (N, n_fields)
+    lines : ndarray, shape (N,)
+        1-based line number of each row.
+
+    Raises
+    ------
+    InputFileError
+        ``FILE:LINE: expected ..., found ...`` for the first malformed row, or no rows at all.
+    """
+    rows, lines = [], []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = ([f.strip() for f in s.split(separator)] if separator
+                  else s.replace(",", " ").split())
+        if len(fields) < n_fields or (not at_least and len(fields) != n_fields):
+            raise InputFileError(f"{path}:{number}: expected {what}, found {len(fields)} fields")
+        try:
+            rows.append([float(f) for f in fields[:n_fields]])
+        except ValueError:
+            bad = next(f for f in fields[:n_fields] if not _is_float(f))
+            shown = bad if len(bad) <= 40 else bad[:37] + "..."
+            raise InputFileError(f"{path}:{number}: expected {what}, found '{shown}'") from None
+        lines.append(number)
+    if not rows:
+        raise InputFileError(f"{path}: no poses found (expected lines of {what})")
+    return np.asarray(rows, dtype=np.float64), np.asarray(lines)
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def trajectory_from_rows(path, t_s, p_m, q_wxyz, records: list[str] | np.ndarray, *,
+                         check_order: bool = True) -> Trajectory:
+    """A :class:`Trajectory` (mm) from timestamps, positions in metres and quaternions.
+
+    Parameters
+    ----------
+    path : Path
+        The source, for messages.
+    t_s : ndarray, shape (N,)
+        Timestamps, s.
+    p_m : ndarray, shape (N, 3)
+        Positions of the body in the world frame, m.
+    q_wxyz : ndarray, shape (N, 4)
+        Orientations ``q_world_body`` ``[w, x, y, z]``; the norm must be 1 within 1e-2.
+    records : sequence of str, length N
+        How each record is named in a message (``"3"`` for line 3 gives ``FILE:3:``,
+        ``" message 3 on /pose"`` is used as is after ``FILE:``).
+    check_order : bool
+        Refuse decreasing timestamps (naming the record) instead of accepting them.
+
+    Raises
+    ------
+    InputFileError
+        The first record with a NaN/infinite value, a non-unit quaternion or a timestamp earlier
+        than the previous one.
+    """
+    t_s = np.asarray(t_s, dtype=np.float64)
+    p_m = np.asarray(p_m, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(q_wxyz, dtype=np.float64).reshape(-1, 4)
+
+    def fail(k, what):
+        return InputFileError(f"{path}:{records[k]}: {what}")
+
+    finite = np.isfinite(t_s) & np.isfinite(p_m).all(axis=1) & np.isfinite(q).all(axis=1)
+    if not finite.all():
+        raise fail(int(np.flatnonzero(~finite)[0]), "expected finite numbers, found NaN or infinity")
+    big = np.abs(p_m).max(axis=1) > 1e9
+    if big.any():
+        k = int(np.flatnonzero(big)[0])
+        raise fail(k, f"position {np.abs(p_m[k]).max():.3g} m is implausible; expected metres")
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.abs(norm - 1.0) > QUATERNION_NORM_TOL
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise fail(k, f"expected a unit quaternion, found norm {norm[k]:.4g}")
+    if check_order:
+        back = np.diff(t_s) < 0
+        if back.any():
+            k = int(np.flatnonzero(back)[0]) + 1
+            raise fail(k, f"timestamps must not decrease: {t_s[k]:.6f} s after {t_s[k - 1]:.6f} s")
+    T = np.zeros((t_s.size, 4, 4))
+    T[:, :3, :3] = matrix_from_quaternion(q)
+    T[:, :3, 3] = p_m * 1000.0
+    T[:, 3, 3] = 1.0
+    return Trajectory(t_s, T)
