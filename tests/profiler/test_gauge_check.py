@@ -145,22 +145,66 @@ def test_cli_summary_says_the_gauge_file_failed(tmp_path, capsys):
     assert "one face off along its normal explains it: face 5 +" in err[0]
 
 
-@pytest.mark.parametrize("face", [0, 2, 4, 5])
+@pytest.mark.parametrize("face", [0, 1, 2, 4, 5])
 def test_an_understated_tolerance_is_caught(face):
-    """The same faces against a file that declares 2 µm: still caught (faces 0, 2, 4, 5)."""
+    """The same faces against a file that declares 2 µm: still caught (faces 0, 1, 2, 4, 5)."""
     d5 = bundled_gauge("demo-5")
     profiles, _ = batch(face_off(d5, face, 20.0), d5, K, 600 + face)
     check = estimate_profiles(profiles, replace(d5, tolerance_um=2.0)).gauge_check
-    assert check.passed is False and check.faces[0] == face, check.message
+    assert check.passed is False and face in check.faces, check.message
+
+
+def test_one_face_test_catches_what_the_omnibus_misses():
+    """Face 1 20 µm off against 2 µm, 100 profiles: all faces together stay under their limit (the
+    offset looks like a sensor scale error and a frame shift on most of the 10 dof) but face 1's own
+    1-dof test fails, and the reason says so; the single-face limit is χ²(1) at α / (2 · 6)."""
+    from scipy.stats import chi2
+
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(face_off(d5, 1, 20.0), d5, 100, 911)
+    check = estimate_profiles(profiles, replace(d5, tolerance_um=2.0)).gauge_check
+    assert check.critical == pytest.approx(chi2.isf(5e-4, 10)) and check.face_critical == pytest.approx(
+        chi2.isf(1e-3 / 12, 1))
+    assert check.chi2 <= check.critical and check.passed is False and check.faces[0] == 1
+    z1 = check.face_offset_um[1] / check.face_sigma_um[1]
+    assert z1**2 > check.face_critical and abs(check.face_offset_um[1] - 20.0) < 3 * check.face_sigma_um[1]
+    assert (f"(2 µm, face 1 alone {z1:.1f} sigma > {np.sqrt(check.face_critical):.1f}; all faces chi2 = "
+            f"{check.chi2:.1f} <= {check.critical:.1f}, 10 dof, significance 0.001); one face off along its normal "
+            "explains it: face 1 +") in check.message
 
 
 def test_the_limit_face_3_within_a_2um_tolerance():
-    """Face 3 20 µm off against a 2 µm tolerance looks like a ~100 ppm scale error: the batch passes
-    (module docstring, "Measured limits"), and the poses it leaves 'ok' are off by < 4σ."""
+    """Face 3 20 µm off against a 2 µm tolerance: the batch cannot pin face 3 (its offset looks like a
+    frame shift; detection limit ~70 µm, said in the message), so it passes (module docstring,
+    "Measured limits"); with the sensor's scale in the std the poses it leaves 'ok' are off by < 3σ
+    (95th percentile, y < 2σ), and a calibrated sensor does not change that."""
     d5 = bundled_gauge("demo-5")
     profiles, Ts = batch(face_off(d5, 3, 20.0), d5, K, 700)
     res = estimate_profiles(profiles, replace(d5, tolerance_um=2.0))
-    assert res.gauge_check.passed is True
+    check = res.gauge_check
+    assert check.passed is True
+    assert np.argmax(check.face_detectable_um) == 3 and check.face_detectable_um[3] > 40.0
+    assert check.message.endswith(f"face 3 (the least pinned) from {check.face_detectable_um[3]:.0f} µm")
     z = np.array([np.abs(pose_errors(e.T_G_F, T)) / np.sqrt(np.diag(e.cov))
                   for e, T in zip(res.estimates, Ts) if e is not None and e.status == "ok"])
-    assert len(z) > K // 2 and np.percentile(z[:, 1], 95) < 4.0
+    assert len(z) > K // 2 and np.all(np.percentile(z, 95, axis=0) < 3.0) and np.percentile(z[:, 1], 95) < 2.0
+
+
+def test_tilted_faces_are_outside_the_tolerance_model():
+    """Faces tilted by the realistic 0.01° (posekit's realistic simulator; the tolerance models offsets
+    only): a nominal file declaring a generous 20 µm fails the batch, rightly — without the batch test
+    the poses left 'ok' are off by more than their std says (p95 |err|/std > 3 on some component;
+    ``gauge_check_rates tilts``: 69-91 % within 2σ) — and the reason names tilts among the causes."""
+    from posekit.profiler.estimate.sensor import NoiseModel
+    from posekit.profiler.studies.gauge_check_rates import batch as sim_batch
+
+    d5 = bundled_gauge("demo-5")
+    profiles, Ts = sim_batch(d5, d5, 100, 70000, "sim", NoiseModel(), machining=True)
+    res = estimate_profiles(profiles, replace(d5, tolerance_um=20.0))
+    assert res.gauge_check.passed is False
+    assert "no one face's offset explains it (faces tilted, several off, or the sensor's scale beyond 100 ppm)" \
+        in res.gauge_check.message
+    alone = estimate_profiles(profiles, replace(d5, tolerance_um=20.0), check_gauge=False)
+    z = np.array([np.abs(pose_errors(e.T_G_F, T)) / np.sqrt(np.diag(e.cov))
+                  for e, T in zip(alone.estimates, Ts) if e is not None and e.status == "ok"])
+    assert len(z) > 80 and np.max(np.percentile(z, 95, axis=0)) > 3.0

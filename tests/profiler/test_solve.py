@@ -185,11 +185,18 @@ def test_assumed_noise_changes_the_verdict_not_the_pose(gauge5):
     T = sample_poses(gauge5, 1, rng=23)[0]
     corners = detect_corners(render_profiles(gauge5, T, NoiseModel(), rng=23), 5)
     plain = solve_pose(corners, gauge5)
-    model = solve_pose(corners, gauge5, noise=NoiseModel())
-    twice = solve_pose(corners, gauge5, noise=NoiseModel(20, 10))
+    model = solve_pose(corners, gauge5, noise=NoiseModel(scale_sigma_ppm=0.0))
+    twice = solve_pose(corners, gauge5, noise=NoiseModel(20, 10, scale_sigma_ppm=0.0))
     np.testing.assert_array_equal(model.T_G_F, plain.T_G_F)
     np.testing.assert_array_equal(twice.T_G_F, plain.T_G_F)
     assert plain.chi2 == plain.cost and model.cost == plain.cost
     assert twice.chi2 == pytest.approx(model.chi2 / 4, rel=1e-9)      # 2x the noise: 1/4 of chi2
     np.testing.assert_allclose(twice.cov, 4 * model.cov, rtol=1e-9)
+    # the sensor's unknown scale (default 100 ppm) enters as the tolerance does: the fit's weights (a GLS
+    # fit: the pose moves by a fraction of its std), χ² (lower) and a wider covariance
+    scaled = solve_pose(corners, gauge5, noise=NoiseModel())
+    moved = np.abs(pose_errors(scaled.T_G_F, plain.T_G_F)) / np.sqrt(np.diag(scaled.cov))
+    assert np.all(moved < 0.5) and scaled.chi2 <= model.chi2 and scaled.status == model.status
+    assert np.linalg.eigvalsh(scaled.cov - model.cov).min() > -1e-3 * np.abs(model.cov).max()
+    assert np.all(scaled.std_rot_deg >= model.std_rot_deg) and scaled.std_rot_deg[2] > 1.5 * model.std_rot_deg[2]
     assert (plain.dof, plain.status, plain.reason) == (4, "ok", None)

@@ -35,6 +35,10 @@ def add_parser(sub):
     e.add_argument("--significance", type=bounded_float(0.0, 1.0, lo_open=True, hi_open=True), default=None,
                    help="significance of the consistency test: the rate at which good data are called "
                         "suspect (default 0.001)")
+    e.add_argument("--scale-sigma-ppm", type=bounded_float(0.0, 1e4, "ppm"), default=None,
+                   help="1 sigma of the sensor's unknown x and z scale errors the estimator allows for, ppm "
+                        "(default 100, an uncalibrated sensor; a sensor calibrated against a reference gives "
+                        "what is left): in every pose's std and test, and in the batch test of the gauge file")
     e.add_argument("--out", help="FILE.jsonl or FILE.csv (default: JSON lines on stdout)")
     from .profiler_replay import add_read_arguments
     add_read_arguments(e)               # --columns, --delimiter, --roi-x, --roi-z (shared with replay)
@@ -141,7 +145,10 @@ def _estimator_noise(args):
     if noise_x + args.noise_um <= 0:
         raise ConfigError("--noise-um, --noise-x-um: the assumed noise must not be zero in both x and z")
     significance = DEFAULT_SIGNIFICANCE if args.significance is None else args.significance
-    return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um), significance
+    scale = getattr(args, "scale_sigma_ppm", None)
+    if scale is None:
+        return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um), significance
+    return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um, scale_sigma_ppm=scale), significance
 
 
 def _estimate_gauge(args):

@@ -27,7 +27,8 @@ from .gauge import Gauge
 from .raycast import first_face_hit, ray_in_gauge
 from .realism import AsBuiltGauge, RealismModel, build_as_built, render_as_built, true_corners
 
-__all__ = ["ProfilerModel", "Workspace", "NoiseModel", "LJ_X8400", "nominal_pose", "loop_poses",
+__all__ = ["ProfilerModel", "Workspace", "NoiseModel", "DEFAULT_SCALE_SIGMA_PPM", "LJ_X8400", "nominal_pose",
+           "loop_poses",
            "sample_poses", "visible_mask", "render_profiles", "RealismModel", "AsBuiltGauge",
            "build_as_built", "true_corners"]
 
@@ -73,6 +74,15 @@ class ProfilerModel:
 LJ_X8400 = ProfilerModel()
 
 
+#: 1σ of the sensor scale error (x and z, ppm) the estimator allows for unless told
+#: (:attr:`NoiseModel.scale_sigma_ppm`): an uncalibrated sensor, the realistic simulator's ±100 ppm.
+#: Without it the std of a pose on realistic profiles is far too small (demo-5: ~60 % of the
+#: errors within 2σ, rz ~10 %; with it 95.7-97.2 %).
+DEFAULT_SCALE_SIGMA_PPM = 100.0
+#: Largest allowed ``scale_sigma_ppm`` (1 %).
+MAX_SCALE_SIGMA_PPM = 1e4
+
+
 @dataclass(frozen=True)
 class NoiseModel:
     """Measurement errors of the profiler.
@@ -86,18 +96,30 @@ class NoiseModel:
         Fraction of returns replaced by a spike of ±0.3–3 mm in z.
     dropouts_per_profile : float
         Mean number (Poisson) of runs of 5–40 consecutive missing returns.
+    scale_sigma_ppm : float
+        1σ of the sensor's unknown x and z scale errors that the *estimator* allows for, ppm
+        (default :data:`DEFAULT_SCALE_SIGMA_PPM`, an uncalibrated sensor; a sensor whose
+        scale was calibrated against a reference declares what is left, 0 none). It enters
+        every pose's covariance and consistency test (:func:`~posekit.profiler.estimate.verdict.scale_covariance`)
+        and the batch test of the gauge file (:mod:`~posekit.profiler.estimate.gauge_check`).
+        The simulators do not read it: their scale error is ``RealismModel.scale_x_ppm``,
+        ``scale_z_ppm``.
     """
 
     sigma_x_um: float = 10.0
     sigma_z_um: float = 5.0
     outlier_rate: float = 0.0
     dropouts_per_profile: float = 0.0
+    scale_sigma_ppm: float = DEFAULT_SCALE_SIGMA_PPM
 
     def __post_init__(self):
-        for key in ("sigma_x_um", "sigma_z_um", "outlier_rate", "dropouts_per_profile"):
+        for key in ("sigma_x_um", "sigma_z_um", "outlier_rate", "dropouts_per_profile", "scale_sigma_ppm"):
             v = getattr(self, key)
             if not np.isfinite(v) or v < 0:
                 raise ConfigError(f"noise: '{key}' must be a finite number >= 0, got {v}")
+        if self.scale_sigma_ppm > MAX_SCALE_SIGMA_PPM:
+            raise ConfigError(f"noise: 'scale_sigma_ppm' must be <= {MAX_SCALE_SIGMA_PPM:g} ppm, got "
+                              f"{self.scale_sigma_ppm:g}")
         if self.outlier_rate > 0.5:
             raise ConfigError(f"noise: 'outlier_rate' must be <= 0.5, got {self.outlier_rate}")
 

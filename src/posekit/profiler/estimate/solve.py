@@ -61,6 +61,7 @@ from .verdict import (
     chi2_critical,
     corner_covariance,
     face_tolerance_covariance,
+    plus_scale_covariance,
 )
 
 __all__ = ["PoseEstimate", "solve_pose", "status_message", "corner_covariance", "face_tolerance_covariance",
@@ -259,7 +260,8 @@ def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter, gate
     failed kernel status (int).
 
     The fit is weighted by ``C_fit`` (the line fits' covariance); χ² and the pose covariance
-    use ``C_model`` (the assumed noise), both plus the gauge's tolerance at the solution.
+    use ``C_model`` (the assumed noise), both plus the gauge's tolerance at the solution (and
+    both plus the sensor's unknown scale, added by :func:`estimate_from_corners`).
     ``gate``: with a start pose ``T_init`` and method 'mle', a start that fails or ends with a
     cost above the gate (a wrong minimum) is solved again from the closed form, and the lower
     cost is kept (``cold_restart`` True).
@@ -401,6 +403,13 @@ def estimate_from_corners(corners: Corners, gauge, method: str, orders, T_inits,
     pts = np.ascontiguousarray(corners.points, dtype=np.float64)
     C_fit = np.ascontiguousarray(corners.cov, dtype=np.float64)
     C_model = C_fit if noise is None else corner_covariance(corners, noise)
+    scale_sigma = 0.0 if noise is None else float(getattr(noise, "scale_sigma_ppm", 0.0))
+    if scale_sigma > 0:
+        # the sensor's unknown scale (NoiseModel.scale_sigma_ppm), as the tolerance: in the fit's weights (the
+        # GLS fit, whose χ² follows its distribution), χ² and the pose's covariance (verdict module docstring)
+        var = (scale_sigma * 1e-6) ** 2
+        C_fit = plus_scale_covariance(C_fit, pts, var)
+        C_model = plus_scale_covariance(np.ascontiguousarray(C_model), pts, var)
     cands, failures, cold = [], {}, False
     for i, rev in enumerate(orders):
         if i == 1 and cands and _clearly_best(cands[0], gauge, pts.shape[0], noise, significance):
