@@ -21,6 +21,7 @@ from posekit.ceiling.grid import CeilingGrid, find_grid_corners
 from posekit.cli.ceiling_calibrate import add_calibrate_parser
 from posekit.errors import CalibrationError, PosekitError
 from posekit.geometry import apply_homography, normalize_homography
+from tests.ceiling.cli_harness import look_at
 
 DESIGN_KEYS = ["H_image_world", "H_world_image", "rms_px", "rms_world"]
 SEED_WORLD = np.array([[1200.0, 1200.0], [4800.0, 1200.0], [4800.0, 3600.0], [1200.0, 3600.0]])
@@ -29,13 +30,7 @@ SEED_WORLD = np.array([[1200.0, 1200.0], [4800.0, 1200.0], [4800.0, 3600.0], [12
 def camera_homography(C=(2500.0, -800.0, 2300.0), target=(3400.0, 2000.0, 0.0), f=560.0, size=(864, 480)):
     """H_image_world (mm -> px) of a pinhole camera at C (Z: mm below the ceiling) looking at target."""
     K = np.array([[f, 0, (size[0] - 1) / 2], [0, f, (size[1] - 1) / 2], [0, 0, 1.0]])
-    C = np.asarray(C)
-    z = np.asarray(target) - C
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    R_cam_world = np.stack([x, np.cross(z, x), z])
-    t = -R_cam_world @ C
+    R_cam_world, t = look_at(C, target)
     return normalize_homography(K @ np.c_[R_cam_world[:, 0], R_cam_world[:, 1], t])
 
 

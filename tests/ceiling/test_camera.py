@@ -1,8 +1,8 @@
 """Lens model (CameraModel, camera JSON) and lens calibration from chessboard images
 (``posekit ceiling camera``), against OpenCV's own projection and a second, simpler board generator."""
 
-import argparse
 import json
+from functools import partial
 
 import cv2
 import numpy as np
@@ -13,6 +13,7 @@ from posekit.ceiling.camera import CameraModel, calibrate_camera, load_camera, s
 from posekit.ceiling.render_chessboard import board_corners, chessboard_poses, render_chessboard
 from posekit.cli.ceiling_camera import add_camera_parser, parse_board
 from posekit.errors import CalibrationError, ConfigError
+from tests.ceiling.cli_harness import run_verb
 
 DIST = (-0.2, 0.04, 0.0008, -0.0006, 0.0)
 BOARD, SQUARE = (9, 6), 25.0
@@ -153,11 +154,7 @@ def test_board_corners_match_opencv_order():
     assert_allclose(c[:4], [[10, 10, 0], [20, 10, 0], [30, 10, 0], [10, 20, 0]])
 
 
-def run_cli(argv):
-    p = argparse.ArgumentParser()
-    add_camera_parser(p.add_subparsers())
-    args = p.parse_args(argv)
-    return args.func(args)
+run_cli = partial(run_verb, add_camera_parser)
 
 
 def test_cli_skips_views_without_board_and_names_them(tmp_path, views, capsys):

@@ -2,7 +2,7 @@
 warning and RANSAC's reasons. Points come from OpenCV's projection (cv2.projectPoints), not from
 the ceiling renderer."""
 
-import argparse
+from functools import partial
 
 import cv2
 import numpy as np
@@ -13,19 +13,14 @@ from posekit.ceiling.calibration import calibrate, radial_pattern, undistort_cal
 from posekit.ceiling.camera import CameraModel, save_camera
 from posekit.cli.ceiling_calibrate import add_calibrate_parser
 from posekit.errors import CalibrationError
+from tests.ceiling.cli_harness import look_at, run_verb
 
 DIST = (-0.2, 0.04, 0.0008, -0.0006, 0.0)
 SIZE = (864, 480)
 
 
 def pose(C=(3000.0, 300.0, -2300.0), target=(3000.0, 1800.0, 0.0)):
-    C = np.asarray(C)
-    z = np.asarray(target) - C
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    R = np.stack([x, np.cross(z, x), z])
-    return R, -R @ C
+    return look_at(C, target)
 
 
 def grid_points(dist, f=420.0, noise_px=0.0, rng=0):
@@ -71,11 +66,7 @@ def test_undistorted_points_keep_every_point():
     assert plain.inliers.sum() < 0.7 * len(world)              # what happens without the lens model
 
 
-def run(argv):
-    p = argparse.ArgumentParser()
-    add_calibrate_parser(p.add_subparsers())
-    args = p.parse_args(argv)
-    return args.func(args)
+run = partial(run_verb, add_calibrate_parser)
 
 
 def write_points(path, world, uv):

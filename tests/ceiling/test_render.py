@@ -1,8 +1,8 @@
 """Synthetic ceiling videos (posekit.ceiling.render): determinism, geometry, truth, files, CLI."""
 
-import argparse
 import csv
 import math
+from functools import partial
 
 import cv2
 import numpy as np
@@ -20,6 +20,7 @@ from posekit.ceiling.render import (
 )
 from posekit.cli.ceiling_simulate import add_simulate_parser
 from posekit.errors import ConfigError
+from tests.ceiling.cli_harness import run_verb
 
 #: A frame is the reference plus the dot sprites only: no drift, no noise.
 CLEAN = dict(noise_std=0.0, drift_gain=0.0, drift_offset=0.0, gradient=0.0)
@@ -221,11 +222,7 @@ def test_config_from_lists_is_hashable():
     assert hash(config) == hash(SceneConfig(dots=("red", "green"), hole_rects_mm=((0, 0, 100, 100),)))
 
 
-def _cli(argv):
-    parser = argparse.ArgumentParser(prog="posekit ceiling")
-    add_simulate_parser(parser.add_subparsers(dest="verb"))
-    args = parser.parse_args(argv)
-    return args.func(args)
+_cli = partial(run_verb, add_simulate_parser)
 
 
 def test_cli_simulate(tmp_path, capsys):

@@ -1,10 +1,10 @@
 """The realistic ceiling renderer: lens distortion, bloom, exposure steps, occluders, shadows, stray
 lights, compression, checked against OpenCV's projection and against measurements of the pixels."""
 
-import argparse
 import csv
 import json
 from dataclasses import replace
+from functools import partial
 
 import cv2
 import numpy as np
@@ -16,6 +16,7 @@ from posekit.ceiling.render import REALISTIC, CeilingScene, SceneConfig, lens_ca
 from posekit.ceiling.render import _camera as scene_camera
 from posekit.cli.ceiling_simulate import add_simulate_parser
 from posekit.errors import ConfigError
+from tests.ceiling.cli_harness import run_verb
 
 LENS = REALISTIC["dist"]
 #: The default scene at half resolution (same view, quarter of the pixels: faster tests).
@@ -141,11 +142,7 @@ def test_mp4v_video_and_camera_file(tmp_path):
     assert cam.image_size == (432, 240) and cam.K[0, 0] == cfg.focal_px
 
 
-def run_sim(argv):
-    p = argparse.ArgumentParser()
-    add_simulate_parser(p.add_subparsers())
-    args = p.parse_args(argv)
-    return args.func(args)
+run_sim = partial(run_verb, add_simulate_parser)
 
 
 def test_cli_realistic_and_overrides(tmp_path, capsys):

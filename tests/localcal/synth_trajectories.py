@@ -5,10 +5,22 @@ seen in a world frame W with ``T_B_W`` unknown to the matcher, sampled at anothe
 shifted by an offset, with mm-level noise and gross position outliers.
 """
 
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from posekit.localcal.registration.tum import Trajectory
+
+#: The real TUM RGB-D trajectory pairs (SLAM estimate and ground truth) of ``tests/data/tum``.
+TUM_DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
+
+
+def stack_poses(p_mm, R):
+    """(N, 4, 4) poses from positions ``p_mm`` (N, 3) and rotations ``R`` ((N, 3, 3) or one (3, 3))."""
+    T = np.zeros((len(p_mm), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p_mm, 1.0
+    return T
 
 
 def random_transform(rng, origin_mm=(0.0, 0.0, 0.0), *, t_scale_mm=200.0):
@@ -74,9 +86,7 @@ def make_pair(rng, pose, duration_s, *, T_B_W, rate_src_hz=30.0, rate_dst_hz=100
         if noisy:
             p = p + rng.normal(0, noise_mm, p.shape)
             R = R @ Rotation.from_rotvec(rng.normal(0, noise_rad, (len(t), 3))).as_matrix()
-        T = np.zeros((len(t), 4, 4))
-        T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
-        return T
+        return stack_poses(p, R)
 
     T_B = poses(t_body_dst, True)
     T_Bsrc = poses(t_body_src, True)

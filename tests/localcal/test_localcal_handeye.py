@@ -303,11 +303,9 @@ def test_real_tum_pair_camera_is_at_the_ground_truth_body():
     """TUM RGB-D fr2/desk: ORB-SLAM2 camera poses against motion-capture poses of the same camera's
     optical centre (tests/data/tum/README.md), so the true mount is the identity up to the
     benchmark's own calibration (mm, a fraction of a degree)."""
-    from pathlib import Path
-
     from posekit.localcal.registration.tum import read_tum
+    from tests.localcal.synth_trajectories import TUM_DATA as data
 
-    data = Path(__file__).resolve().parents[1] / "data" / "tum"
     cam, gt = read_tum(data / "fr2_desk_ORB.txt"), read_tum(data / "fr2_desk_groundtruth.txt")
     res = calibrate_handeye(cam, gt, max_dt_s=0.01, noise_mm=10.0, noise_deg=1.0)
     assert res.status == "ok", res.reasons

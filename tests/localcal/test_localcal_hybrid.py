@@ -7,7 +7,6 @@ Print the comparison table on the correspondence-free verdict cases and the real
 
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +16,9 @@ from posekit.localcal.registration.alignment import umeyama
 from posekit.localcal.registration.association import associate
 from posekit.localcal.registration.match import match_trajectories
 from posekit.localcal.registration.tum import read_tum
+from tests.localcal.synth_trajectories import TUM_DATA as DATA
 from tests.localcal.synth_trajectories import rotation_error_deg
 from tests.localcal.test_localcal_verdict import base, good_cases, lever
-
-DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -1,7 +1,6 @@
 """``posekit localcal match`` end to end: real TUM pairs, synthetic pairs in both modes, bad input."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,13 +10,15 @@ from posekit.localcal.registration.alignment import umeyama
 from posekit.localcal.registration.association import associate
 from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
 from tests.localcal.synth_trajectories import (
+    TUM_DATA as DATA,
+)
+from tests.localcal.synth_trajectories import (
     asymmetric_planar_path,
     make_pair,
     random_transform,
     rotation_error_deg,
 )
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
 KEYS = ["R", "t_mm", "rmse_mm", "mean_abs_err_mm", "max_abs_err_mm"]
 
 

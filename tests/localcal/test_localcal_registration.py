@@ -1,6 +1,5 @@
 """Trajectory matching: Umeyama, association, clock offset, CPD vs pycpd, real TUM pairs, acceptance."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,14 +14,16 @@ from posekit.localcal.registration.cpd import rigid_cpd
 from posekit.localcal.registration.match import Registration, match_trajectories
 from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import (
+    TUM_DATA as DATA,
+)
+from tests.localcal.synth_trajectories import (
     asymmetric_planar_path,
     make_pair,
     random_transform,
     rotation_error_deg,
     smooth_path,
+    stack_poses,
 )
-
-DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
 
 
 def horn(src, dst):
@@ -217,8 +218,7 @@ def test_mirrored_looking_input_gives_a_proper_rotation():
     pose = smooth_path(rng, rotate=False)
     t = np.arange(0, 20, 0.05)
     p, R = pose(t)
-    T = np.zeros((len(t), 4, 4))
-    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1
+    T = stack_poses(p, R)
     Tm = T.copy()
     Tm[:, 2, 3] *= -1.0                              # a mirror image: no rotation maps one onto the other
     reg = match_trajectories(Trajectory(t, Tm), Trajectory(t, T), use_timestamps=False)
@@ -376,10 +376,7 @@ def test_recovers_camera_to_base_transform(seed, kind, use_timestamps):
 
 # ------------------------------------------------------------------ degenerate input
 def _traj(p, t=None):
-    n = len(p)
-    T = np.zeros((n, 4, 4))
-    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = np.eye(3), p, 1
-    return Trajectory(np.arange(n) * 0.1 if t is None else t, T)
+    return Trajectory(np.arange(len(p)) * 0.1 if t is None else t, stack_poses(p, np.eye(3)))
 
 
 def test_degenerate_paths_are_rejected_with_the_cause():

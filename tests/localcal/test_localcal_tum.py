@@ -1,7 +1,5 @@
 """TUM trajectory files: reading real TUM RGB-D data, round trips, and malformed input."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from pytransform3d.rotations import (
@@ -10,8 +8,8 @@ from pytransform3d.rotations import (
 
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
+from tests.localcal.synth_trajectories import TUM_DATA as DATA
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
 FR1_SLAM = DATA / "freiburg1_xyz-rgbdslam.txt"
 # first data line of freiburg1_xyz-rgbdslam.txt (line 2, after one comment line)
 FR1_FIRST = (1305031102.160407, 1.344379, 0.627206, 1.661754, 0.658249, 0.611043, -0.294444, -0.326553)

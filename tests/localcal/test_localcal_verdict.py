@@ -7,7 +7,6 @@ confusion table (good/bad x ok/suspect|error) over several seeds with::
 """
 
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,20 +17,16 @@ from posekit.localcal.registration.match import match_trajectories
 from posekit.localcal.registration.quality import check_units, lever_arm_fit
 from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import (
+    TUM_DATA as DATA,
+)
+from tests.localcal.synth_trajectories import (
     asymmetric_planar_path,
     make_pair,
     random_transform,
     rotation_error_deg,
     smooth_path,
+    stack_poses,
 )
-
-DATA = Path(__file__).resolve().parents[1] / "data" / "tum"
-
-
-def _poses(p, R):
-    T = np.zeros((len(p), 4, 4))
-    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
-    return T
 
 
 def base(seed, kind="smooth", **kw):
@@ -191,7 +186,7 @@ def bad_cases(seed):
     yield "--time-offset with the wrong sign, planar path", src, dst, dict(time_offset_s=-0.137), T
     src, dst, T, rng = base(seed + 1800, "smooth")
     lo, hi = src.positions.min(0), src.positions.max(0)
-    Wr = _poses(rng.uniform(lo, hi, (len(src), 3)), Rotation.random(len(src), random_state=rng).as_matrix())
+    Wr = stack_poses(rng.uniform(lo, hi, (len(src), 3)), Rotation.random(len(src), random_state=rng).as_matrix())
     for ts in (True, False):
         yield f"random positions {_mode(ts)}", Trajectory(src.t_s, Wr), dst, dict(use_timestamps=ts), T
 

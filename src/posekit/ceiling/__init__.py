@@ -15,7 +15,8 @@ from .calibration import (
 )
 from .cameras import Camera, MultiCameraTracker
 from .demo import run_demo
-from .detect import Dot, DotDetector, DotSignature, Line, LineDetector
+from .detect import Dot, DotDetector, DotSignature
+from .detect_line import Line, LineDetector
 from .grid import CeilingGrid, find_grid_corners
 from .live import TrackOutputs
 from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video

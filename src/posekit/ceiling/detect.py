@@ -47,16 +47,16 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
 from posekit._extras import lazy
 
 from ..errors import ConfigError, InputFileError
+from ._detect_kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _blob_table, _lit_pixels
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
-__all__ = ["Dot", "Line", "LaserColor", "LASER_COLORS", "DotDetector", "DotSignature", "LineDetector"]
+__all__ = ["Dot", "LaserColor", "LASER_COLORS", "DotDetector", "DotSignature"]
 
 
 @dataclass(frozen=True)
@@ -105,129 +105,6 @@ class Dot:
     area_px: int
     peak: float
     stray: bool = False
-
-
-@nb.njit(cache=True, boundscheck=False)
-def _lit_pixels(frame, thr, y0, y1, x0, x1, coords):
-    """Pixels in rows y0:y1, columns x0:x1 where any channel of ``frame`` exceeds ``thr``.
-
-    ``frame`` and ``thr`` are (H, 3 W) uint8 views. Writes (row, col) into ``coords`` up to
-    its length and returns how many there are (which may exceed it).
-    """
-    n = 0
-    cap = coords.shape[0]
-    for i in range(y0, y1):
-        f = frame[i, 3 * x0:3 * x1]
-        t = thr[i, 3 * x0:3 * x1]
-        acc = np.uint8(0)
-        for k in range(f.shape[0]):                 # vectorised: no lit byte, no second pass
-            acc = max(acc, np.uint8(max(np.int16(f[k]) - np.int16(t[k]), 0) > 0))
-        if acc:
-            last = -1
-            for k in range(f.shape[0]):
-                if f[k] > t[k]:
-                    j = x0 + k // 3
-                    if j != last:
-                        if n < cap:
-                            coords[n, 0] = i
-                            coords[n, 1] = j
-                        n += 1
-                        last = j
-    return n
-
-
-#: Columns of the per-blob table computed by :func:`_blob_table`: area, elongation, weighted
-#: centroid, peak, unsaturated pixels, weighted central second moments (uu, vv, uv; px²), then
-#: one count per colour.
-_AREA, _ELONG, _U, _V, _PEAK, _PLAIN, _MUU, _MVV, _MUV, _COUNTS = range(10)
-
-
-@nb.njit(cache=True, boundscheck=False)
-def _blob_table(frame, bg, labels, stats, n, specs, core_level, margin, weight_threshold):
-    """Per blob 1..n-1 of ``labels`` (a window of the frame): area, elongation, weighted
-    centroid (u, v in window pixels), peak, number of unsaturated pixels and, per colour of
-    ``specs`` ((k, 3): hue lo, hue hi in degrees, min saturation), how many of those have it."""
-    h, w = labels.shape
-    k_col = specs.shape[0]
-    out = np.zeros((n, _COUNTS + k_col))
-    mom = np.zeros((n, 5))                       # sum x, y, xx, yy, xy over the blob's pixels
-    for i in range(h):
-        for j in range(w):
-            lab = labels[i, j]
-            if lab == 0:
-                continue
-            mom[lab, 0] += j
-            mom[lab, 1] += i
-            mom[lab, 2] += j * j
-            mom[lab, 3] += i * i
-            mom[lab, 4] += i * j
-            if frame[i, j, 0] >= core_level and frame[i, j, 1] >= core_level and frame[i, j, 2] >= core_level:
-                continue                            # saturated core: no colour
-            b = max(np.float64(frame[i, j, 0]) - bg[i, j, 0], 0.0)
-            g = max(np.float64(frame[i, j, 1]) - bg[i, j, 1], 0.0)
-            r = max(np.float64(frame[i, j, 2]) - bg[i, j, 2], 0.0)
-            mx = max(r, max(g, b))
-            mn = min(r, min(g, b))
-            out[lab, _PLAIN] += 1
-            if mx <= 0.0:
-                continue
-            span = mx - mn
-            sat = span / mx
-            if span <= 0.0:
-                hue = 0.0
-            elif mx == r:
-                hue = 60.0 * (((g - b) / span) % 6.0)
-            elif mx == g:
-                hue = 60.0 * ((b - r) / span + 2.0)
-            else:
-                hue = 60.0 * ((r - g) / span + 4.0)
-            for c in range(k_col):
-                lo, hi = specs[c, 0], specs[c, 1]
-                inside = (lo <= hue <= hi) if lo <= hi else (hue >= lo or hue <= hi)
-                if inside and sat >= specs[c, 2]:
-                    out[lab, _COUNTS + c] += 1
-    for lab in range(1, n):
-        a = stats[lab, 4]
-        out[lab, _AREA] = a
-        mx, my = mom[lab, 0] / a, mom[lab, 1] / a
-        sxx = mom[lab, 2] / a - mx * mx + 1.0 / 12.0          # + the extent of a pixel
-        syy = mom[lab, 3] / a - my * my + 1.0 / 12.0
-        sxy = mom[lab, 4] / a - mx * my
-        tr, det = sxx + syy, sxx * syy - sxy * sxy
-        disc = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
-        l1, l2 = tr / 2.0 + disc, tr / 2.0 - disc
-        out[lab, _ELONG] = math.sqrt(l1 / l2) if l2 > 0 else np.inf
-        y0, y1 = max(stats[lab, 1] - margin, 0), min(stats[lab, 1] + stats[lab, 3] + margin, h)
-        x0, x1 = max(stats[lab, 0] - margin, 0), min(stats[lab, 0] + stats[lab, 2] + margin, w)
-        sw = 0.0
-        su = 0.0
-        sv = 0.0
-        suu = 0.0
-        svv = 0.0
-        suv = 0.0
-        peak = 0.0
-        for i in range(y0, y1):
-            for j in range(x0, x1):
-                s = 0.0
-                for c in range(3):
-                    s += max(np.float64(frame[i, j, c]) - bg[i, j, c], 0.0)
-                peak = max(peak, s)
-                wt = s - weight_threshold
-                if wt > 0.0:
-                    sw += wt
-                    su += wt * j
-                    sv += wt * i
-                    suu += wt * j * j
-                    svv += wt * i * i
-                    suv += wt * i * j
-        out[lab, _PEAK] = peak
-        if sw > 0:
-            u, v = su / sw, sv / sw
-            out[lab, _U], out[lab, _V] = u, v
-            out[lab, _MUU], out[lab, _MVV], out[lab, _MUV] = suu / sw - u * u, svv / sw - v * v, suv / sw - u * v
-        else:
-            out[lab, _U] = out[lab, _V] = np.nan
-    return out
 
 
 class DotDetector:
@@ -652,135 +529,6 @@ class DotSignature:
         return abs(math.log(max(dot.area_px, 1)) - self.log_area) <= math.log(self.area_factor)
 
 
-@dataclass(frozen=True)
-class Line:
-    """A detected laser line segment (case C).
-
-    ``u, v``: intensity-weighted centre in px (pixel-centre convention); ``angle_deg``: the
-    segment's direction in the image, in [0, 180) degrees from +u towards +v (a line has no
-    sense: the heading it gives is ambiguous by 180°); ``length_px``: its length estimated
-    from the second moments (``sqrt(12 λ_max)``, exact for a uniform segment); ``area_px`` and
-    ``peak`` as for :class:`Dot`.
-    """
-
-    color: str
-    u: float
-    v: float
-    angle_deg: float
-    length_px: float
-    area_px: int
-    peak: float
-
-    def endpoints(self) -> np.ndarray:
-        """The two ends (2, 2) ``[[u, v], [u, v]]`` in px, centre ∓ half the length."""
-        a = math.radians(self.angle_deg)
-        d = 0.5 * self.length_px * np.array([math.cos(a), math.sin(a)])
-        return np.array([[self.u, self.v]]) + np.array([-d, d])
-
-
-#: Ways :class:`LineDetector` measures a segment: principal axis of the blob, or Hough transform.
-LINE_METHODS = ("moments", "hough")
-
-
-class LineDetector(DotDetector):
-    """Finds laser line segments (the paper's case C) with the machinery of :class:`DotDetector`.
-
-    A segment on the ceiling is one elongated blob of laser colour (or two, where a vent cuts
-    it). Its centre and direction are the intensity-weighted mean and principal axis of the
-    background-subtracted intensity, which resolve hundredths of a pixel and of a degree where
-    ``cv2.HoughLinesP`` quantises angles to its accumulator bins and ends to whole pixels
-    (Hough transforms pay off for many or long lines crossing clutter, not for one short
-    segment on a blank ceiling).
-
-    Parameters
-    ----------
-    color : str
-        Laser colour (:data:`LASER_COLORS`).
-    min_elongation : float
-        A blob is a segment if the ratio of its principal axes is at least this.
-    min_length_px : float
-        Shorter segments are dropped.
-    **kwargs
-        Any other :class:`DotDetector` parameter (``roi_radius_px`` defaults to 48 here so a
-        window holds a whole segment).
-    """
-
-    def __init__(self, color: str = "red", *, min_elongation: float = 3.0, min_length_px: float = 12.0,
-                 max_area_px: int = 5000, roi_radius_px: int = 48, method: str = "moments", **kwargs):
-        if method not in LINE_METHODS:
-            raise ConfigError(f"LineDetector: unknown method '{method}'; expected one of {', '.join(LINE_METHODS)}")
-        super().__init__((color,), max_area_px=max_area_px, roi_radius_px=roi_radius_px, **kwargs)
-        self.min_elongation = float(min_elongation)
-        self.min_length_px = float(min_length_px)
-        self.method = method
-
-    def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list[Line]:
-        """Segments in one frame (longest first), and the background update; see
-        :meth:`DotDetector.detect`. With ``method="hough"`` each segment's direction comes
-        from a standard Hough transform (``cv2.HoughLines``) of its centre line, and its
-        centre and length from the extent of the centre line along that direction."""
-        bg = None if self.method != "hough" or self._bg is None else self._bg.copy()
-        lines = super().detect(frame_bgr, predicted_uv)
-        if self.method == "hough":
-            bg = self._bg if bg is None else bg
-            lines = [h for h in (_hough_line(frame_bgr, bg, line, self.contrast) for line in lines) if h is not None]
-        return sorted(lines, key=lambda line: -line.length_px)
-
-    def _make(self, color: str, row: np.ndarray, x0: int, y0: int) -> Line | None:
-        if row[_ELONG] < self.min_elongation:
-            return None
-        muu, mvv, muv = row[_MUU], row[_MVV], row[_MUV]
-        half_tr, disc = 0.5 * (muu + mvv), math.hypot(0.5 * (muu - mvv), muv)
-        length = math.sqrt(12.0 * (half_tr + disc))
-        if length < self.min_length_px:
-            return None
-        angle = math.degrees(0.5 * math.atan2(2.0 * muv, muu - mvv)) % 180.0
-        return Line(color, float(row[_U] + x0), float(row[_V] + y0), angle, length, int(row[_AREA]),
-                    float(row[_PEAK]))
-
-
-def _hough_line(frame, bg, line: Line, contrast: int) -> Line | None:
-    """Re-measure ``line`` with a Hough transform (the paper's case C) in a window around it.
-
-    A thick bar votes most for its diagonal, so the transform runs on the bar's centre line:
-    for every pixel column (or row, for a steep bar) the intensity-weighted centre across
-    the bar of the light the laser adds. ``cv2.HoughLines`` (ρ 0.25 px, θ 0.05°) on the
-    rasterised centre line gives the direction; the centre line's extent along it gives the
-    ends. The ±180° ambiguity is left to the tracker.
-    """
-    h, w = frame.shape[:2]
-    r = int(0.5 * line.length_px) + 8
-    x0, x1 = max(0, int(line.u) - r), min(w, int(line.u) + r + 1)
-    y0, y1 = max(0, int(line.v) - r), min(h, int(line.v) + r + 1)
-    added = np.clip(frame[y0:y1, x0:x1].astype(np.float32) - bg[y0:y1, x0:x1], 0, None).max(axis=2)
-    added[added < contrast] = 0.0
-    steep = 45.0 < line.angle_deg < 135.0
-    a = added.T if steep else added                       # rows of `a` run across the bar
-    wsum = a.sum(axis=0)
-    cols = np.flatnonzero(wsum > 0)
-    if cols.size < 4:
-        return None
-    centre = (a[:, cols] * np.arange(a.shape[0])[:, None]).sum(axis=0) / wsum[cols]
-    pts = np.stack([cols, centre], axis=1) if not steep else np.stack([centre, cols], axis=1)   # (u, v) in window
-    scale = 4                                              # rasterise the centre line at 1/4 px
-    img = np.zeros(((y1 - y0) * scale, (x1 - x0) * scale), np.uint8)
-    iu = np.clip(np.round(pts[:, 0] * scale).astype(int), 0, img.shape[1] - 1)
-    iv = np.clip(np.round(pts[:, 1] * scale).astype(int), 0, img.shape[0] - 1)
-    img[iv, iu] = 255
-    found = cv2.HoughLines(img, 1.0, np.pi / 3600, max(3, cols.size // 3))
-    if found is None:
-        return None
-    rho, theta = np.asarray(found).reshape(-1, 2)[0]
-    d = np.array([-math.sin(theta), math.cos(theta)])     # direction of the Hough line (normal at θ)
-    n = np.array([math.cos(theta), math.sin(theta)])
-    s = pts @ d
-    foot = (rho / scale) * n                               # closest point of the line to the window origin
-    mid = foot + 0.5 * (s.min() + s.max()) * d - (foot @ d) * d
-    angle = math.degrees(math.atan2(d[1], d[0])) % 180.0
-    return Line(line.color, float(mid[0] + x0), float(mid[1] + y0), angle, float(s.max() - s.min() + 1.0),
-                line.area_px, line.peak)
-
-
 def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> list[tuple[int, int, int, int]]:
     """Bounding boxes (row0, row1, col0, col1), grown by ``margin``, of groups of lit pixels
     (n, 2) (row, col); pixels closer than about a cell are in the same group."""
@@ -800,3 +548,15 @@ def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> l
                 boxes.append((r[sel].min(), r[sel].max() + 1, c[sel].min(), c[sel].max() + 1))
     return [(max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w))
             for y0, y1, x0, x1 in boxes]
+
+
+_LINE_NAMES = ("Line", "LineDetector", "LINE_METHODS")
+
+
+def __getattr__(name):
+    """The line detector lives in :mod:`posekit.ceiling.detect_line` (imported on first use: that
+    module builds on this one)."""
+    if name in _LINE_NAMES:
+        from . import detect_line
+        return getattr(detect_line, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -27,6 +27,7 @@ import numpy as np
 from ..errors import ConfigError
 from ._kalman import _mahalanobis2
 from .cameras import Camera
+from .pipeline import _TimedRows
 from .track import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["MultiRobotTracker", "RobotsResult", "iter_track_robots", "track_robots_frames", "track_robots_video"]
@@ -133,7 +134,7 @@ class MultiRobotTracker:
 
 
 @dataclass
-class RobotsResult:
+class RobotsResult(_TimedRows):
     """Track of several robots: ``rows`` per frame per robot (robot order within a frame)."""
 
     rows: list[TrackRow]
@@ -143,22 +144,8 @@ class RobotsResult:
     fps_source: str = ""
     warnings: list = field(default_factory=list)
 
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    @property
-    def fps(self) -> float:
-        """Frames per second end to end."""
-        nf = len(self.rows) // max(self.n_robots, 1)
-        return nf / self.seconds_total if self.seconds_total > 0 else float("nan")
-
-    @property
-    def processing_ms(self) -> float:
-        p = self.seconds_processing
-        return float(np.median(p) * 1e3) if len(p) else float("nan")
+    def _n_frames(self) -> int:
+        return len(self.rows) // max(self.n_robots, 1)
 
     def robot(self, i: int) -> list[TrackRow]:
         """The rows of robot ``i``."""

@@ -43,8 +43,35 @@ LINE_DOTS = ("line",)
 :class:`~posekit.ceiling.linetrack.LineTracker`)."""
 
 
+class _TimedRows:
+    """What every per-frame track result shares: iteration over ``rows`` and the timings.
+
+    Subclasses are dataclasses with ``rows``, ``seconds_total`` (s) and ``seconds_processing``
+    (shape (N,), s per frame) fields; ``_n_frames`` gives the number of frames behind ``rows``.
+    """
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def _n_frames(self) -> int:
+        return len(self.rows)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second end to end (decode + detect + map + filter)."""
+        return self._n_frames() / self.seconds_total if self.seconds_total > 0 else float("nan")
+
+    @property
+    def processing_ms(self) -> float:
+        """Median processing time per frame without decoding, ms."""
+        return float(np.median(self.seconds_processing) * 1e3) if len(self.seconds_processing) else float("nan")
+
+
 @dataclass
-class TrackResult:
+class TrackResult(_TimedRows):
     """Track of a video, with what is needed to plot and time it.
 
     Attributes
@@ -73,22 +100,6 @@ class TrackResult:
     fps_source: str = ""
     cameras: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
-
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    @property
-    def fps(self) -> float:
-        """Frames per second end to end (decode + detect + map + filter)."""
-        return len(self.rows) / self.seconds_total if self.seconds_total > 0 else float("nan")
-
-    @property
-    def processing_ms(self) -> float:
-        """Median processing time per frame without decoding, ms."""
-        return float(np.median(self.seconds_processing) * 1e3) if len(self.seconds_processing) else float("nan")
 
     def xy(self) -> np.ndarray:
         """(N, 2) track in the world plane, mm (NaN where lost)."""
@@ -286,7 +297,7 @@ def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: T
     camera, end points mapped to the world, :class:`~posekit.ceiling.linetrack.LineTracker`.
     With several cameras, the one whose segment centre is farthest from its image border is
     used (the previous one while it stays ``border_margin_px`` inside)."""
-    from .detect import LineDetector
+    from .detect_line import LineDetector
     from .linetrack import LineTracker, LineTrackerConfig, pick_line
 
     if detectors is None:
@@ -404,7 +415,8 @@ def make_detectors(dots, n: int, detector_options: dict | None = None):
     """``n`` detectors for ``dots`` (None: the defaults of :func:`track_frames`)."""
     if detector_options is None:
         return None
-    from .detect import DotDetector, LineDetector
+    from .detect import DotDetector
+    from .detect_line import LineDetector
     if dots == LINE_DOTS:
         if detector_options.get("method") == "dotted":          # the §III-C dotted line
             from .linetrack import DottedLineDetector

@@ -18,6 +18,7 @@ stamped with the capture clock (seconds since the first frame). A video file can
 through the same path (``loop=``: as many passes), which is how the live path is tested.
 """
 
+import os
 import re
 import time
 from collections.abc import Iterator
@@ -38,6 +39,10 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 
 DEFAULT_FPS = 15.0
 """Frame rate assumed when neither the caller nor the container gives one (the paper's camera)."""
+
+# FFmpeg inside OpenCV prints its own lines ("moov atom not found") beside the one-line error of a
+# broken video; quiet unless the user set the level. Read when the first capture opens.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
 @dataclass

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated"]
+__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
+           "add_dask_args", "check_dask_args"]
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
 OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
@@ -88,3 +89,20 @@ def add_deprecated(parser, old: str, new: str, dest: str, type=None) -> None:
     """Keep ``old`` as a hidden, deprecated alias of ``new`` (same ``dest``)."""
     parser.add_argument(old, dest=dest, type=type, action=_Deprecated, new=new, help=argparse.SUPPRESS,
                         default=argparse.SUPPRESS)
+
+
+def add_dask_args(parser) -> None:
+    """Add ``--scheduler`` (a Dask address or ``serial``; default a local cluster) and ``--workers``
+    (processes of that local cluster) to a verb that runs its episodes on Dask."""
+    from ._flags import workers
+
+    parser.add_argument("--scheduler", default=None,
+                        help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    parser.add_argument("--workers", type=workers, default=None,
+                        help="worker processes of the local cluster, 1..256 (default: one per core)")
+
+
+def check_dask_args(args) -> None:
+    """One-line :class:`ConfigError` when ``--workers`` (the local cluster's size) comes with ``--scheduler``."""
+    if args.workers is not None and args.scheduler is not None:
+        raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")

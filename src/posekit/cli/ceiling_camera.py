@@ -70,6 +70,8 @@ def run_camera(args) -> int:
 
     check_flags(args)
     board = parse_board(args.board)
+    if Path(args.out).is_dir():              # before the calibration, not after it
+        raise ConfigError(f"--out {args.out}: is a folder; expected a CAMERA.json file name")
     if len(args.images) > MAX_VIEWS:
         raise ConfigError(f"{len(args.images)} images; expected at most {MAX_VIEWS}")
     unreadable = []

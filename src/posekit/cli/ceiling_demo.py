@@ -37,9 +37,24 @@ def run_demo(args) -> int:
     dots = parse_dots(args.dots)
     check_flags(args)
     out_folder(args)
+    if args.camera is not None:
+        _check_lens(args)                    # a bad CAMERA.json fails before the render, not after it
     with staged(args) as tmp:
         report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"),
                       camera=args.camera, realistic=args.realistic, line_pattern=args.line_pattern)
         summary = report.summary().replace(str(tmp), str(args.out))
     print(summary)
     return 0
+
+
+def _check_lens(args) -> None:
+    """Read the ``--camera`` model and check it against the demo's frame size, before anything is rendered."""
+    from ..ceiling.camera import load_camera
+    from ..ceiling.render import SceneConfig
+    from ..errors import ConfigError
+
+    lens = load_camera(args.camera)
+    cfg = SceneConfig.realistic() if args.realistic else SceneConfig()
+    if tuple(lens.image_size) != (cfg.width_px, cfg.height_px):
+        raise ConfigError(f"--camera {args.camera}: the model is for {lens.image_size[0]}x{lens.image_size[1]} px "
+                          f"images; the demo renders {cfg.width_px}x{cfg.height_px}")

@@ -1,11 +1,8 @@
 """``posekit localcal handeye``: the camera mount (camera-to-tool) and the camera's world frame in
 the robot base, together, for a camera that is not at the tool point."""
 
-import json
-import sys
-
-from ._flags import bounded_float, check_flags
-from .localcal_inputs import add_trajectory_args, read_trajectory_args
+from ._flags import bounded_float
+from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
 
 __all__ = ["add_handeye_parser", "run_handeye"]
 
@@ -20,9 +17,7 @@ def add_handeye_parser(verbs):
                     "p_tool = R_tool_camera p_camera + t_tool_camera_mm and p_base = R p_world + t_mm; the std "
                     "keys are 1 sigma of the camera mount (std_world_* of R, t_mm). Exit 1 when suspect. "
                     "The tool must rotate about at least two non-parallel axes.")
-    p.add_argument("camera", metavar="CAMERA", help="camera poses in the VO/SLAM world frame")
-    p.add_argument("kinematic", metavar="KINEMATIC", help="tool (TCP/flange) poses in the robot base frame")
-    p.add_argument("--out", required=True, metavar="HANDEYE.json", help="result file to write")
+    add_pair_args(p, kinematic_help="tool (TCP/flange) poses in the robot base frame", out_metavar="HANDEYE.json")
     p.add_argument("--max-dt", type=bounded_float(0.0, 10.0, "s", lo_open=True), default=0.02, metavar="S",
                    help="largest time difference of an associated pose pair, (0, 10] s (default 0.02)")
     p.add_argument("--time-offset", type=bounded_float(-1e10, 1e10, "s"), default=None, metavar="S",
@@ -47,29 +42,22 @@ def run_handeye(args) -> int:
     import numpy as np
 
     from ..geometry import rotation_angle_between
-    from ..io import write_text_atomic
     from ..localcal.registration.handeye import calibrate_handeye
 
-    check_flags(args)
-    cam = read_trajectory_args(args, args.camera, role="camera")
-    kin = read_trajectory_args(args, args.kinematic, role="kinematic")
+    cam, kin = read_pair_args(args)
     res = calibrate_handeye(cam, kin, max_dt_s=args.max_dt, time_offset_s=args.time_offset,
                             max_offset_s=args.max_offset, noise_mm=args.noise_mm, noise_deg=args.noise_deg,
                             max_std_t_mm=args.max_std_mm, max_std_rot_deg=args.max_std_deg,
                             names=(str(args.camera), str(args.kinematic)))
-    out = write_text_atomic(args.out, json.dumps(res.to_json(), indent=2) + "\n")
     X, Z = res.T_tool_camera, res.T_base_world
     ax = np.rad2deg(float(rotation_angle_between(np.eye(3), X[:3, :3], check=False)))
     az = np.rad2deg(float(rotation_angle_between(np.eye(3), Z[:3, :3], check=False)))
-    print(f"hand-eye from {res.n_pairs} pose pairs ({int(res.inliers.sum())} inliers) at a clock offset of "
-          f"{res.time_offset_s * 1000:+.1f} ms")
-    print(f"camera in tool: {ax:.3f} deg rotation, t [{X[0, 3]:.2f}, {X[1, 3]:.2f}, {X[2, 3]:.2f}] mm "
-          f"(|t| {np.linalg.norm(X[:3, 3]):.2f} mm); std " + ", ".join(f"{v:.3g}" for v in res.std_rot_deg)
-          + " deg, " + ", ".join(f"{v:.3g}" for v in res.std_t_mm) + " mm")
-    print(f"world in base: {az:.3f} deg rotation, t [{Z[0, 3]:.2f}, {Z[1, 3]:.2f}, {Z[2, 3]:.2f}] mm; "
-          f"rmse {res.rmse_mm:.2f} mm, {res.rms_rot_deg:.3f} deg")
-    print(f"wrote {out}")
-    if res.status != "ok":
-        print(f"posekit: suspect hand-eye: {'; '.join(res.reasons)}", file=sys.stderr)
-        return 1
-    return 0
+    return finish_result(args.out, res, [
+        f"hand-eye from {res.n_pairs} pose pairs ({int(res.inliers.sum())} inliers) at a clock offset of "
+        f"{res.time_offset_s * 1000:+.1f} ms",
+        f"camera in tool: {ax:.3f} deg rotation, t [{X[0, 3]:.2f}, {X[1, 3]:.2f}, {X[2, 3]:.2f}] mm "
+        f"(|t| {np.linalg.norm(X[:3, 3]):.2f} mm); std " + ", ".join(f"{v:.3g}" for v in res.std_rot_deg)
+        + " deg, " + ", ".join(f"{v:.3g}" for v in res.std_t_mm) + " mm",
+        f"world in base: {az:.3f} deg rotation, t [{Z[0, 3]:.2f}, {Z[1, 3]:.2f}, {Z[2, 3]:.2f}] mm; "
+        f"rmse {res.rmse_mm:.2f} mm, {res.rms_rot_deg:.3f} deg",
+    ], "hand-eye")

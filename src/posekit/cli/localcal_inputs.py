@@ -8,7 +8,7 @@ bag, or a KITTI camera file beside a TUM kinematic log). The format defaults to 
 
 from ._flags import bounded_float, check_flags
 
-__all__ = ["ROLES", "add_trajectory_args", "read_trajectory_args"]
+__all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "finish_result", "read_pair_args", "read_trajectory_args"]
 
 #: The positional arguments the per-input flags are named after.
 ROLES = ("camera", "kinematic")
@@ -86,3 +86,67 @@ def read_trajectory_args(args, path, role: str | None = None):
     if role is not None:
         args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
     return traj
+
+
+def add_pair_args(parser, *, kinematic_help: str, out_metavar: str) -> None:
+    """Add the two trajectory inputs CAMERA and KINEMATIC and ``--out`` to ``parser``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The verb's parser.
+    kinematic_help : str
+        Help of the KINEMATIC positional (which robot frame it holds).
+    out_metavar : str
+        Metavar of ``--out`` (the result file).
+    """
+    parser.add_argument("camera", metavar="CAMERA", help="camera poses in the VO/SLAM world frame")
+    parser.add_argument("kinematic", metavar="KINEMATIC", help=kinematic_help)
+    parser.add_argument("--out", required=True, metavar=out_metavar, help="result file to write")
+
+
+def read_pair_args(args):
+    """Read ``args.camera`` and ``args.kinematic`` with the format flags in ``args``.
+
+    Returns
+    -------
+    camera, kinematic : posekit.localcal.registration.tum.Trajectory
+        Timestamps in s, poses in mm.
+    """
+    check_flags(args)
+    return (read_trajectory_args(args, args.camera, role="camera"),
+            read_trajectory_args(args, args.kinematic, role="kinematic"))
+
+
+def finish_result(out, result, summary: list[str], what: str) -> int:
+    """Write ``result.to_json()`` to ``out``, print ``summary`` and ``wrote OUT``, and give the exit code.
+
+    Parameters
+    ----------
+    out : str or Path
+        The JSON file to write (atomically).
+    result : object
+        Has ``to_json()``, ``status`` and ``reasons``.
+    summary : list of str
+        Lines printed before ``wrote OUT``.
+    what : str
+        Named in ``posekit: suspect WHAT: reasons`` on stderr.
+
+    Returns
+    -------
+    int
+        0 when ``result.status`` is ``"ok"``, 1 otherwise (the file is written first).
+    """
+    import json
+    import sys
+
+    from ..io import write_text_atomic
+
+    path = write_text_atomic(out, json.dumps(result.to_json(), indent=2) + "\n")
+    for line in summary:
+        print(line)
+    print(f"wrote {path}")
+    if result.status != "ok":
+        print(f"posekit: suspect {what}: {'; '.join(result.reasons)}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,10 +1,7 @@
 """``posekit localcal match``: the transform that maps a camera trajectory into the robot base."""
 
-import json
-import sys
-
-from ._flags import bounded_float, check_flags
-from .localcal_inputs import add_trajectory_args, read_trajectory_args
+from ._flags import bounded_float
+from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
 
 __all__ = ["add_match_parser", "run_match"]
 
@@ -17,9 +14,7 @@ def add_match_parser(verbs):
                     "(robot base frame). Writes {R, t_mm, rmse_mm, mean_abs_err_mm, max_abs_err_mm, status, "
                     "reasons, std_rot_deg, std_t_mm, ...}: p_base = R p_camera + t; std_* are 1 sigma about the "
                     "base axes. Exit 1 when the verdict is suspect (the file is written first).")
-    p.add_argument("camera", metavar="CAMERA", help="camera poses in the VO/SLAM world frame")
-    p.add_argument("kinematic", metavar="KINEMATIC", help="TCP poses in the robot base frame")
-    p.add_argument("--out", required=True, metavar="RESULT.json", help="result file to write")
+    add_pair_args(p, kinematic_help="TCP poses in the robot base frame", out_metavar="RESULT.json")
     p.add_argument("--no-timestamps", dest="timestamps", action="store_false",
                    help="ignore the timestamps: correspondence-free point-set registration")
     # --max-dt > 0 is checked by match_trajectories (max_dt_s) with its own message
@@ -48,29 +43,21 @@ def run_match(args) -> int:
     from ..geometry import rotation_angle_between
     from ..localcal.registration.match import match_trajectories
 
-    check_flags(args)
-    src = read_trajectory_args(args, args.camera, role="camera")
-    dst = read_trajectory_args(args, args.kinematic, role="kinematic")
+    src, dst = read_pair_args(args)
     reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
                              time_offset_s=args.time_offset, max_offset_s=args.max_offset,
                              with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
                              matcher=args.matcher, names=(str(args.camera), str(args.kinematic)))
-    from ..io import write_text_atomic
-
-    out = write_text_atomic(args.out, json.dumps(reg.to_json(), indent=2) + "\n")
     angle = np.rad2deg(float(rotation_angle_between(np.eye(3), reg.R, check=False)))
     how = (f"{reg.n_pairs} pose pairs within {args.max_dt:g} s at a clock offset of "
            f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps
            else f"{len(src)} camera poses against {len(dst)} kinematic poses without timestamps")
-    print(f"matched {how}; {int(reg.inliers.sum())} inliers")
-    print(f"R: {angle:.3f} deg rotation, t_mm: [{reg.t_mm[0]:.2f}, {reg.t_mm[1]:.2f}, {reg.t_mm[2]:.2f}]"
-          + (f", scale {reg.scale:.5f}" if args.with_scale else ""))
-    print(f"rmse {reg.rmse_mm:.2f} mm; mean |e| x,y,z " + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
-          + " mm; max |e| " + ", ".join(f"{v:.2f}" for v in reg.max_abs_err_mm) + " mm")
-    print("std (1 sigma, base axes): rotation " + ", ".join(f"{v:.3g}" for v in reg.std_rot_deg)
-          + " deg; t " + ", ".join(f"{v:.3g}" for v in reg.std_t_mm) + " mm")
-    print(f"wrote {out}", file=sys.stdout)
-    if reg.status != "ok":
-        print(f"posekit: suspect match: {'; '.join(reg.reasons)}", file=sys.stderr)
-        return 1
-    return 0
+    return finish_result(args.out, reg, [
+        f"matched {how}; {int(reg.inliers.sum())} inliers",
+        f"R: {angle:.3f} deg rotation, t_mm: [{reg.t_mm[0]:.2f}, {reg.t_mm[1]:.2f}, {reg.t_mm[2]:.2f}]"
+        + (f", scale {reg.scale:.5f}" if args.with_scale else ""),
+        f"rmse {reg.rmse_mm:.2f} mm; mean |e| x,y,z " + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
+        + " mm; max |e| " + ", ".join(f"{v:.2f}" for v in reg.max_abs_err_mm) + " mm",
+        "std (1 sigma, base axes): rotation " + ", ".join(f"{v:.3g}" for v in reg.std_rot_deg)
+        + " deg; t " + ", ".join(f"{v:.3g}" for v in reg.std_t_mm) + " mm",
+    ], "match")

@@ -21,13 +21,19 @@ __all__ = ["check_document", "load_json", "load_yaml", "parse_json", "parse_yaml
 _LONG_INT = re.compile(r"(?<![\w.])[-+]?\d{%d,}(?![\w.])")
 
 
-def check_document(data, source: str, *, error=InputFileError) -> None:
+def check_document(data, source: str, *, error=InputFileError, max_nodes: int | None = None) -> None:
     """Raise ``error`` if ``data`` nests deeper than the limit or holds a non-finite number or an
-    integer longer than the limit (walks the tree iteratively)."""
+    integer longer than the limit (walks the tree iteratively); with ``max_nodes``, also if the tree
+    holds more values than that (YAML aliases expanding a small text into a huge tree)."""
     lim = get_limits()
     stack = [(data, 1, "")]
+    seen = 0
     while stack:
         node, depth, where = stack.pop()
+        seen += 1
+        if max_nodes is not None and seen > max_nodes:
+            raise error(f"{source}: expands to more than {max_nodes:,} values (YAML aliases); expected a plain "
+                        "document")
         if isinstance(node, dict):
             items = node.items()
         elif isinstance(node, (list, tuple)):
@@ -69,7 +75,9 @@ def parse_yaml(text: str, source: str, *, error=InputFileError):
     except RecursionError:
         raise error(f"{source}: nested more than {get_limits().nesting} levels deep; "
                     "expected a flat configuration") from None
-    check_document(data, source, error=error)
+    # Without aliases every value takes at least one character of the text: a larger tree is an
+    # alias bomb ("billion laughs"), refused before anything walks or validates it.
+    check_document(data, source, error=error, max_nodes=2 * len(text) + 64)
     return data
 
 

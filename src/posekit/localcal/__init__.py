@@ -54,7 +54,6 @@ from .sim.camera import (
     ARUCO_DICTIONARY,
     ZED2_720P_DISTORTION,
     CameraIntrinsics,
-    MarkerDetector,
     marker_corners,
     render_markers,
     zed2_720p,
@@ -76,6 +75,7 @@ from .sim.experiments import (
     run_experiment,
     table_columns,
 )
+from .sim.marker_detector import MarkerDetector
 from .sim.scene import (
     GroundTruth,
     Observation,

@@ -15,6 +15,7 @@ __all__ = [
     "MIN_POSES",
     "body_rotation_spread",
     "check_path_shape",
+    "robust_inliers",
     "robust_principal_axes",
     "robust_umeyama",
     "thin_indices",
@@ -35,6 +36,22 @@ LINE_RATIO = 0.01
 _AXES_MAX_POINTS = 50_000
 #: A path whose first principal extent (std) is below this, mm, does not move.
 STILL_MM = 1e-3
+
+
+def robust_inliers(dist):
+    """Residuals within ``INLIER_SIGMAS`` robust sigmas (median / chi-3 median) of zero.
+
+    Parameters
+    ----------
+    dist : ndarray, shape (N,)
+        3D residual lengths, mm.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+        True where ``dist <= INLIER_SIGMAS * max(median(dist) / 1.5382, 1e-9)``.
+    """
+    return dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
 
 
 def umeyama(src, dst, *, weights=None, with_scale: bool = False):

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from posekit.geometry import nearest_rotation
-from posekit.localcal.registration.alignment import _CHI3_MEDIAN, INLIER_SIGMAS, thin_indices
+from posekit.localcal.registration.alignment import robust_inliers, thin_indices
 from posekit.localcal.registration.cpd import KAPPA_MAX, rigid_cpd
 
 __all__ = ["hybrid_refine"]
@@ -88,7 +88,7 @@ def hybrid_refine(p_src, R_src, p_dst, R_dst, coarse, *, w: float = 0.05, with_s
         q = np.hstack([s * p_src @ R.T + t, c * (R @ R_src @ X).reshape(len(p_src), 9)])
         _, j = tree.query(q)
         d = np.linalg.norm(p_dst[j] - (s * p_src @ R.T + t), axis=1)
-        inl = d <= INLIER_SIGMAS * max(np.median(d) / _CHI3_MEDIAN, 1e-9)
+        inl = robust_inliers(d)
         if inl.sum() < 3:
             break
         wts = inl.astype(float)
@@ -103,5 +103,5 @@ def hybrid_refine(p_src, R_src, p_dst, R_dst, coarse, *, w: float = 0.05, with_s
         if step < 1e-4:
             break
     d = np.linalg.norm(p_dst[j] - (s * p_src @ R.T + t), axis=1)
-    inl = d <= INLIER_SIGMAS * max(np.median(d) / _CHI3_MEDIAN, 1e-9)
+    inl = robust_inliers(d)
     return R, t, s, inl, j

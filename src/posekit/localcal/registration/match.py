@@ -37,11 +37,10 @@ from scipy.spatial.transform import Rotation
 from posekit.errors import ConfigError, TrajectoryError
 from posekit.geometry import nearest_rotation, rotation_angle_between
 from posekit.localcal.registration.alignment import (
-    _CHI3_MEDIAN,
-    INLIER_SIGMAS,
     MIN_POSES,
     body_rotation_spread,
     check_path_shape,
+    robust_inliers,
     robust_umeyama,
     thin_indices,
     umeyama,
@@ -329,7 +328,7 @@ def _polish(ps, tree, pd, R, t, s, with_scale, max_iter=POLISH_ITERS):
     """
     for _ in range(max_iter):
         dist, j = tree.query(s * ps @ R.T + t)
-        inl = dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+        inl = robust_inliers(dist)
         if inl.sum() < 3:
             break
         R_new, t_new, s_new = umeyama(ps[inl], pd[j[inl]], with_scale=with_scale)
@@ -338,7 +337,7 @@ def _polish(ps, tree, pd, R, t, s, with_scale, max_iter=POLISH_ITERS):
         if step < 1e-4:
             break
     dist, j = tree.query(s * ps @ R.T + t)
-    inl = dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+    inl = robust_inliers(dist)
     return R, t, s, inl, j
 
 
@@ -372,7 +371,7 @@ def _line_refine(ps, tree, pd, tangents, R, t, s, inl, j, max_iter=LINE_ITERS):
         R = Rotation.from_rotvec(x[:3]).as_matrix() @ R
         t = t + x[3:]
         dist, j = tree.query(s * ps @ R.T + t)
-        inl = dist <= INLIER_SIGMAS * max(np.median(dist) / _CHI3_MEDIAN, 1e-9)
+        inl = robust_inliers(dist)
         if np.linalg.norm(x[:3]) < 1e-6 and np.linalg.norm(x[3:]) < 1e-4:
             break
     return R, t, inl, j

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.errors import InputFileError, TrajectoryError
-from posekit.geometry import matrix_from_quaternion, quaternion_from_matrix
+from posekit.geometry import quaternion_from_matrix, transform_from_quaternion
 from posekit.io import read_text
 
 __all__ = ["Trajectory", "read_tum", "write_tum"]
@@ -65,6 +65,11 @@ class Trajectory:
         return self.T[:, :3, :3]
 
 
+#: Largest position a trajectory file may hold, m (as the other formats' readers: beyond it the
+#: numbers are not metres, and squaring them overflows).
+MAX_POSITION_M = 1e9
+
+
 def _fail(path, line: int, what: str) -> InputFileError:
     return InputFileError(f"{path}:{line}: {what}")
 
@@ -86,8 +91,9 @@ def read_tum(path) -> Trajectory:
     ------
     InputFileError
         If the file is missing or unreadable, has no pose, or a row is malformed: not 8 numbers,
-        a NaN or infinite value, a quaternion whose norm is not 1, or a timestamp earlier than the
-        previous one. The message names ``file:line``.
+        a NaN or infinite value, a quaternion whose norm is not 1, a position beyond
+        :data:`MAX_POSITION_M`, or a timestamp earlier than the previous one. The message names
+        ``file:line``.
     """
     path = Path(path)
     text = read_text(path, expected="a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)")
@@ -125,16 +131,16 @@ def read_tum(path) -> Trajectory:
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         raise _fail(path, lines[k], f"expected a unit quaternion qx qy qz qw, found norm {norm[k]:.4g}")
+    big = np.abs(a[:, 1:4]).max(axis=1) > MAX_POSITION_M
+    if big.any():
+        k = int(np.flatnonzero(big)[0])
+        raise _fail(path, lines[k], f"position {np.abs(a[k, 1:4]).max():.3g} m is implausible; expected metres")
     back = np.diff(a[:, 0]) < 0
     if back.any():
         k = int(np.flatnonzero(back)[0]) + 1
         raise _fail(path, lines[k], f"timestamps must not decrease: {a[k, 0]:.6f} s after "
                                     f"{a[k - 1, 0]:.6f} s (line {lines[k - 1]})")
-    T = np.zeros((a.shape[0], 4, 4))
-    T[:, :3, :3] = matrix_from_quaternion(a[:, [7, 4, 5, 6]])
-    T[:, :3, 3] = a[:, 1:4] * 1000.0
-    T[:, 3, 3] = 1.0
-    return Trajectory(a[:, 0], T)
+    return Trajectory(a[:, 0], transform_from_quaternion(a[:, [7, 4, 5, 6]], a[:, 1:4] * 1000.0))
 
 
 def _read_tum_fast(text: str):
@@ -156,13 +162,9 @@ def _read_tum_fast(text: str):
     if a.ndim != 2 or a.shape[0] == 0 or a.shape[1] != 8 or not np.isfinite(a).all():
         return None
     if (np.any(np.abs(np.linalg.norm(a[:, 4:8], axis=1) - 1.0) > QUATERNION_NORM_TOL)
-            or np.any(np.diff(a[:, 0]) < 0)):
+            or np.any(np.diff(a[:, 0]) < 0) or np.any(np.abs(a[:, 1:4]) > MAX_POSITION_M)):
         return None
-    T = np.zeros((a.shape[0], 4, 4))
-    T[:, :3, :3] = matrix_from_quaternion(a[:, [7, 4, 5, 6]])
-    T[:, :3, 3] = a[:, 1:4] * 1000.0
-    T[:, 3, 3] = 1.0
-    return Trajectory(a[:, 0], T)
+    return Trajectory(a[:, 0], transform_from_quaternion(a[:, [7, 4, 5, 6]], a[:, 1:4] * 1000.0))
 
 
 def _is_float(text: str) -> bool:

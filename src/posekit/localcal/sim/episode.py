@@ -316,7 +316,8 @@ def _positions(obs_list, attr):
 
 def _setup(seed, config):
     from posekit.localcal.sim.arm import LongReachArm, sample_nonkinematic_errors
-    from posekit.localcal.sim.camera import MarkerDetector, zed2_720p
+    from posekit.localcal.sim.camera import zed2_720p
+    from posekit.localcal.sim.marker_detector import MarkerDetector
     from posekit.localcal.sim.scene import default_workcell
 
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)

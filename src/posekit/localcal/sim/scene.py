@@ -45,7 +45,8 @@ from posekit.geometry import (
     matrix_from_rotation_vector,
     rotation_vector_from_matrix,
 )
-from posekit.localcal.sim.camera import MarkerDetector, _one_transform, marker_corners, render_markers
+from posekit.localcal.sim.camera import _one_transform, marker_corners, render_markers
+from posekit.localcal.sim.marker_detector import MarkerDetector
 
 cv2 = lazy("cv2", "vision", "the localcal camera simulator")
 

@@ -4,9 +4,9 @@ metres and ``[w, x, y, z]`` quaternions into a millimetre :class:`Trajectory`.""
 import numpy as np
 
 from posekit.errors import InputFileError
-from posekit.geometry import matrix_from_quaternion
+from posekit.geometry import transform_from_quaternion
 
-from ..tum import QUATERNION_NORM_TOL, Trajectory
+from ..tum import QUATERNION_NORM_TOL, Trajectory, _is_float
 
 __all__ = ["parse_numbers", "trajectory_from_rows"]
 
@@ -60,14 +60,6 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
     return np.asarray(rows, dtype=np.float64), np.asarray(lines)
 
 
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def trajectory_from_rows(path, t_s, p_m, q_wxyz, records: list[str] | np.ndarray, *,
                          check_order: bool = True) -> Trajectory:
     """A :class:`Trajectory` (mm) from timestamps, positions in metres and quaternions.
@@ -118,8 +110,4 @@ def trajectory_from_rows(path, t_s, p_m, q_wxyz, records: list[str] | np.ndarray
         if back.any():
             k = int(np.flatnonzero(back)[0]) + 1
             raise fail(k, f"timestamps must not decrease: {t_s[k]:.6f} s after {t_s[k - 1]:.6f} s")
-    T = np.zeros((t_s.size, 4, 4))
-    T[:, :3, :3] = matrix_from_quaternion(q)
-    T[:, :3, 3] = p_m * 1000.0
-    T[:, 3, 3] = 1.0
-    return Trajectory(t_s, T)
+    return Trajectory(t_s, transform_from_quaternion(q, p_m * 1000.0))

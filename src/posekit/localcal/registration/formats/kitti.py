@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.errors import InputFileError, TrajectoryError
-from posekit.geometry import nearest_rotation
+from posekit.geometry import nearest_rotation, transform_from
 from posekit.io import read_text
 
 from ..tum import Trajectory
@@ -41,8 +41,8 @@ def read_kitti(path, rate_hz: float, *, t0_s: float = 0.0) -> Trajectory:
     Raises
     ------
     InputFileError
-        ``FILE:LINE:`` for a row that is not 12 finite numbers or whose rotation is not
-        orthonormal with determinant +1 (within :data:`ROTATION_TOL`).
+        ``FILE:LINE:`` for a row that is not 12 finite numbers, whose position is beyond 1e9 m,
+        or whose rotation is not orthonormal with determinant +1 (within :data:`ROTATION_TOL`).
     TrajectoryError
         If ``rate_hz`` is missing, not finite or not positive.
     """
@@ -58,6 +58,11 @@ def read_kitti(path, rate_hz: float, *, t0_s: float = 0.0) -> Trajectory:
         k = int(np.flatnonzero(bad)[0])
         raise InputFileError(f"{path}:{lines[k]}: expected finite numbers, found NaN or infinity")
     M = rows.reshape(-1, 3, 4)
+    big = np.abs(M[:, :, 3]).max(axis=1) > 1e9
+    if big.any():
+        k = int(np.flatnonzero(big)[0])
+        raise InputFileError(f"{path}:{lines[k]}: position {np.abs(M[k, :, 3]).max():.3g} m is implausible; "
+                             "expected metres")
     R = M[:, :, :3]
     err = np.abs(np.swapaxes(R, 1, 2) @ R - np.eye(3)).max(axis=(1, 2))
     det = np.linalg.det(R)
@@ -66,10 +71,7 @@ def read_kitti(path, rate_hz: float, *, t0_s: float = 0.0) -> Trajectory:
         k = int(np.flatnonzero(bad)[0])
         raise InputFileError(f"{path}:{lines[k]}: expected a rotation matrix in columns 1-3, 5-7, 9-11, "
                              f"found max |R^T R - I| = {err[k]:.3g}, det {det[k]:.4g}")
-    T = np.zeros((M.shape[0], 4, 4))
-    T[:, :3, :3] = nearest_rotation(R)
-    T[:, :3, 3] = M[:, :, 3] * 1000.0
-    T[:, 3, 3] = 1.0
+    T = transform_from(nearest_rotation(R), M[:, :, 3] * 1000.0, check=False)
     return Trajectory(t0_s + np.arange(M.shape[0]) / float(rate_hz), T)
 
 

@@ -60,6 +60,13 @@ def _check_path(path: Path) -> None:
         raise InputFileError(f"{path}: no such file or folder; expected {_EXPECTED}")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise InputFileError(f"{path}: a folder without metadata.yaml; expected {_EXPECTED}")
+    if path.is_dir():          # size, encoding and YAML structure checked here, before rosbags parses it
+        from posekit.io import load_yaml
+        meta = path / "metadata.yaml"
+        doc = load_yaml(meta, expected="the metadata of a ROS 2 bag folder")
+        if not isinstance(doc, dict) or not isinstance(doc.get("rosbag2_bagfile_information"), dict):
+            raise InputFileError(f"{meta}: no 'rosbag2_bagfile_information' mapping; expected the metadata of a "
+                                 "ROS 2 bag folder")
     if path.is_file() and path.suffix.lower() not in BAG_SUFFIXES:
         raise InputFileError(f"{path}: suffix '{path.suffix}' is not a bag; expected {_EXPECTED}")
 
