@@ -105,9 +105,11 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
 
     import posekit.ceiling.detect as detect
     import posekit.localcal.sim.camera as camera
+    import posekit.localcal.sim.marker_detector as marker_detector
 
     importlib.reload(detect)  # the module-level name is a lazy stand-in: importing works
     importlib.reload(camera)
+    importlib.reload(marker_detector)  # it holds camera's CameraIntrinsics class: the reloaded one
     try:
         cal = tmp_path / "cal.json"
         cal.write_text('{"H_image_world": [[1,0,0],[0,1,0],[0,0,1]], "H_world_image": [[1,0,0],[0,1,0],[0,0,1]], '
@@ -124,3 +126,4 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
         monkeypatch.undo()
         importlib.reload(detect)
         importlib.reload(camera)
+        importlib.reload(marker_detector)
