@@ -16,10 +16,10 @@ from posekit.geometry import se3_exp
 from posekit.seam.frontend.plots import (
     particle_histogram,
     plot_error_distributions,
-    plot_errors_over_time,
     plot_particle_density,
     plot_pvalue_heatmap,
-    plot_trajectories,
+    plot_tool_paths,
+    plot_tracking_errors,
     positions_in_frame,
 )
 from posekit.seam.frontend.report import (
@@ -96,9 +96,9 @@ def test_fig8_bad_groups_and_fig6_heatmap_png(tmp_path):
     with pytest.raises(ConfigError, match="group 'bad' must be \\(M, 6\\), got \\(3, 5\\)"):
         plot_error_distributions({"bad": np.zeros((3, 5))}, tmp_path / "x.png")
     with pytest.raises(ConfigError, match="'xy' must be \\(T, 3\\) positions, got \\(4, 2\\)"):
-        plot_trajectories({"xy": np.zeros((4, 2))}, tmp_path / "x.png")
+        plot_tool_paths({"xy": np.zeros((4, 2))}, tmp_path / "x.png")
     with pytest.raises(ConfigError, match=r"expected two \(R, T, 6\) error arrays, got \(2, 5, 6\) and \(2, 4, 6\)"):
-        plot_errors_over_time(np.zeros((2, 5, 6)), np.zeros((2, 4, 6)), tmp_path / "x.png")
+        plot_tracking_errors(np.zeros((2, 5, 6)), np.zeros((2, 4, 6)), tmp_path / "x.png")
     lp = -np.abs(rng.standard_normal((6, 5))) * 3
     check_png(plot_pvalue_heatmap(lp, list("abcde"), ["x", "y", "z", "rx", "ry", "rz"], tmp_path / "fig6.png"),
               (700, 580), min_bytes=10_000)
@@ -113,7 +113,8 @@ def _episode(rng, T=12):
     return SimpleNamespace(t_s=0.01 * np.arange(T), truth=truth, estimate=est, nominal=truth.copy(),
                            error=rng.standard_normal((T, 6)), kinematic_error=rng.standard_normal((T, 6)),
                            spread=np.abs(rng.standard_normal((T, 6))), ess=rng.random(T) * 100,
-                           step_ms=rng.random(T))
+                           step_ms=rng.random(T), status=np.array(["tracking"] * (T - 2) + ["degraded", "lost"]),
+                           resampled=rng.random(T) < 0.5, config=SimpleNamespace(filter=SimpleNamespace(particles=100)))
 
 
 def test_estimates_csv_round_trip(tmp_path):
@@ -173,7 +174,7 @@ def test_simulation_report_with_comparison(tmp_path):
             sets.append(ConfigurationSet(label, traj, n, None, res, metrics(res[0].error)))
     main = sets[2]
     paths = write_simulation(tmp_path, main.results, main.metrics, "seed: 0\n", comparison=sets)
-    assert set(paths) == {"metrics", "estimates", "config", "fig8", "fig9", "errors", "report"}   # no particles
+    assert set(paths) == {"metrics", "estimates", "config", "fig8", "fig9", "errors", "ess", "report"}   # no particles
     import json
     m = json.loads(paths["metrics"].read_text())
     assert list(m["comparison"]) == [s.label for s in sets]
@@ -182,5 +183,5 @@ def test_simulation_report_with_comparison(tmp_path):
     check_png(paths["fig9"], (800, 700), min_bytes=10_000)
     check_png(paths["errors"], (1100, 800))
     text = paths["report"].read_text()
-    assert text.count('src="data:image/png;base64,') == 3
+    assert text.count('src="data:image/png;base64,') == 4
     assert "<td>yz, 2 sensors</td>" in text and "seed: 0" in text

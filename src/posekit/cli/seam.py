@@ -1,4 +1,4 @@
-"""``posekit seam simulate|study|demo``."""
+"""``posekit seam simulate|study|demo|track|design``."""
 
 __all__ = ["add_parser"]
 
@@ -13,3 +13,7 @@ def add_parser(sub):
     add_simulate_parser(verbs)
     add_study_parser(verbs)
     add_demo_parser(verbs)
+    from .seam_design import add_design_parser
+    from .seam_track import add_track_parser
+    add_track_parser(verbs)
+    add_design_parser(verbs)

@@ -65,8 +65,8 @@ def _episode_flags(p):
     p.add_argument("--config", default=None, help="YAML configuration (every parameter; see examples/seam/)")
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="seam/trajectory kind (overrides trajectory.kind)")
-    p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None,
-                   help="laser sensors ahead of the tool (overrides sensors.count)")
+    p.add_argument("--sensors", type=int, choices=(0, 1, 2, 3, 4), default=None,
+                   help="laser sensors ahead of the tool, 0..4 (overrides sensors.count)")
     p.add_argument("--particles", type=_PARTICLES, default=None,
                    help=f"particle count, 1..{MAX_PARTICLES} (overrides filter.particles)")
     p.add_argument("--steps", type=_STEPS, default=None,
@@ -86,6 +86,9 @@ def add_simulate_parser(verbs):
     p.add_argument("--record-particles", type=bounded_int(0, 10_000), default=None,
                    help=f"particles recorded per step in run 0 for Fig. 5, 0..10000 and steps × this at most "
                         f"{MAX_RECORDED:,} (default {RECORD_DEFAULT}, fewer on a long episode; 0: no Fig. 5)")
+    p.add_argument("--save-log", default=None, metavar="DIR",
+                   help="also write run 0 as a recorded episode (setup.yaml, seam.csv, log.csv, truth.csv) "
+                        "for `posekit seam track`")
     p.add_argument("--dump-config", action="store_true", help="print the effective configuration and exit")
     p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
     add_overwrite(p)
@@ -169,6 +172,12 @@ def run_simulate(args) -> int:
     _check_kept(args.runs, cfg.trajectory.steps, 6 if args.compare else 1)
     record = _record_count(args, cfg.trajectory.steps)
     out_folder(args)
+    if args.save_log:
+        from ..io import check_out_folder
+
+        if str(args.save_log) == str(args.out):
+            raise ConfigError("--save-log: expected a folder other than --out")
+        check_out_folder(args.save_log, overwrite=args.overwrite, flag="--save-log")
     from ..seam.frontend.compare import compare_configurations, run_episodes
     from ..seam.frontend.report import write_simulation
     from ..seam.frontend.simulate import metrics
@@ -180,6 +189,14 @@ def run_simulate(args) -> int:
                   if args.compare else None)
     with staged(args) as tmp:
         paths = write_simulation(tmp, results, m, dump_config(cfg), comparison=comparison)
+    if args.save_log:
+        from ..io import staged_folder
+        from ..seam.frontend.log import write_episode_log
+        from ..seam.frontend.simulate import simulate_data
+
+        seed0 = results[0].seed
+        with staged_folder(args.save_log, overwrite=args.overwrite, flag="--save-log") as tmp:
+            write_episode_log(tmp, cfg, simulate_data(cfg, seed0), seed0)
     count = cfg.sensors.count
     label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"
     rows = [(label, _rmse_values(m))]
@@ -191,7 +208,11 @@ def run_simulate(args) -> int:
           f"filter step median {m['step_ms_median']:.3f} ms")
     print("RMSE per axis in the seam frame (mm, deg):")
     print(rmse_table(rows))
+    if "status_counts" in m:
+        print("status: " + ", ".join(f"{k} {v}" for k, v in m["status_counts"].items()))
     print(f"wrote {args.out}: {', '.join(p.name for p in paths.values())}")
+    if args.save_log:
+        print(f"wrote {args.save_log}: setup.yaml, seam.csv, log.csv, truth.csv (run 0, seed {results[0].seed})")
     return 0
 
 

@@ -4,8 +4,8 @@ import math
 import sys
 
 from ..errors import ConfigError
-from ._common import add_overwrite
-from ._flags import bounded_float, bounded_int, check_flags, seed, workers
+from ._common import add_dask_args, add_overwrite, check_dask_args
+from ._flags import bounded_float, bounded_int, check_flags, seed
 
 #: Most random parameter draws, most episodes per draw, and most episodes in all (a study of
 #: 100,000 default episodes takes about a day on 2 cores: more belongs on a cluster, in parts).
@@ -23,7 +23,7 @@ def add_study_parser(verbs):
 
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="overrides trajectory.kind")
-    p.add_argument("--sensors", type=int, choices=(0, 1, 2), default=None, help="overrides sensors.count")
+    p.add_argument("--sensors", type=int, choices=(0, 1, 2, 3, 4), default=None, help="overrides sensors.count, 0..4")
     from .seam_simulate import _PARTICLES, _STEPS, MAX_PARTICLES, MAX_STEPS
 
     p.add_argument("--particles", type=_PARTICLES, default=None,
@@ -40,10 +40,7 @@ def add_study_parser(verbs):
     p.add_argument("--spread", type=bounded_float(0.0, 1.0, lo_open=True, hi_open=True), default=0.5,
                    help="relative half-range of a perturbation around the base value, (0, 1) (default 0.5)")
     p.add_argument("--seed", type=seed, default=0, help="study seed (default 0; same seed, same table)")
-    p.add_argument("--scheduler", default=None,
-                   help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
-    p.add_argument("--workers", type=workers, default=None,
-                   help="worker processes of the local cluster, 1..256 (default: one per core)")
+    add_dask_args(p)
     p.add_argument("--out", required=True, help="output folder")
     add_overwrite(p)
     p.set_defaults(func=run_study)
@@ -79,8 +76,7 @@ def run_study(args) -> int:
     from ._common import out_folder, staged
     from .seam_simulate import build_config
 
-    if args.workers is not None and args.scheduler is not None:
-        raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+    check_dask_args(args)
     for flag, v in (("--runs", args.runs), ("--episodes", args.episodes)):
         if v < 1:
             raise ConfigError(f"{flag}: expected an integer >= 1, got {v}")

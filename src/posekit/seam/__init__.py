@@ -6,7 +6,9 @@ path (:mod:`.trend`), the laser-plane/seam intersection (:mod:`.seamline`), the 
 filter (:mod:`.filter`), seams and robot programs (:mod:`.trajectories`) and simulated
 episodes with their metrics (:mod:`.simulate`). Front end: figures (:mod:`.plots`),
 report files (:mod:`.report`), sensor-configuration comparisons (:mod:`.compare`) and the
-Monte-Carlo tuning study (:mod:`.study`).
+Monte-Carlo tuning study (:mod:`.study`), recorded episodes (:mod:`.log`), the online tracker
+(:mod:`.tracker`: :class:`SeamTracker`, ``posekit seam track``) and the sensor-placement design
+(:mod:`.design`, ``posekit seam design``).
 
 Frames and units: mm and rad inside; ``T_base_tool`` poses of the TCP in the robot base frame;
 the tool's y axis points along the travel, z along the tool axis; errors are reported in the
@@ -56,16 +58,19 @@ from .frontend.simulate import (
     AXES,
     EpisodeResult,
     SimulatedData,
+    measurement_hypotheses,
     metrics,
     pose_coords,
-    pose_errors,
     run_episode,
+    seam_frame_errors,
     seam_knots,
     simulate_data,
 )
 from .frontend.trajectories import (
     NominalTrajectory,
     nominal_trajectory,
+    program_rotations_T0,
+    seam_headings_T0,
     seam_points_T0,
 )
 
@@ -103,12 +108,15 @@ __all__ = [
     "laser_loglik",
     "load_config",
     "metrics",
+    "measurement_hypotheses",
     "nominal_trajectory",
+    "program_rotations_T0",
+    "seam_headings_T0",
     "normalize_log_weights",
     "plateau_logpdf",
     "plateau_pdf_1d",
     "pose_coords",
-    "pose_errors",
+    "seam_frame_errors",
     "resample",
     "residual_resample",
     "robot_loglik",
@@ -135,14 +143,27 @@ from .frontend.compare import (
     run_episodes,
     with_sensors,
 )
+from .frontend.design import (
+    RANKING_COLUMNS,
+    DesignConfiguration,
+    SensorDesign,
+    design_configurations,
+    distance_grid,
+    sensor_design,
+    write_design,
+)
+from .frontend.log import EpisodeLog, LogSetup, log_columns, read_episode_log, write_episode_log
 from .frontend.plots import (
     AXIS_LABELS,
     particle_histogram,
+    plot_design_ranking,
     plot_error_distributions,
-    plot_errors_over_time,
+    plot_ess,
+    plot_measurement_hypotheses,
     plot_particle_density,
     plot_pvalue_heatmap,
-    plot_trajectories,
+    plot_tool_paths,
+    plot_tracking_errors,
     positions_in_frame,
 )
 from .frontend.report import (
@@ -166,6 +187,7 @@ from .frontend.study import (
     Factor,
     ParameterEffects,
     SeamStudy,
+    factor_value,
     fit_parameter_effects,
     get_dotted,
     make_factors,
@@ -175,8 +197,33 @@ from .frontend.study import (
     study_task,
     write_study,
 )
+from .frontend.tracker import SeamTracker, SeamTrackResult, TrackEstimate, track_log, track_metrics, write_track
 
 __all__ += [
+    # recorded episodes and the online tracker (issue 15)
+    "EpisodeLog",
+    "LogSetup",
+    "SeamTracker",
+    "TrackEstimate",
+    "SeamTrackResult",
+    "log_columns",
+    "read_episode_log",
+    "track_log",
+    "track_metrics",
+    "write_episode_log",
+    "write_track",
+    # sensor-placement design
+    "RANKING_COLUMNS",
+    "DesignConfiguration",
+    "SensorDesign",
+    "design_configurations",
+    "distance_grid",
+    "sensor_design",
+    "write_design",
+    "plot_design_ranking",
+    "plot_ess",
+    "plot_measurement_hypotheses",
+    "factor_value",
     # plots
     "AXIS_LABELS",
     # study (Fig. 6)
@@ -204,10 +251,10 @@ __all__ += [
     "make_factors",
     "particle_histogram",
     "plot_error_distributions",
-    "plot_errors_over_time",
+    "plot_tracking_errors",
     "plot_particle_density",
     "plot_pvalue_heatmap",
-    "plot_trajectories",
+    "plot_tool_paths",
     "positions_in_frame",
     "rank_parameters",
     "read_estimates_csv",

@@ -16,13 +16,17 @@ import numpy as np
 from posekit.geometry import rotvec_from_entries
 
 __all__ = [
+    "bound_kernel",
     "cloud_kernel",
     "inv_det3",
     "kernel_move",
+    "laser_error_kernel",
     "laser_loglik_kernel",
     "mean_spread_kernel",
     "propagate",
+    "robot_consistency_kernel",
     "robot_loglik_kernel",
+    "weighted_moments_kernel",
     "window_kernel",
 ]
 
@@ -114,68 +118,119 @@ def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, A_r, d_t, d_r, logD, out):
         out[i] += logD - 0.5 * (mt + _plateau_maha(ax, ay, az, d_r, Sinv_r))
 
 
+@nb.njit(cache=True, inline="always")
+def _plane_error(T, i, mx, mz, M, P, lo, hi):
+    """In-plane error ``(found, ex_S, ez_S)`` of particle ``i`` for one laser reading ``(mx, mz)``.
+
+    THE SENSOR POSE ENTERS HERE (and only here): ``M (4, 4)`` is ``T_tool_sensor`` (mm), the
+    laser plane being the sensor's x–z plane. The sensor frame of particle ``i`` is
+    ``T_i M``: ``R_S = R_i M_R``, origin ``p_i + R_i M_t``; ``m̂ = origin + R_S [mx, 0, mz]``;
+    the plane's normal is ``R_S[:, 1]``; ``pi`` its crossing with the polyline ``P[lo..hi]``
+    (bisection when the range's ends lie on opposite sides, else the crossing nearest ``m̂``
+    by a scan); the error ``m̂ - pi`` is returned in the sensor's x and z axes. No crossing:
+    ``found`` False.
+    """
+    # sensor axes x_S, y_S (normal), z_S and the seam point m-hat the particle believes it saw
+    sx0 = T[i, 0, 0] * M[0, 0] + T[i, 0, 1] * M[1, 0] + T[i, 0, 2] * M[2, 0]
+    sx1 = T[i, 1, 0] * M[0, 0] + T[i, 1, 1] * M[1, 0] + T[i, 1, 2] * M[2, 0]
+    sx2 = T[i, 2, 0] * M[0, 0] + T[i, 2, 1] * M[1, 0] + T[i, 2, 2] * M[2, 0]
+    nx = T[i, 0, 0] * M[0, 1] + T[i, 0, 1] * M[1, 1] + T[i, 0, 2] * M[2, 1]
+    ny = T[i, 1, 0] * M[0, 1] + T[i, 1, 1] * M[1, 1] + T[i, 1, 2] * M[2, 1]
+    nz = T[i, 2, 0] * M[0, 1] + T[i, 2, 1] * M[1, 1] + T[i, 2, 2] * M[2, 1]
+    sz0 = T[i, 0, 0] * M[0, 2] + T[i, 0, 1] * M[1, 2] + T[i, 0, 2] * M[2, 2]
+    sz1 = T[i, 1, 0] * M[0, 2] + T[i, 1, 1] * M[1, 2] + T[i, 1, 2] * M[2, 2]
+    sz2 = T[i, 2, 0] * M[0, 2] + T[i, 2, 1] * M[1, 2] + T[i, 2, 2] * M[2, 2]
+    ox = T[i, 0, 3] + T[i, 0, 0] * M[0, 3] + T[i, 0, 1] * M[1, 3] + T[i, 0, 2] * M[2, 3] + sx0 * mx + sz0 * mz
+    oy = T[i, 1, 3] + T[i, 1, 0] * M[0, 3] + T[i, 1, 1] * M[1, 3] + T[i, 1, 2] * M[2, 3] + sx1 * mx + sz1 * mz
+    oz = T[i, 2, 3] + T[i, 2, 0] * M[0, 3] + T[i, 2, 1] * M[1, 3] + T[i, 2, 2] * M[2, 3] + sx2 * mx + sz2 * mz
+    best = math.inf
+    bx = 0.0
+    bz = 0.0
+    s_lo = nx * (P[lo, 0] - ox) + ny * (P[lo, 1] - oy) + nz * (P[lo, 2] - oz)
+    s_hi = nx * (P[hi, 0] - ox) + ny * (P[hi, 1] - oy) + nz * (P[hi, 2] - oz)
+    if s_lo < 0.0 < s_hi or s_hi < 0.0 < s_lo:
+        # one sign change between the ends: bisect to a crossing segment (the seam
+        # advances through the plane; a fold-back within the window is not searched)
+        a, b, sa = lo, hi, s_lo
+        while b - a > 1:
+            m = (a + b) // 2
+            sm = nx * (P[m, 0] - ox) + ny * (P[m, 1] - oy) + nz * (P[m, 2] - oz)
+            if (sm < 0.0) == (sa < 0.0):
+                a, sa = m, sm
+            else:
+                b = m
+        k0, k1 = a, b
+        sb = nx * (P[k1, 0] - ox) + ny * (P[k1, 1] - oy) + nz * (P[k1, 2] - oz)
+        g = sa / (sa - sb)
+        ex = ox - (P[k0, 0] + g * (P[k1, 0] - P[k0, 0]))
+        ey = oy - (P[k0, 1] + g * (P[k1, 1] - P[k0, 1]))
+        ez = oz - (P[k0, 2] + g * (P[k1, 2] - P[k0, 2]))
+        best = 0.0
+        bx = ex * sx0 + ey * sx1 + ez * sx2
+        bz = ex * sz0 + ey * sz1 + ez * sz2
+    else:
+        # no or several crossings: scan every segment, keep the crossing nearest m-hat
+        s_prev = s_lo
+        for k in range(lo + 1, hi + 1):
+            s = nx * (P[k, 0] - ox) + ny * (P[k, 1] - oy) + nz * (P[k, 2] - oz)
+            if s_prev * s <= 0.0 and s != s_prev:
+                g = s_prev / (s_prev - s)
+                ex = ox - (P[k - 1, 0] + g * (P[k, 0] - P[k - 1, 0]))
+                ey = oy - (P[k - 1, 1] + g * (P[k, 1] - P[k - 1, 1]))
+                ez = oz - (P[k - 1, 2] + g * (P[k, 2] - P[k - 1, 2]))
+                d2 = ex * ex + ey * ey + ez * ez
+                if d2 < best:
+                    best = d2
+                    bx = ex * sx0 + ey * sx1 + ez * sx2
+                    bz = ex * sz0 + ey * sz1 + ez * sz2
+            s_prev = s
+    return best < math.inf, bx, bz
+
+
 @nb.njit(cache=True, boundscheck=False)
 def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
     """Eq. (9) for one sensor: ``out_i += log N(e; 0, σ² I₂)``, ``e = m̂ - pi`` in the laser plane.
 
+    The sensor sits ``dist`` ahead of the TCP along tool y, axes parallel to the tool's
+    (``T_tool_sensor`` = translation ``[0, dist, 0]``; any mount: :func:`laser_error_kernel`).
     ``m̂ = p_i + R_i [mx, dist, mz]``; the plane has normal ``R_i[:, 1]``; ``pi`` is its
-    crossing with the polyline ``P[lo..hi]`` (knots, mm): found by bisection when the ends of
-    the range lie on opposite sides of the plane, else the crossing nearest ``m̂`` by a scan.
+    crossing with the polyline ``P[lo..hi]`` (knots, mm), see :func:`_plane_error`.
     No crossing: error ``miss`` (mm).
     """
     n = T.shape[0]
     inv = 0.5 / (sigma * sigma)
     const = -math.log(2.0 * math.pi * sigma * sigma)
+    M = np.eye(4)
+    M[1, 3] = dist
     for i in range(n):
-        ox = T[i, 0, 3] + T[i, 0, 0] * mx + T[i, 0, 1] * dist + T[i, 0, 2] * mz
-        oy = T[i, 1, 3] + T[i, 1, 0] * mx + T[i, 1, 1] * dist + T[i, 1, 2] * mz
-        oz = T[i, 2, 3] + T[i, 2, 0] * mx + T[i, 2, 1] * dist + T[i, 2, 2] * mz
-        nx, ny, nz = T[i, 0, 1], T[i, 1, 1], T[i, 2, 1]
-        best = math.inf
-        bx = 0.0
-        bz = 0.0
-        s_lo = nx * (P[lo, 0] - ox) + ny * (P[lo, 1] - oy) + nz * (P[lo, 2] - oz)
-        s_hi = nx * (P[hi, 0] - ox) + ny * (P[hi, 1] - oy) + nz * (P[hi, 2] - oz)
-        if s_lo < 0.0 < s_hi or s_hi < 0.0 < s_lo:
-            # one sign change between the ends: bisect to a crossing segment (the seam
-            # advances through the plane; a fold-back within the window is not searched)
-            a, b, sa = lo, hi, s_lo
-            while b - a > 1:
-                m = (a + b) // 2
-                sm = nx * (P[m, 0] - ox) + ny * (P[m, 1] - oy) + nz * (P[m, 2] - oz)
-                if (sm < 0.0) == (sa < 0.0):
-                    a, sa = m, sm
-                else:
-                    b = m
-            k0, k1 = a, b
-            sb = nx * (P[k1, 0] - ox) + ny * (P[k1, 1] - oy) + nz * (P[k1, 2] - oz)
-            g = sa / (sa - sb)
-            ex = ox - (P[k0, 0] + g * (P[k1, 0] - P[k0, 0]))
-            ey = oy - (P[k0, 1] + g * (P[k1, 1] - P[k0, 1]))
-            ez = oz - (P[k0, 2] + g * (P[k1, 2] - P[k0, 2]))
-            best = 0.0
-            bx = ex * T[i, 0, 0] + ey * T[i, 1, 0] + ez * T[i, 2, 0]
-            bz = ex * T[i, 0, 2] + ey * T[i, 1, 2] + ez * T[i, 2, 2]
-        else:
-            # no or several crossings: scan every segment, keep the crossing nearest m-hat
-            s_prev = s_lo
-            for k in range(lo + 1, hi + 1):
-                s = nx * (P[k, 0] - ox) + ny * (P[k, 1] - oy) + nz * (P[k, 2] - oz)
-                if s_prev * s <= 0.0 and s != s_prev:
-                    g = s_prev / (s_prev - s)
-                    ex = ox - (P[k - 1, 0] + g * (P[k, 0] - P[k - 1, 0]))
-                    ey = oy - (P[k - 1, 1] + g * (P[k, 1] - P[k - 1, 1]))
-                    ez = oz - (P[k - 1, 2] + g * (P[k, 2] - P[k - 1, 2]))
-                    d2 = ex * ex + ey * ey + ez * ez
-                    if d2 < best:
-                        best = d2
-                        bx = ex * T[i, 0, 0] + ey * T[i, 1, 0] + ez * T[i, 2, 0]
-                        bz = ex * T[i, 0, 2] + ey * T[i, 1, 2] + ez * T[i, 2, 2]
-                s_prev = s
-        if best < math.inf:
+        found, bx, bz = _plane_error(T, i, mx, mz, M, P, lo, hi)
+        if found:
             out[i] += const - inv * (bx * bx + bz * bz)
         else:
             out[i] += const - inv * miss * miss
+
+
+@nb.njit(cache=True, boundscheck=False)
+def laser_error_kernel(T, mx, mz, M, P, lo, hi, err):
+    """In-plane errors ``e = m̂ - pi`` of every particle for one laser reading (eq. 9, Fig. 4).
+
+    T (N, 4, 4) particles ``T_base_tool``; ``(mx, mz)`` the reading in the sensor frame (mm);
+    M (4, 4) the sensor mount ``T_tool_sensor`` (mm); P (K, 3) the seam knots, searched in
+    ``P[lo..hi]``. Writes ``err (N, 2)`` (mm, sensor x and z); NaN where the particle's laser
+    plane meets no segment. Returns the number of particles with a crossing.
+    """
+    n = T.shape[0]
+    found_n = 0
+    for i in range(n):
+        found, bx, bz = _plane_error(T, i, mx, mz, M, P, lo, hi)
+        if found:
+            err[i, 0] = bx
+            err[i, 1] = bz
+            found_n += 1
+        else:
+            err[i, 0] = math.nan
+            err[i, 1] = math.nan
+    return found_n
 
 
 @nb.njit(cache=True, boundscheck=False)
@@ -370,3 +425,192 @@ def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
         out[i, 3, 1] = 0.0
         out[i, 3, 2] = 0.0
         out[i, 3, 3] = 1.0
+
+
+@nb.njit(cache=True, boundscheck=False)
+def weighted_moments_kernel(E, w, mean, C):
+    """Weighted mean and covariance of the rows of ``E (N, k)`` whose entries are all finite.
+
+    ``w (N,)`` weights (renormalised over those rows); writes ``mean (k,)`` and ``C (k, k)``
+    (``Σ w (e - ē)(e - ē)ᵀ``). Returns the total weight of the finite rows (0: none).
+    """
+    n, k = E.shape
+    total = 0.0
+    for j in range(k):
+        mean[j] = 0.0
+        for m in range(k):
+            C[j, m] = 0.0
+    for i in range(n):
+        ok = True
+        for j in range(k):
+            if not math.isfinite(E[i, j]):
+                ok = False
+                break
+        if ok:
+            total += w[i]
+            for j in range(k):
+                mean[j] += w[i] * E[i, j]
+    if total <= 0.0:
+        return 0.0
+    for j in range(k):
+        mean[j] /= total
+    for i in range(n):
+        ok = True
+        for j in range(k):
+            if not math.isfinite(E[i, j]):
+                ok = False
+                break
+        if ok:
+            wi = w[i] / total
+            for j in range(k):
+                dj = wi * (E[i, j] - mean[j])
+                for m in range(j + 1):
+                    C[j, m] += dj * (E[i, m] - mean[m])
+    for j in range(k):
+        for m in range(j + 1, k):
+            C[j, m] = C[m, j]
+    return total
+
+
+@nb.njit(cache=True, boundscheck=False)
+def _shrunk_maha_cov(x, y, z, d, S):
+    """``δᵀ S⁻¹ δ`` for ``δ = (1 - d/‖Δ‖)₊ Δ``, ``Δ = (x, y, z)``; ``S (3, 3)`` SPD (inf if singular)."""
+    r = math.sqrt(x * x + y * y + z * z)
+    if not r > d:
+        return 0.0
+    Sinv, det = inv_det3(S)
+    if not det > 0.0:
+        return math.inf
+    return _plateau_maha(x, y, z, d, Sinv)
+
+
+@nb.njit(cache=True, boundscheck=False)
+def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
+    """Mahalanobis distances ``(m_t, m_r)`` of the pose ``T (4, 4)`` from the robot measurement
+    mean ``mu (4, 4)`` outside its plateau (eq. 8), with the pose's own spread ``spread (6,)``
+    (its frame; rotated into the base frame) added to ``Sigma_t`` / ``Sigma_r`` (3, 3). The
+    rotation error ``log(R Rμᵀ)`` enters as ``A Δr`` with covariance ``A (Σr + P) Aᵀ``."""
+    P = np.empty((3, 3))
+    S = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            v = 0.0
+            for c in range(3):
+                v += T[a, c] * T[b, c] * spread[c] * spread[c]
+            S[a, b] = Sigma_t[a, b] + v
+    m_t = _shrunk_maha_cov(T[0, 3] - mu[0, 3], T[1, 3] - mu[1, 3], T[2, 3] - mu[2, 3], d_t, S)
+    q = np.empty(9)
+    for a in range(3):
+        for b in range(3):
+            q[3 * a + b] = T[a, 0] * mu[b, 0] + T[a, 1] * mu[b, 1] + T[a, 2] * mu[b, 2]
+    ex, ey, ez = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+    for a in range(3):
+        for b in range(3):
+            v = 0.0
+            for c in range(3):
+                v += T[a, c] * T[b, c] * spread[3 + c] * spread[3 + c]
+            P[a, b] = Sigma_r[a, b] + v
+    for a in range(3):  # S = A P Aᵀ
+        for b in range(3):
+            v = 0.0
+            for c in range(3):
+                for e in range(3):
+                    v += A[a, c] * P[c, e] * A[b, e]
+            S[a, b] = v
+    ax = A[0, 0] * ex + A[0, 1] * ey + A[0, 2] * ez
+    ay = A[1, 0] * ex + A[1, 1] * ey + A[1, 2] * ez
+    az = A[2, 0] * ex + A[2, 1] * ey + A[2, 2] * ez
+    return m_t, _shrunk_maha_cov(ax, ay, az, d_r, S)
+
+
+
+@nb.njit(cache=True, boundscheck=False)
+def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, qt2, qr2,
+                 sigma2, h_t, h_r, std_out):
+    """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``.
+
+    ``T (4, 4)`` the estimate (mm); readings ``mxs, mzs (S,)`` (mm) with mounts ``Ms (S, 4, 4)``
+    and knot windows ``los, his (S,)`` (``lo < 0``: skipped) on the seam knots ``P_pts (K, 3)``;
+    the robot plateau: tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t`` (mm), ``d_r``
+    (rad), ``A_inv (3, 3)`` the inverse plateau shape (identity: a ball); ``first``: start from
+    the plateau; ``qt2, qr2`` the process variances (mm², rad²); ``sigma2`` the laser variance
+    (mm²); ``h_t, h_r`` the central-difference steps. Writes ``std_out (6,)`` = sqrt(diag P).
+    """
+    R = T[:3, :3].copy()
+    Rt = R.T.copy()
+    # the plateau covariance in the tool frame: d²/5 per axis of a uniform ball, plus the tails
+    Ct = (d_t * d_t / 5.0) * np.eye(3) + Sigma_t
+    Cr = (d_r * d_r / 5.0) * (A_inv @ A_inv.T.copy()) + Sigma_r
+    Ct = Rt @ Ct @ R
+    Cr = Rt @ Cr @ R
+    c = np.empty(6)
+    for j in range(3):
+        c[j] = Ct[j, j]
+        c[3 + j] = Cr[j, j]
+    if first:
+        P[:, :] = 0.0
+        P[:3, :3] = Ct
+        P[3:, 3:] = Cr
+    else:
+        s = np.empty(6)
+        for j in range(6):
+            P[j, j] += qt2 if j < 3 else qr2
+            s[j] = math.sqrt(c[j] / P[j, j]) if P[j, j] > c[j] else 1.0
+        for a in range(6):
+            for b in range(6):
+                P[a, b] *= s[a] * s[b]
+    # the lasers' Jacobian by central differences of the in-plane error (right perturbation)
+    S_n = mxs.shape[0]
+    Tp = np.empty((12, 4, 4))
+    for k in range(12):
+        Tp[k] = T
+    for j in range(3):
+        for sgn in range(2):
+            sign = 1.0 if sgn == 0 else -1.0
+            k = 2 * j + sgn
+            for r in range(3):
+                Tp[k, r, 3] = T[r, 3] + sign * h_t * R[r, j]
+            a = sign * h_r
+            cs, sn = math.cos(a), math.sin(a)
+            G = np.eye(3)
+            k1, k2 = (j + 1) % 3, (j + 2) % 3
+            G[k1, k1] = cs
+            G[k2, k2] = cs
+            G[k2, k1] = sn
+            G[k1, k2] = -sn
+            Tp[6 + k, :3, :3] = R @ G
+    H = np.empty((2 * S_n, 6))
+    E = np.empty((12, 2))
+    m = 0
+    for i in range(S_n):
+        if los[i] < 0:
+            continue
+        for k in range(12):
+            found, bx, bz = _plane_error(Tp, k, mxs[i], mzs[i], Ms[i], P_pts, los[i], his[i])
+            E[k, 0] = bx if found else math.nan
+            E[k, 1] = bz if found else math.nan
+        for row in range(2):
+            ok = True
+            for j in range(3):
+                H[m, j] = (E[2 * j, row] - E[2 * j + 1, row]) / (2.0 * h_t)
+                H[m, 3 + j] = (E[6 + 2 * j, row] - E[6 + 2 * j + 1, row]) / (2.0 * h_r)
+            for j in range(6):
+                if not math.isfinite(H[m, j]):
+                    ok = False
+            if ok:
+                m += 1
+    if m > 0:
+        Hm = H[:m]
+        PH = P @ Hm.T.copy()
+        Sm = Hm @ PH
+        for a in range(m):
+            Sm[a, a] += sigma2
+        K = np.linalg.solve(Sm, PH.T.copy())  # (m, 6)
+        P -= PH @ K
+    for a in range(6):
+        for b in range(a + 1, 6):
+            v = 0.5 * (P[a, b] + P[b, a])
+            P[a, b] = v
+            P[b, a] = v
+        std_out[a] = math.sqrt(P[a, a]) if P[a, a] > 0.0 else 0.0
+    return m

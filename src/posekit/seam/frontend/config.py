@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, get_args, get_origin
 
 import annotated_types
+import numpy as np
 import yaml
 from pydantic import (
     BaseModel,
@@ -133,6 +134,23 @@ Coord_mm = _item(-1e5, 1e5)            # a position in the robot base frame: wit
 Force_n = _item(-1e5, 1e5)             # a force component: within 100 kN
 Distance_mm = _item(None, 1e3)         # a sensor distance ahead of the tool: <= 1 m (> 0 checked below)
 JointSeed_deg = _item(-1e4, 1e4)       # an IK seed joint value
+_Entry = _item(-1e5, 1e5)              # an entry of a 4x4 rigid transform (rotation or mm), within 100 m
+#: A 4x4 rigid transform as four rows of four numbers (rotation part orthonormal, last row 0 0 0 1).
+Matrix4 = tuple[tuple[_Entry, _Entry, _Entry, _Entry], tuple[_Entry, _Entry, _Entry, _Entry],
+                tuple[_Entry, _Entry, _Entry, _Entry], tuple[_Entry, _Entry, _Entry, _Entry]]
+
+
+def _check_rigid(m, what: str):
+    """``m`` (4 rows of 4 numbers) unchanged when it is a rigid transform; ValueError otherwise."""
+    a = np.array(m, dtype=np.float64)
+    if not np.allclose(a[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+        raise ValueError(f"{what}: expected the last row [0, 0, 0, 1], got {a[3].tolist()}")
+    R = a[:3, :3]
+    err = float(np.abs(R.T @ R - np.eye(3)).max())
+    if err > 1e-6 or np.linalg.det(R) < 0.0:
+        raise ValueError(f"{what}: expected a rotation (orthonormal, det +1) in the upper-left 3x3, "
+                         f"off by {err:.2g}" + (" (a reflection)" if np.linalg.det(R) < 0.0 else ""))
+    return m
 
 
 class TrajectoryConfig(_Section):
@@ -144,6 +162,9 @@ class TrajectoryConfig(_Section):
     ``length_mm`` along y with a sine of ``amplitude_mm`` in z (default 100 mm, period 200 mm);
     ``line`` is straight along y; ``bend`` is straight along y up to ``bend_at`` of the length,
     then turns by ``bend_deg`` about the tool z axis (a sharp corner, the seam feature of Fig. 5).
+    With ``tool_orientation: tangent`` the tool turns with the seam (its y axis along the seam
+    tangent projected on the workpiece plane, averaged over ``turn_mm`` of travel), as in the
+    authors' simulator; ``fixed`` keeps the start orientation (the paper's Fig. 9 programs).
     """
 
     kind: Literal["xy", "yz", "line", "bend"] = "xy"
@@ -154,7 +175,11 @@ class TrajectoryConfig(_Section):
     steps: Integer = _num(500, 2, MAX_STEPS)  # 2 .. 100,000 samples
     dt_s: Number = _num(0.01, 1e-5, 10.0, "s")  # 10 µs (100 kHz) .. 10 s
     bend_at: Number = _num(0.5, 0.0, 1.0, lo_open=True, hi_open=True)  # fraction of length_mm, (0, 1)
-    bend_deg: Number = _num(30.0, -90.0, 90.0, "deg", lo_open=True, hi_open=True)  # (-90, 90) deg
+    bend_deg: Number = _num(30.0, -90.0, 90.0, "deg")  # -90 .. 90 deg (a right-angle corner included)
+    # the tool orientation along the program: fixed (that of the start) or tangent (its y axis follows
+    # the seam's tangent in the workpiece plane, the authors' simulator; it turns over turn_mm at a corner)
+    tool_orientation: Literal["fixed", "tangent"] = "fixed"
+    turn_mm: Number = _num(10.0, 0.0, 1e3, "mm")  # 0 .. 1 m of travel over which the heading is averaged
     start_mm: tuple[Coord_mm, Coord_mm, Coord_mm] = _num((450.0, -100.0, 0.0), unit="mm")  # seam start, base frame
     seam_extension_mm: Number = _num(60.0, 0.0, 1e3, "mm")  # 0 .. 1 m of seam beyond the end, seen by the sensors
 
@@ -194,6 +219,8 @@ class RobotConfig(_Section):
     # at most 64 joints, each -10,000 .. 10,000 deg
     ik_seed_deg: tuple[JointSeed_deg, ...] | None = _num(None, unit="deg", max_length=64)
     tool_length_mm: Number = _num(150.0, 0.0, 1e4, "mm", lo_open=True)  # flange to TCP along flange z, (0, 10 m]
+    # the whole tool as a 4x4 T_flange_tool (mm); None: tool_length_mm along the flange z axis
+    tool: Matrix4 | None = None
     joint_noise_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
     kinematic_error_mm: Number = _num(0.3, 0.0, 1e3, "mm")  # std, 0 .. 1 m
     kinematic_error_deg: Number = _num(0.05, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
@@ -223,6 +250,19 @@ class RobotConfig(_Section):
         if self.urdf is not None and self.model is not None:
             raise ValueError("give either model (a bundled robot) or urdf (a file), not both")
         return self
+
+    @field_validator("tool")
+    @classmethod
+    def _rigid_tool(cls, v):
+        return None if v is None else _check_rigid(v, "T_flange_tool")
+
+    def tool_matrix(self) -> np.ndarray:
+        """``T_flange_tool`` (4, 4), mm: ``tool``, or ``tool_length_mm`` along the flange z axis."""
+        if self.tool is not None:
+            return np.array(self.tool, dtype=np.float64)
+        T = np.eye(4)
+        T[2, 3] = self.tool_length_mm
+        return T
 
     @property
     def label(self) -> str:
@@ -262,6 +302,9 @@ class SensorsConfig(_Section):
 
     count: Integer = _num(2, 0, 4)  # 0 .. 4 sensors
     distances_mm: tuple[Distance_mm, ...] | None = _num(None, unit="mm", max_length=4)  # each (0, 1000] mm
+    # any mount: one 4x4 T_tool_sensor (mm) per sensor, the laser plane being the sensor's x-z plane;
+    # None: the sensors sit distances_mm ahead of the TCP along tool y, axes parallel to the tool's
+    mounts: tuple[Matrix4, ...] | None = Field(None, max_length=4)
     noise_mm: Number = _num(0.05, 0.0, 1e3, "mm")  # std, 0 .. 1 m
     range_mm: Number = _num(150.0, 0.0, 1e4, "mm", lo_open=True)  # (0, 10 m]
     dropout: Number = _num(0.0, 0.0, 1.0)  # probability, 0 .. 1
@@ -279,19 +322,46 @@ class SensorsConfig(_Section):
                     )
         return v
 
+    @field_validator("mounts")
+    @classmethod
+    def _rigid_mounts(cls, v):
+        if v is not None:
+            v = tuple(_check_rigid(m, f"mounts[{i}] (T_tool_sensor)") for i, m in enumerate(v))
+        return v
+
     @model_validator(mode="after")
     def _count_matches(self):
         if self.distances_mm is not None and len(self.distances_mm) != self.count:
             raise ValueError(
                 f"count is {self.count} but distances_mm has {len(self.distances_mm)} entries"
             )
+        if self.mounts is not None:
+            if self.distances_mm is not None:
+                raise ValueError("give either distances_mm or mounts (4x4 T_tool_sensor per sensor), not both")
+            if len(self.mounts) != self.count:
+                raise ValueError(f"count is {self.count} but mounts has {len(self.mounts)} entries")
+            if self.angle and any(not np.allclose(np.array(m)[:3, :3], np.eye(3), atol=1e-9) for m in self.mounts):
+                raise ValueError("angle: the angle measurement needs sensor axes parallel to the tool's "
+                                 "(mounts with an identity rotation)")
         return self
 
     def resolved_distances_mm(self) -> tuple[float, ...]:
-        """The sensor distances ahead of the tool in mm, one per sensor."""
+        """The sensor distances ahead of the tool in mm, one per sensor (a mount's y offset)."""
+        if self.mounts is not None:
+            return tuple(float(m[1][3]) for m in self.mounts)
         if self.distances_mm is not None:
             return tuple(float(d) for d in self.distances_mm)
         return DEFAULT_SENSOR_DISTANCES_MM[: self.count]
+
+    def resolved_mounts(self) -> np.ndarray:
+        """``T_tool_sensor`` of every sensor, shape (S, 4, 4), mm: ``mounts``, or a pure translation
+        ``[0, d, 0]`` per distance ``d`` (the sensor's x-z plane is its laser plane)."""
+        if self.mounts is not None:
+            return np.array(self.mounts, dtype=np.float64).reshape(-1, 4, 4)
+        d = self.resolved_distances_mm()
+        M = np.repeat(np.eye(4)[None], len(d), axis=0)
+        M[:, 1, 3] = d
+        return M
 
 
 class FilterConfig(_Section):
@@ -313,6 +383,22 @@ class FilterConfig(_Section):
     ``anneal_stages`` stages with kernel jitter ``anneal_jitter`` (times the cloud's covariance);
     resampling draws from a kernel density of bandwidth ``regularize_h`` that keeps the cloud's
     mean and covariance (0: plain resampling; see :mod:`posekit.seam.engine.filter`).
+
+    Issue 15 (defaults describe the simulated cell): ``transition_force: rate`` widens the
+    transition with the force change since the last step (``k_rate_*``, the paper's ḟ; the
+    simulated cell moves ≈ 2e-4 mm and 2.8e-4 deg per N of force change per step);
+    ``magnitude`` keeps ``k_force_* ‖f‖``. ``d0 + kd ‖f‖`` is the largest expected positioning
+    error, as the paper prescribes (max over 30 simulated default episodes of
+    ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
+    7.5 mm / 1.46 deg at 10.2 kN); ``laser_sigma_mm`` = ``sensors.noise_mm``. ``init_from_robot``
+    draws the first cloud from the robot density; ``init_offset_*`` moves it (a wrong start, for
+    tests). ``integrity_*``: the status tests of :mod:`posekit.seam.engine.integrity`.
+    ``spread_bound``: the reported spread is at least the one the data support
+    (:mod:`posekit.seam.engine.spread_bound`; the value scales its process noise, 0: off;
+    ``spread_bound_k_travel`` adds translation noise per mm travelled). ``integrity_recovery``:
+    steps after a ``lost`` step reported ``degraded`` at best. ``regularize_h`` 0.5 (was 0.3;
+    ``posekit seam simulate --runs 10 --seed 0``): xy RMSE rx/ry 0.18/0.22 -> 0.16/0.20 deg, the rest
+    within 0.002; yz rx 0.24 -> 0.20 deg, z 0.76 -> 0.80 mm; yz y/z/rx coverage 0.88/0.87/0.87 -> 0.91/0.90/0.91.
     """
 
     particles: Integer = _num(500, 1, MAX_PARTICLES)  # N, 1 .. 1,000,000
@@ -321,25 +407,57 @@ class FilterConfig(_Section):
     anneal_ess: Number = _num(0.05, 0.0, 1.0)  # temper an update leaving fewer (fraction of N), 0 .. 1
     anneal_stages: Integer = _num(20, 0, 100)  # 0 .. 100 tempering stages per update
     anneal_jitter: Number = _num(0.5, 0.0, 10.0)  # kernel bandwidth, times the cloud's covariance, 0 .. 10
-    regularize_h: Number = _num(0.1, 0.0, 1.0, hi_open=True)  # resampling kernel bandwidth (0: plain), [0, 1)
-    sigma_t_mm: Number = _num(0.02, 0.0, 1e3, "mm")  # std per step, 0 .. 1 m
+    regularize_h: Number = _num(0.5, 0.0, 1.0, hi_open=True)  # resampling kernel bandwidth (0: plain), [0, 1)
+    sigma_t_mm: Number = _num(0.01, 0.0, 1e3, "mm")  # std per step, 0 .. 1 m
     sigma_r_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std per step, 0 .. 180 deg
-    k_force_t: Number = _num(4e-6, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
-    k_force_r: Number = _num(4e-7, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
-    d0_mm: Number = _num(1.0, 0.0, 1e3, "mm")  # plateau radius, 0 .. 1 m
-    kd_mm_per_n: Number = _num(4e-4, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
-    d0_deg: Number = _num(0.2, 0.0, 180.0, "deg")  # plateau radius, 0 .. 180 deg
-    kd_deg_per_n: Number = _num(2e-4, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
+    # the transition width follows the force rate f-dot (paper eq. 3: p(x+ | x, f-dot)): "rate" adds
+    # k_rate_* times the change of the measured force since the last step; "magnitude" adds k_force_* |f|
+    transition_force: Literal["rate", "magnitude"] = "rate"
+    k_force_t: Number = _num(4e-6, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N ("magnitude")
+    k_force_r: Number = _num(4e-7, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N ("magnitude")
+    k_rate_t_mm_per_n: Number = _num(2e-4, 0.0, 1.0, "mm/N")  # per N of force change per step, 0 .. 1 ("rate")
+    k_rate_r_deg_per_n: Number = _num(4e-4, 0.0, 1.0, "deg/N")  # per N of force change per step, 0 .. 1 ("rate")
+    d0_mm: Number = _num(3.0, 0.0, 1e3, "mm")  # plateau radius, 0 .. 1 m
+    kd_mm_per_n: Number = _num(4.5e-4, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
+    d0_deg: Number = _num(0.35, 0.0, 180.0, "deg")  # plateau radius, 0 .. 180 deg
+    kd_deg_per_n: Number = _num(1.1e-4, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N
     bending_plateau: bool = True  # rotation plateau: kd_deg_per_n ‖f‖ only across the force
     joint_sigma_deg: Number = _num(0.005, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
     robot_floor_t_mm: Number = _num(0.3, 1e-9, 1e3, "mm")  # std, 1e-9 mm .. 1 m (it divides)
     robot_floor_r_deg: Number = _num(0.05, 1e-9, 180.0, "deg")  # std, 1e-9 .. 180 deg (it divides)
     compliance_rad_per_nm: Number = _num(0.0, 0.0, 1e-3, "rad/(N m)")  # 0 .. 1e-3
-    laser_sigma_mm: Number = _num(0.1, 1e-9, 1e3, "mm")  # std, 1e-9 mm .. 1 m (it divides)
+    laser_sigma_mm: Number = _num(0.05, 1e-9, 1e3, "mm")  # std, 1e-9 mm .. 1 m (it divides)
     angle_sigma_deg: Number = _num(0.2, 1e-9, 180.0, "deg")  # std, 1e-9 .. 180 deg (it divides)
     search_window_mm: Number = _num(10.0, 0.0, 1e3, "mm", lo_open=True)  # (0, 1 m]
     init_sigma_t_mm: Number = _num(1.0, 0.0, 1e3, "mm")  # std, 0 .. 1 m
     init_sigma_r_deg: Number = _num(0.4, 0.0, 180.0, "deg")  # std, 0 .. 180 deg
+    # the initial cloud drawn at the first step from the robot density (plateau d(f) + tails around the
+    # kinematic pose: the paper's prior, where the robot can be); false: init_sigma_* around the start pose
+    init_from_robot: bool = True
+    # the initial cloud's centre offset from the given start pose (tool frame): a deliberately wrong
+    # start, to test the integrity monitor; zero normally
+    init_offset_mm: tuple[_item(-1e3, 1e3), _item(-1e3, 1e3), _item(-1e3, 1e3)] = _num(
+        (0.0, 0.0, 0.0), unit="mm")  # each -1 .. 1 m
+    init_offset_deg: tuple[_item(-180.0, 180.0), _item(-180.0, 180.0), _item(-180.0, 180.0)] = _num(
+        (0.0, 0.0, 0.0), unit="deg")  # rotation vector, each -180 .. 180 deg
+    # integrity (engine/integrity.py): chi-square tests over a window of steps, at two levels
+    integrity_window: Integer = _num(10, 1, 1000)  # steps in the consistency window, 1 .. 1000
+    integrity_alpha_degraded: Number = _num(1e-3, 0.0, 0.5, lo_open=True)  # test level for degraded, (0, 0.5]
+    integrity_alpha_lost: Number = _num(1e-7, 0.0, 0.5, lo_open=True)  # test level for lost, (0, 0.5]
+    integrity_ess_min: Number = _num(0.002, 0.0, 1.0)  # ESS collapse: the update's ESS below this x N, 0 .. 1
+    integrity_recovery: Integer = _num(20, 0, 100000)  # steps after a lost step that are at most degraded
+    # report at least the spread the data support (engine/spread_bound.py: a Kalman covariance from the lasers'
+    # Jacobian, capped at the robot plateau) where the particle cloud is narrower; the value is the bound's
+    # process noise as a fraction of the transition width (0: no bound)
+    spread_bound: Number = _num(0.5, 0.0, 10.0)  # 0 .. 10
+    # ... and the bound's translation noise per mm travelled (the kinematic error changes with the configuration;
+    # 0.03, was 0.02: with the inflated laser likelihood, yz z coverage 0.885 -> 0.921 over 30 runs, seed 2)
+    spread_bound_k_travel: Number = _num(0.03, 0.0, 1.0, "mm/mm")  # 0 .. 1
+    # the particles weigh each laser reading with variance sigma^2 + min(laser_inflation x the cloud's spread of
+    # in-plane errors, laser_inflation_cap x sigma^2) (engine/filter.py): the likelihood at the true noise is too
+    # narrow for a few hundred particles; the integrity test and the spread bound keep the true sigma (0: off)
+    laser_inflation: Number = _num(0.5, 0.0, 10.0)  # 0 .. 10
+    laser_inflation_cap: Number = _num(3.0, 0.0, 100.0)  # x sigma^2, 0 .. 100
     trend_lambda: Number = _num(100.0, 0.0, 1e6)  # weight of the l1 term, 0 .. 1e6
     trend_eps_mm: Number = _num(0.02, 1e-6, 1e3, "mm")  # largest deviation, 1e-6 mm .. 1 m
 
@@ -576,6 +694,9 @@ def apply_overrides(cfg: SeamConfig, overrides: dict[str, Any], source: str = "c
              or (isinstance(count, float) and math.isfinite(count) and count.is_integer()))  # else: validation says
     if whole and overrides.get("sensors.distances_mm") is None and dists is not None and 0 <= count <= len(dists):
         data["sensors"]["distances_mm"] = tuple(dists[: int(count)])  # fewer sensors: the nearest ones
+    mounts = data["sensors"].get("mounts")
+    if whole and overrides.get("sensors.mounts") is None and mounts is not None and 0 <= count <= len(mounts):
+        data["sensors"]["mounts"] = tuple(mounts[: int(count)]) if count else None  # the first ones
     for key, value in overrides.items():
         if value is None:
             continue

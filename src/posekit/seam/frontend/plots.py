@@ -4,8 +4,8 @@
   particles over time as a heatmap with the true coordinate overlaid.
 * :func:`plot_error_distributions` — Fig. 8: the distribution of the tool-pose error per
   axis for several sensor configurations and trajectories.
-* :func:`plot_trajectories` — Fig. 9: tool positions along x, y, z over the time step.
-* :func:`plot_errors_over_time` — the per-step error of the filter and of the kinematics
+* :func:`plot_tool_paths` — Fig. 9: tool positions along x, y, z over the time step.
+* :func:`plot_tracking_errors` — the per-step error of the filter and of the kinematics
   alone.
 * :func:`plot_pvalue_heatmap` — Fig. 6: log10 p-values of the tuning study's linear models.
 
@@ -24,11 +24,14 @@ from posekit.errors import ConfigError
 __all__ = [
     "AXIS_LABELS",
     "particle_histogram",
+    "plot_design_ranking",
     "plot_error_distributions",
-    "plot_errors_over_time",
+    "plot_ess",
+    "plot_measurement_hypotheses",
+    "plot_tracking_errors",
     "plot_particle_density",
     "plot_pvalue_heatmap",
-    "plot_trajectories",
+    "plot_tool_paths",
     "positions_in_frame",
 ]
 
@@ -215,7 +218,7 @@ def plot_error_distributions(groups: Mapping[str, np.ndarray], path, *, title: s
     return _save(fig, path)
 
 
-def plot_trajectories(series: Mapping[str, np.ndarray], path, *, title: str = "",
+def plot_tool_paths(series: Mapping[str, np.ndarray], path, *, title: str = "",
                       styles: Mapping[str, str] | None = None) -> Path:
     """Fig. 9: distance along each axis (x, y, z) as a function of the time step.
 
@@ -255,8 +258,8 @@ def plot_trajectories(series: Mapping[str, np.ndarray], path, *, title: str = ""
     return _save(fig, path)
 
 
-def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, *, t_s=None,
-                          title: str = "") -> Path:
+def plot_tracking_errors(error: np.ndarray, kinematic_error: np.ndarray, path, *, t_s=None,
+                          title: str = "", spread: np.ndarray | None = None) -> Path:
     """Per-step tool-pose error of the filter and of the kinematics alone, all runs.
 
     Parameters
@@ -270,6 +273,9 @@ def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, 
         Time of each step, s.
     title : str
         Figure title.
+    spread : ndarray, shape (R, T, 6), optional
+        The filter's reported standard deviation (same units as ``error``): run 0's ±2σ band is
+        drawn around zero (an honest spread keeps about 95 % of the error inside it).
 
     Returns
     -------
@@ -277,6 +283,7 @@ def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, 
     """
     e = np.asarray(error, dtype=float)
     k = np.asarray(kinematic_error, dtype=float)
+    sp = None if spread is None else np.asarray(spread, dtype=float)
     if e.ndim != 3 or e.shape[2] != 6 or k.shape != e.shape:
         raise ConfigError(f"error plot: expected two (R, T, 6) error arrays, got {e.shape} and {k.shape}")
     x = np.arange(e.shape[1]) if t_s is None else np.asarray(t_s, dtype=float)
@@ -285,6 +292,9 @@ def plot_errors_over_time(error: np.ndarray, kinematic_error: np.ndarray, path, 
         for r in range(e.shape[0]):
             ax.plot(x, k[r, :, d], color="C1", lw=0.7, alpha=0.5, label="kinematics only" if r == 0 else None)
             ax.plot(x, e[r, :, d], color="C0", lw=0.8, alpha=0.7, label="particle filter" if r == 0 else None)
+        if sp is not None and sp.shape == e.shape:
+            ax.fill_between(x, -2.0 * sp[0, :, d], 2.0 * sp[0, :, d], color="C0", alpha=0.15, lw=0,
+                            label="±2σ reported (run 0)")
         ax.axhline(0.0, color="0.4", lw=0.6)
         ax.set_ylabel(f"error {AXIS_LABELS[d]}")
         ax.grid(True, alpha=0.3)
@@ -335,3 +345,133 @@ def plot_pvalue_heatmap(log10_p: np.ndarray, parameters: Sequence[str], errors: 
     fig.colorbar(im, ax=ax, label="log10 p-value")
     ax.set_title(title or "Significance of the filter parameters (OLS, log10 p)")
     return _save(fig, path)
+
+
+def plot_ess(ess: np.ndarray, resampled: np.ndarray, n_particles: int, path, *, t_s=None,
+             status: Sequence[str] | None = None, title: str = "") -> Path:
+    """Effective sample size over time with the resampling steps (and the integrity status).
+
+    Parameters
+    ----------
+    ess : ndarray, shape (T,)
+        ESS after each update, in [1, N].
+    resampled : ndarray of bool, shape (T,)
+        Steps at which the particles were resampled (ticks at the bottom).
+    n_particles : int
+        N (the ESS is drawn as a fraction of it).
+    path : path-like
+    t_s : ndarray, shape (T,), optional
+    status : sequence of str, optional
+        ``tracking``/``degraded``/``lost`` per step: shaded behind the curve.
+    """
+    plt = _plt()
+    ess = np.asarray(ess, dtype=float)
+    x = np.arange(ess.shape[0]) if t_s is None else np.asarray(t_s, dtype=float)
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    ax.plot(x, ess / float(n_particles), color="C0", lw=0.9, label="ESS / N")
+    r = np.asarray(resampled, dtype=bool)
+    ax.plot(x[r], np.full(r.sum(), 0.0), "|", color="C3", ms=8, label=f"resampled ({int(r.sum())} steps)")
+    if status is not None:
+        colours = {"degraded": "orange", "lost": "red"}
+        st = np.asarray(list(status))
+        for name, colour in colours.items():
+            m = st == name
+            if m.any():
+                ax.fill_between(x, 0, 1, where=m, color=colour, alpha=0.15, step="mid", label=name)
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_xlabel("time (s)" if t_s is not None else "time step")
+    ax.set_ylabel("effective sample size / N")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title(title or "Effective sample size and resampling")
+    return _save(fig, path)
+
+
+def plot_design_ranking(rows: Sequence[Mapping], path, *, title: str = "", top: int = 30) -> Path:
+    """The sensor-placement design: the score of each configuration, best first, with its
+    translation and rotation parts (``ranking.csv`` rows of :mod:`posekit.seam.frontend.design`).
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        Ranked rows with ``sensors``, ``distances_mm``, ``angle``, ``score``, ``rmse_*``.
+    path : path-like
+    top : int
+        At most this many configurations are drawn (the best ones).
+    """
+    plt = _plt()
+    rows = [r for r in rows if np.isfinite(r["score"])][:top]
+    labels = [f"{r['sensors']} @ {r['distances_mm'] or '-'}{' +angle' if r.get('angle') else ''}" for r in rows]
+    t = np.array([np.linalg.norm([r["rmse_x_mm"], r["rmse_y_mm"], r["rmse_z_mm"]]) for r in rows])
+    score = np.array([r["score"] for r in rows])
+    fig, ax = plt.subplots(figsize=(9, 0.32 * len(rows) + 1.6))
+    y = np.arange(len(rows))[::-1]
+    colours = [f"C{int(r['sensors'])}" for r in rows]
+    ax.barh(y, t, color=colours, alpha=0.9, label="translation ‖RMSE‖ (mm)")
+    ax.barh(y, score - t, left=t, color=colours, alpha=0.4, hatch="//", label="rotation part (mm at the lever)")
+    kin = rows[0].get("kinematic_score") if rows else None
+    if kin is not None and np.isfinite(kin):
+        ax.axvline(kin, color="0.3", ls="--", lw=1.0, label=f"kinematics only ({kin:.2f})")
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.set_xlabel("score (mm), lower is better")
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(title or "Sensor configurations ranked")
+    return _save(fig, path)
+
+
+def plot_measurement_hypotheses(snapshot: Mapping, seam: np.ndarray, path, *, title: str = "",
+                                max_points: int = 2000) -> Path:
+    """Fig. 5 of the paper as the authors' framework draws it: at one time step, each particle's
+    hypothesis of the seam point its sensor saw (``m̂``), coloured by the laser likelihood, beside
+    the seam and the point the true pose implies; top view (x–y) and side view (y–z) of the
+    nominal tool frame at that step.
+
+    Parameters
+    ----------
+    snapshot : mapping
+        ``EpisodeResult.snapshot``: ``step``, ``sensor``, ``hypotheses`` (N, 3) base frame mm,
+        ``loglik`` (N,), ``prior_w`` (N,), ``T_nominal`` (4, 4), ``truth_point`` (3,),
+        ``sensor_origin`` (3,).
+    seam : ndarray, shape (K, 3)
+        The seam polyline, base frame, mm.
+    path : path-like
+    """
+    plt = _plt()
+    T = np.asarray(snapshot["T_nominal"], dtype=float)
+    R, t = T[:3, :3], T[:3, 3]
+
+    def local(p):
+        return (np.asarray(p, dtype=float).reshape(-1, 3) - t) @ R
+
+    h = local(snapshot["hypotheses"])
+    ll = np.asarray(snapshot["loglik"], dtype=float)
+    w = np.asarray(snapshot["prior_w"], dtype=float)
+    post = np.log(np.maximum(w, 1e-300)) + ll
+    post = np.exp(post - post.max())
+    order = np.argsort(post)[-max_points:]
+    truth = local(snapshot["truth_point"])[0]
+    sl = local(seam)
+    near = np.linalg.norm(sl - truth, axis=1) < max(15.0, 3.0 * float(np.ptp(h, axis=0).max()))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    for ax, (a, b), names in zip(axes, ((0, 1), (1, 2)), (("x (mm)", "y (mm)"), ("y (mm)", "z (mm)"))):
+        ax.plot(sl[near, a], sl[near, b], color="0.3", lw=1.2, label="seam")
+        sc = ax.scatter(h[order, a], h[order, b], c=post[order], cmap="viridis", s=6, vmin=0.0, vmax=1.0,
+                        label="hypotheses m̂ (particles)")
+        ax.plot(*truth[[a, b]], "r+", ms=14, mew=2, label="from the true pose")
+        ax.set_xlabel(names[0])
+        ax.set_ylabel(names[1])
+        # zoom on the cloud: ±4 of its spread (at least ±1 mm) about the true point
+        half = max(1.0, 4.0 * float(np.std(h[:, [a, b]], axis=0).max()))
+        ax.set_xlim(truth[a] - half, truth[a] + half)
+        ax.set_ylim(truth[b] - half, truth[b] + half)
+        ax.set_aspect("equal")
+        ax.grid(True, alpha=0.3)
+    fig.colorbar(sc, ax=axes, shrink=0.8, label="posterior weight (relative)")
+    axes[0].legend(fontsize=7, loc="best")
+    fig.suptitle(title or f"Measurement hypotheses of sensor {snapshot['sensor'] + 1} at step {snapshot['step']} "
+                          "(nominal tool frame)")
+    path = Path(path)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path

@@ -47,7 +47,9 @@ def _pose_columns(prefix: str) -> list[str]:
 ESTIMATE_COLUMNS = (["run", "step", "t_s", *_pose_columns("truth"), *_pose_columns("estimate"),
                      *_pose_columns("nominal"), *(f"err_{c}" for c in ERROR_COLUMNS),
                      *(f"kin_err_{c}" for c in ERROR_COLUMNS), *(f"spread_{c}" for c in ERROR_COLUMNS),
-                     "ess", "step_ms"])
+                     "ess", "step_ms",
+                     # [seam engine, issue 15] integrity: simulate.STATUS_COLUMNS (status, std_x_mm .. std_rz_deg)
+                     "status", "std_x_mm", "std_y_mm", "std_z_mm", "std_rx_deg", "std_ry_deg", "std_rz_deg"])
 
 
 def _poses(T: np.ndarray) -> np.ndarray:
@@ -84,18 +86,22 @@ def write_estimates_csv(path, results: Sequence) -> Path:
             block = np.hstack([np.arange(n)[:, None], np.asarray(r.t_s, float)[:, None], _poses(r.truth),
                                _poses(r.estimate), _poses(r.nominal), r.error, r.kinematic_error, r.spread,
                                np.asarray(r.ess, float)[:, None], np.asarray(r.step_ms, float)[:, None]])
-            for row in block:
-                w.writerow([run, int(row[0]), *(f"{v:.10g}" for v in row[1:])])
+            from posekit.seam.frontend.simulate import STATUS_COLUMNS, status_columns
+
+            cols = status_columns(r)  # [seam engine, issue 15] the verdict and the six 1-sigma spreads
+            stds = np.column_stack([cols[c] for c in STATUS_COLUMNS[1:]])
+            for row, st, sd in zip(block, cols["status"], stds):
+                w.writerow([run, int(row[0]), *(f"{v:.10g}" for v in row[1:]), st, *(f"{v:.10g}" for v in sd)])
     return path
 
 
 def read_estimates_csv(path) -> dict[str, np.ndarray]:
-    """Read an ``estimates.csv`` back: column name -> (rows,) float array."""
+    """Read an ``estimates.csv`` back: column name -> (rows,) float array (``status``: str array)."""
     with Path(path).open(newline="") as f:
         reader = csv.reader(f)
         header = next(reader)
-        data = np.array([[float(v) for v in row] for row in reader], dtype=float).reshape(-1, len(header))
-    return {name: data[:, i] for i, name in enumerate(header)}
+        rows = np.array(list(reader), dtype=str).reshape(-1, len(header))
+    return {name: (rows[:, i] if name == "status" else rows[:, i].astype(float)) for i, name in enumerate(header)}
 
 
 def _num(v: float) -> str:
@@ -203,10 +209,19 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
                                                                             "kinematic")}
         fig9_caption = "Run 0: nominal, true, estimated and kinematics-only tool positions (start tool frame)"
     paths["fig8"] = plots.plot_error_distributions(groups, out / "fig8_errors.png")
-    paths["fig9"] = plots.plot_trajectories(series, out / "fig9_trajectories.png")
-    paths["errors"] = plots.plot_errors_over_time(np.stack([r.error for r in results]),
+    paths["fig9"] = plots.plot_tool_paths(series, out / "fig9_trajectories.png")
+    paths["errors"] = plots.plot_tracking_errors(np.stack([r.error for r in results]),
                                                   np.stack([r.kinematic_error for r in results]),
-                                                  out / "errors_time.png", t_s=r0.t_s)
+                                                  out / "errors_time.png", t_s=r0.t_s,
+                                                  spread=np.stack([r.spread for r in results]))
+    paths["ess"] = plots.plot_ess(r0.ess, r0.resampled, r0.config.filter.particles, out / "ess.png", t_s=r0.t_s,
+                                  status=getattr(r0, "status", None))
+    if getattr(r0, "snapshot", None) is not None:
+        paths["fig5_hypotheses"] = plots.plot_measurement_hypotheses(r0.snapshot, r0.seam,
+                                                                     out / "fig5_hypotheses.png")
+        sections.append(("Fig. 5 — measurement hypotheses", html_figure(
+            paths["fig5_hypotheses"], "Run 0: each particle's hypothesis of the seam point its sensor saw, "
+                                      "coloured by its weight after the update")))
     sections.insert(0, ("RMSE per axis (seam frame, all runs and steps)",
                         html_table(_rmse_rows(metrics), ["axis", "filter", "kinematics only"])))
     if comparison:
@@ -219,7 +234,10 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
         sections.append(("RMSE per configuration (mm, deg)", html_table(rows, ["configuration", *ERROR_AXES])))
     sections += [("Fig. 8 — error distributions", html_figure(paths["fig8"], caption)),
                  ("Fig. 9 — trajectories", html_figure(paths["fig9"], fig9_caption)),
-                 ("Errors over time", html_figure(paths["errors"], "Per-step error of every run"))]
+                 ("Errors over time", html_figure(paths["errors"], "Per-step error of every run, the filter's "
+                                                                   "reported ±2σ of run 0 shaded")),
+                 ("Effective sample size", html_figure(paths["ess"], "Run 0: ESS / N after each update, the "
+                                                                     "resampling steps, the integrity status"))]
     if config_yaml:
         sections.append(("Configuration", f"<pre>{html.escape(config_yaml)}</pre>"))
     skip = {"rmse_mm", "rmse_deg", "kinematic_rmse_mm", "kinematic_rmse_deg", "comparison"}

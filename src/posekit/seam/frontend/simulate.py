@@ -42,9 +42,13 @@ __all__ = [
     "AXES",
     "EpisodeResult",
     "SimulatedData",
+    "STATUS_COLUMNS",
+    "integrity_summary",
+    "measurement_hypotheses",
     "metrics",
+    "status_columns",
     "pose_coords",
-    "pose_errors",
+    "seam_frame_errors",
     "run_episode",
     "seam_knots",
     "simulate_data",
@@ -120,6 +124,10 @@ class EpisodeResult:
         Steps at which all weights vanished (reset to uniform).
     seed : int
     config : SeamConfig
+    status : ndarray of str, shape (T,)
+        Per step ``tracking``, ``degraded`` or ``lost`` (:mod:`posekit.seam.engine.integrity`).
+    reason : list of (str or None), length T
+        Which consistency test failed at each step (None when tracking).
     """
 
     t_s: np.ndarray
@@ -143,9 +151,12 @@ class EpisodeResult:
     recoveries: int
     seed: int
     config: SeamConfig
+    status: np.ndarray | None = None
+    reason: list | None = None
+    snapshot: dict | None = None  # Fig. 5 measurement hypotheses of one step (run_episode with record_particles)
 
 
-def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
+def seam_frame_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
     """Tool-pose errors in the nominal seam frame (the errors of the paper's Fig. 8; see :func:`metrics`).
 
     Parameters
@@ -157,11 +168,12 @@ def pose_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.
     -------
     ndarray, shape (T, 6)
         ``[x, y, z]`` = ``R_nomᵀ (p_est - p_true)`` in mm (x across, y along the seam, z along the
-        tool axis), then ``[rx, ry, rz]`` = rotation vector of ``R_trueᵀ R_est`` in degrees.
+        tool axis), then ``[rx, ry, rz]`` = rotation vector of ``R_trueᵀ R_est`` in **radians**
+        (the library's unit; :class:`EpisodeResult` and the reports show degrees).
     """
     dp = np.matmul(np.swapaxes(T_nom[:, :3, :3], 1, 2), (T_est[:, :3, 3] - T_true[:, :3, 3])[..., None])[..., 0]
     dr = rotation_vector_from_matrix(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]), check=False)
-    return np.concatenate([dp, np.degrees(dr)], axis=-1)
+    return np.concatenate([dp, dr], axis=-1)
 
 
 def pose_coords(Ts: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
@@ -177,12 +189,63 @@ def pose_coords(Ts: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 6)
-        ``R_nomᵀ (p - p_nom)`` in mm, then the rotation vector of ``R_nomᵀ R`` in degrees.
+        ``R_nomᵀ (p - p_nom)`` in mm, then the rotation vector of ``R_nomᵀ R`` in **radians**.
     """
     Rn_t = np.swapaxes(T_nom[..., :3, :3], -1, -2)
     dp = np.matmul(Rn_t, (Ts[..., :3, 3] - T_nom[..., :3, 3])[..., None])[..., 0]
     dr = rotation_vector_from_matrix(np.matmul(Rn_t, Ts[..., :3, :3]), check=False)
-    return np.concatenate([dp, np.degrees(dr)], axis=-1)
+    return np.concatenate([dp, dr], axis=-1)
+
+
+def measurement_hypotheses(Ts: np.ndarray, T_tool_sensor: np.ndarray, m_mm) -> np.ndarray:
+    """Where each particle believes its sensor saw the seam (the paper's Fig. 5 hypotheses).
+
+    Parameters
+    ----------
+    Ts : ndarray, shape (N, 4, 4)
+        Particle tool poses ``T_base_tool``, mm.
+    T_tool_sensor : ndarray, shape (4, 4)
+        The sensor mount, mm (the laser plane is the sensor's x–z plane).
+    m_mm : array_like, shape (2,)
+        The reading ``(x, z)`` in the sensor frame, mm.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        ``m̂_i = T_i T_tool_sensor [m_x, 0, m_z, 1]`` in the base frame, mm.
+    """
+    m = np.array([float(m_mm[0]), 0.0, float(m_mm[1]), 1.0])
+    return np.matmul(np.matmul(Ts, np.asarray(T_tool_sensor, dtype=np.float64)), m)[:, :3]
+
+
+def _snapshot(pf, inc: np.ndarray, k: int, data, Tn: np.ndarray) -> dict | None:
+    """Fig. 5 data at step ``k``: the cloud propagated by the nominal increment (before step k's
+    update), the first available reading's hypotheses and their laser log-likelihoods."""
+    from posekit.seam.engine.densities import laser_loglik
+
+    mounts = pf.cfg.sensors.resolved_mounts()
+    for i in range(mounts.shape[0]):
+        m = data.laser_mm[k, i]
+        if not np.all(np.isfinite(m)):
+            continue
+        Ts = np.matmul(inc, pf.T)
+        S = Tn[k] @ mounts[i]
+        f = pf.cfg.filter
+        centre = S[:3, :3] @ np.array([m[0], 0.0, m[1]]) + S[:3, 3]
+        window = pf.seam.window(centre, S[:3, 1], f.search_window_mm)
+        ll = laser_loglik(np.matmul(Ts, mounts[i]), m, 0.0, pf.seam, window, f.laser_sigma_mm, f.search_window_mm)
+        return {"step": k, "sensor": i, "hypotheses": measurement_hypotheses(Ts, mounts[i], m),
+                "loglik": ll, "prior_w": pf.weights.copy(), "T_nominal": Tn[k].copy(),
+                "truth_point": measurement_hypotheses(data.truth[k][None], mounts[i], m)[0],
+                "sensor_origin": (data.truth[k] @ mounts[i])[:3, 3]}
+    return None
+
+
+def _deg(a: np.ndarray) -> np.ndarray:
+    """``[mm, mm, mm, rad, rad, rad]`` rows → ``[mm, mm, mm, deg, deg, deg]`` (the report edge)."""
+    a = np.array(a, dtype=np.float64, copy=True)
+    a[..., 3:] = np.degrees(a[..., 3:])
+    return a
 
 
 @lru_cache(maxsize=16)
@@ -238,16 +301,17 @@ def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
     force_meas = f_W + pr.force_sensor_noise_n * rng.standard_normal((n, 3))
     # laser sensors on the true seam
     sc = cfg.sensors
-    dists = sc.resolved_distances_mm()
-    laser = np.full((n, len(dists), 2), np.nan)
-    angle = np.full((n, len(dists)), np.nan)
+    mounts = sc.resolved_mounts()  # T_tool_sensor (S, 4, 4)
+    laser = np.full((n, mounts.shape[0], 2), np.nan)
+    angle = np.full((n, mounts.shape[0]), np.nan)
     seam = SeamLine(nt.seam)
     R_true = truth[:, :3, :3]
-    for i, dist in enumerate(dists):  # over the sensors (<= 4)
-        origin = truth[:, :3, 3] + R_true[:, :, 1] * dist
-        hit = seam.intersect(origin, R_true[:, :, 1])
+    for i, M in enumerate(mounts):  # over the sensors (<= 4): the true sensor frames T_true M
+        S = np.matmul(truth, M)
+        origin, R_S = S[:, :3, 3], S[:, :3, :3]
+        hit = seam.intersect(origin, R_S[:, :, 1])
         e = hit.point - origin
-        m = np.stack([(e * R_true[:, :, 0]).sum(1), (e * R_true[:, :, 2]).sum(1)], axis=1)
+        m = np.stack([(e * R_S[:, :, 0]).sum(1), (e * R_S[:, :, 2]).sum(1)], axis=1)
         m += sc.noise_mm * rng.standard_normal((n, 2))
         ok = hit.found & (np.abs(m).max(axis=1) <= sc.range_mm)
         ok &= rng.random(n) >= sc.dropout
@@ -289,12 +353,18 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
     estimate = np.empty((n, 4, 4))
     kinematic = np.empty((n, 4, 4))
     spread = np.empty((n, 6))
+    status = np.empty(n, dtype=object)  # tracking | degraded | lost (engine/integrity.py)
+    reason = [None] * n
     ess = np.empty(n)
     step_ms = np.empty(n)
     resampled = np.zeros(n, bool)
     rec = int(record_particles)
     particles = np.empty((n, rec, 6)) if rec > 0 else None
     rec_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
+    snapshot = None
+    # Fig. 5 step: the bend's corner, else the middle of the episode
+    snap_at = (int(np.searchsorted(nt.u_mm, cfg.trajectory.bend_at * cfg.trajectory.length_mm))
+               if cfg.trajectory.kind == "bend" else n // 2)
     eye = np.eye(4)
     has_lasers = data.laser_mm.shape[1] > 0
     for k in range(n):
@@ -302,28 +372,33 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
         inputs = StepInputs(inc, Tn[k], data.q_meas[k], data.force_meas_n[k],
                             data.laser_mm[k] if has_lasers else None,
                             data.angle_rad[k] if cfg.sensors.angle and has_lasers else None)
+        if rec and snapshot is None and k >= snap_at:
+            snapshot = _snapshot(pf, inc, k, data, Tn)
         t0 = time.perf_counter()
         est = pf.step(inputs)
         step_ms[k] = (time.perf_counter() - t0) * 1e3
         estimate[k] = est.T
         kinematic[k] = est.T_kinematic
         spread[k] = est.spread
+        status[k] = est.status
+        reason[k] = est.reason
         ess[k] = est.ess
         resampled[k] = est.resampled
         if rec:
             idx = systematic_resample(pf.weights, rec_rng)[:: max(1, pf.n // rec)][:rec]
             if idx.shape[0] < rec:
                 idx = np.resize(idx, rec)
-            particles[k] = pose_coords(pf.T[idx], Tn[k])
+            particles[k] = _deg(pose_coords(pf.T[idx], Tn[k]))
     spread[:, 3:] = np.degrees(spread[:, 3:])
     truth = data.truth
     return EpisodeResult(
         t_s=nt.t_s.copy(), truth=truth, estimate=estimate, kinematic=kinematic, nominal=Tn.copy(),
-        seam=nt.seam.copy(), error=pose_errors(estimate, truth, Tn),
-        kinematic_error=pose_errors(kinematic, truth, Tn), spread=spread, ess=ess, step_ms=step_ms,
+        seam=nt.seam.copy(), error=_deg(seam_frame_errors(estimate, truth, Tn)),
+        kinematic_error=_deg(seam_frame_errors(kinematic, truth, Tn)), spread=spread, ess=ess, step_ms=step_ms,
         particles=particles, knots_kept=int(knots.knots.shape[0]), trend_max_error_mm=knots.max_error_mm,
-        truth_coords=pose_coords(truth, Tn), estimate_coords=pose_coords(estimate, Tn),
+        truth_coords=_deg(pose_coords(truth, Tn)), estimate_coords=_deg(pose_coords(estimate, Tn)),
         laser_mm=data.laser_mm, resampled=resampled, recoveries=pf.recoveries, seed=seed, config=cfg,
+        status=status.astype(str), reason=reason, snapshot=snapshot,
     )
 
 
@@ -341,7 +416,11 @@ def metrics(results: list[EpisodeResult]) -> dict:
         ``kinematic_rmse_deg``, ``step_ms_median``, ``step_ms_p95``, ``runs``, ``steps``,
         ``particles``, ``sensors``, ``sensor_distances_mm``, ``trajectory``, ``resampler``,
         ``knots_kept``, ``trend_max_error_mm``, ``recoveries``, ``laser_missing_fraction``,
-        ``spread_median_mm``, ``spread_median_deg``.
+        ``spread_median_mm``, ``spread_median_deg``; ``status_counts`` ``{tracking, degraded,
+        lost}`` (steps over all runs), ``coverage_2sigma`` ``{x, y, z, rx, ry, rz}`` (fraction of
+        steps whose |error| <= 2 × the reported spread) and ``tracking_beyond_3sigma`` (fraction
+        of the steps whose error exceeds 3 × the reported spread on some axis that are
+        ``tracking``; null when there are none).
     """
     if not results:
         from posekit.errors import EstimationError
@@ -353,6 +432,8 @@ def metrics(results: list[EpisodeResult]) -> dict:
     step = np.concatenate([r.step_ms for r in results])
     spread = np.median(np.concatenate([r.spread for r in results]), axis=0)
     laser = np.concatenate([r.laser_mm.reshape(-1, 2) for r in results])
+    cov, counts, beyond = integrity_summary(results)
+
     def fl(v):
         return float(round(float(v), 6))
 
@@ -376,4 +457,52 @@ def metrics(results: list[EpisodeResult]) -> dict:
         "laser_missing_fraction": fl(np.mean(~np.isfinite(laser[:, 0]))) if laser.size else 0.0,
         "spread_median_mm": {a: fl(v) for a, v in zip(AXES[:3], spread[:3])},
         "spread_median_deg": {a: fl(v) for a, v in zip(AXES[3:], spread[3:])},
+        "status_counts": counts,
+        "coverage_2sigma": {a: fl(v) for a, v in zip(AXES, cov)},
+        "tracking_beyond_3sigma": None if beyond is None else fl(beyond),
     }
+
+
+#: Per-step integrity columns of ``estimates.csv`` (DESIGN.md seam contract), after the existing ones.
+STATUS_COLUMNS = ("status", "std_x_mm", "std_y_mm", "std_z_mm", "std_rx_deg", "std_ry_deg", "std_rz_deg")
+
+
+def status_columns(result: EpisodeResult) -> dict:
+    """The per-step ``status`` and the six reported spreads of one episode, by column name.
+
+    Returns
+    -------
+    dict
+        :data:`STATUS_COLUMNS` -> array (T,): ``status`` (str: tracking | degraded | lost) and
+        ``std_x_mm .. std_rz_deg``, the filter's 1σ per axis (mm, deg) in the estimate's frame.
+    """
+    n = result.t_s.shape[0]
+    status = result.status if result.status is not None else np.full(n, "tracking")
+    out = {"status": np.asarray(status, dtype=str)}
+    for name, col in zip(STATUS_COLUMNS[1:], np.asarray(result.spread, dtype=np.float64).T):
+        out[name] = col
+    return out
+
+
+def integrity_summary(results: list[EpisodeResult]) -> tuple[np.ndarray, dict, float | None]:
+    """Honesty of the reported spread and verdicts over episodes.
+
+    Returns
+    -------
+    coverage : ndarray, shape (6,)
+        Fraction of steps with ``|error| <= 2 × spread`` per axis (x, y, z, rx, ry, rz).
+    status_counts : dict
+        ``{"tracking": int, "degraded": int, "lost": int}`` over all steps.
+    tracking_beyond_3sigma : float or None
+        Of the steps whose error exceeds 3 × the spread on some axis, the fraction reported
+        ``tracking`` (the DESIGN "Trust" failure: a confident wrong pose); None if no such step.
+    """
+    err = np.abs(np.concatenate([r.error for r in results]))
+    spr = np.concatenate([r.spread for r in results])
+    status = np.concatenate([status_columns(r)["status"] for r in results])
+    with np.errstate(invalid="ignore"):
+        coverage = np.mean(err <= 2.0 * spr, axis=0)
+        beyond = np.any(err > 3.0 * spr, axis=1)
+    counts = {k: int(np.sum(status == k)) for k in ("tracking", "degraded", "lost")}
+    frac = float(np.mean(status[beyond] == "tracking")) if beyond.any() else None
+    return coverage, counts, frac

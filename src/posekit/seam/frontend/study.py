@@ -7,6 +7,11 @@ with an intercept) of each RMSE on the factor values then gives one p-value per 
 error; :func:`rank_parameters` orders the factors by their smallest p-value. An integer
 parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
 
+A factor is a dotted key of the configuration: a number (drawn in ``[low, high]``), an item of a
+tuple key (``process.force_n[2]``, ``sensors.distances_mm[1]``) or a whole tuple key
+(``sensors.distances_mm``, ``process.force_n``), whose draw is a scale applied to every item
+(``[low, high]`` default ``1 ± spread``): the sensors move out together, the force grows.
+
 Reproducibility: run ``i`` draws its factor values from ``task_seed(seed, i, 0)`` and the
 seed of its episode ``j`` from ``task_seed(seed, i, 1, j)``; the draws are made before the
 tasks are sent out and nothing depends on the worker, so the same seed gives the same table
@@ -35,8 +40,10 @@ __all__ = [
     "Factor",
     "ParameterEffects",
     "SeamStudy",
+    "factor_value",
     "fit_parameter_effects",
     "get_dotted",
+    "is_tuple_factor",
     "make_factors",
     "rank_parameters",
     "seam_study",
@@ -70,24 +77,65 @@ class Factor:
                               f"got [{self.low:g}, {self.high:g}]")
 
 
+def _split_index(key: str) -> tuple[str, int | None]:
+    """``'process.force_n[2]'`` → ``('process.force_n', 2)``; ``'a.b'`` → ``('a.b', None)``."""
+    if key.endswith("]") and "[" in key:
+        name, _, idx = key[:-1].rpartition("[")
+        try:
+            return name, int(idx)
+        except ValueError:
+            raise ConfigError(f"study factor '{key}': expected KEY[INDEX] with an integer index") from None
+    return key, None
+
+
 def get_dotted(data: Mapping, key: str):
-    """``data['a']['b']`` for ``key='a.b'``; ConfigError naming the key when it does not exist."""
+    """``data['a']['b']`` for ``key='a.b'`` (``'a.b[i]'``: item i of a tuple key); ConfigError naming
+    the key when it does not exist."""
+    name, idx = _split_index(key)
     node = data
-    for part in key.split("."):
+    for part in name.split("."):
         if not isinstance(node, Mapping) or part not in node:
             raise ConfigError(f"study factor '{key}': no such configuration key")
         node = node[part]
+    if idx is not None:
+        if not isinstance(node, (list, tuple)) or not -len(node) <= idx < len(node):
+            size = len(node) if isinstance(node, (list, tuple)) else "no"
+            raise ConfigError(f"study factor '{key}': '{name}' has {size} items; expected an index within them")
+        node = node[idx]
     return node
 
 
 def set_dotted(data: dict, key: str, value) -> None:
-    """Set ``data['a']['b'] = value`` for ``key='a.b'`` in place (the key must exist)."""
+    """Set ``data['a']['b'] = value`` for ``key='a.b'`` in place (the key must exist); ``'a.b[i]'``
+    sets item i of a tuple key."""
     get_dotted(data, key)
-    *path, last = key.split(".")
+    name, idx = _split_index(key)
+    *path, last = name.split(".")
     node = data
     for part in path:
         node = node[part]
-    node[last] = value
+    if idx is None:
+        node[last] = value
+    else:
+        items = list(node[last])
+        items[idx] = value
+        node[last] = items
+
+
+def is_tuple_factor(base: Mapping, name: str) -> bool:
+    """Whether ``name`` is a whole tuple key (``sensors.distances_mm``, ``process.force_n``): its
+    factor value is a scale applied to every item."""
+    value = get_dotted(base, name)
+    return isinstance(value, (list, tuple))
+
+
+def factor_value(base: Mapping, name: str, x: float):
+    """The configuration value of factor ``name`` drawn as ``x``: ``x`` itself (rounded for an
+    integer key), or for a whole tuple key the base items scaled by ``x``."""
+    value = get_dotted(base, name)
+    if isinstance(value, (list, tuple)):
+        return [float(v) * float(x) for v in value]
+    return int(round(x)) if type(value) is int else float(x)
 
 
 def make_factors(base: Mapping, names: Sequence[str] | None = None, *, spread: float = 0.5,
@@ -125,6 +173,11 @@ def make_factors(base: Mapping, names: Sequence[str] | None = None, *, spread: f
         if name in ranges:
             lo, hi = ranges[name]
             factors.append(Factor(name, float(lo), float(hi)))
+            continue
+        if isinstance(value, (list, tuple)):  # a tuple key: one scale for all of its items
+            if not value or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+                raise ConfigError(f"study factor '{name}': expected a tuple of numbers, got {value!r}")
+            factors.append(Factor(name, 1.0 - spread, 1.0 + spread))
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"study factor '{name}': expected a numeric parameter, got {value!r}")
@@ -373,7 +426,8 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     factors = tuple(factors) if factors is not None else make_factors(base)
     lows = np.array([f.low for f in factors])
     highs = np.array([f.high for f in factors])
-    # integer parameters (particle count, stages, steps) take the drawn value rounded
+    # integer parameters (particle count, stages, steps) take the drawn value rounded; a tuple key
+    # (sensors.distances_mm, process.force_n) is scaled as a whole by its draw
     integer = np.array([type(get_dotted(base, f.name)) is int for f in factors], dtype=bool)
     X = np.empty((int(runs), len(factors)))
     tasks = []
@@ -382,14 +436,14 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
         X[i] = lows + (highs - lows) * rng.random(len(factors))
         X[i, integer] = np.round(X[i, integer])
         cfg = copy.deepcopy(base)
-        for f, v, is_int in zip(factors, X[i], integer):
-            set_dotted(cfg, f.name, int(v) if is_int else float(v))
+        for f, v in zip(factors, X[i]):
+            set_dotted(cfg, f.name, factor_value(base, f.name, v))
         tasks.append({"run": i, "config": cfg, "seeds": [_episode_seed(seed, i, j) for j in range(int(episodes))]})
     # A bad range (e.g. a noise pushed below 0) is the user's error: say so before any work starts.
     for f in factors:
         for v in (f.low, f.high):
             cfg = copy.deepcopy(base)
-            set_dotted(cfg, f.name, v)
+            set_dotted(cfg, f.name, factor_value(base, f.name, v))
             try:
                 config_from_dict(cfg, "study")
             except PosekitError as exc:

@@ -9,7 +9,9 @@ z along the tool axis, x across), parametrised by its length parameter ``u`` in 
 ``bend``  straight along y up to ``u_b``, then at ``bend_deg`` about the tool z axis (a corner)
 
 The robot program (what a robot simulator would export) is the Cartesian path of the TCP
-along the seam with the tool orientation of ``T0`` held constant; it is turned into a joint
+along the seam with the tool orientation of ``T0`` held constant (``tool_orientation:
+fixed``, the paper's Fig. 9) or turning with the seam tangent (``tangent``, the authors'
+simulator: :func:`program_rotations_T0`); it is turned into a joint
 stream by resolved-rate inverse kinematics (:func:`posekit.robots.resolved_rate_step` with
 ``k dt = 1``, i.e. a damped Gauss–Newton step, unchecked on the core's compiled kinematics;
 one step per sample, more after a long step) on the configured robot (the PUMA 560 by
@@ -38,6 +40,8 @@ __all__ = [
     "IK_SEED_DEG",
     "NominalTrajectory",
     "nominal_trajectory",
+    "program_rotations_T0",
+    "seam_headings_T0",
     "seam_points_T0",
     "ik_seed",
     "start_pose",
@@ -154,12 +158,55 @@ def start_pose(cfg: TrajectoryConfig) -> np.ndarray:
     return T
 
 
+def seam_headings_T0(cfg: TrajectoryConfig, u) -> np.ndarray:
+    """Travel direction of a tool that follows the seam, in the start frame T0.
+
+    The seam tangent projected on the workpiece plane (x-y of T0), averaged over
+    ``cfg.turn_mm`` of the seam parameter centred on ``u`` (a sharp corner becomes a turn over
+    that length), unit length.
+
+    Parameters
+    ----------
+    cfg : TrajectoryConfig
+    u : array_like, shape (M,)
+        Seam parameter, mm.
+
+    Returns
+    -------
+    ndarray, shape (M, 3)
+        Unit heading ``(hx, hy, 0)`` in T0.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    nodes = ((np.arange(32) + 0.5) / 32 - 0.5) * cfg.turn_mm if cfg.turn_mm > 0 else np.zeros(1)
+    uu = u[:, None] + nodes[None]
+    t = seam_points_T0(cfg, uu + 1e-3) - seam_points_T0(cfg, uu - 1e-3)
+    t[..., 2] = 0.0
+    t /= np.maximum(np.linalg.norm(t, axis=-1, keepdims=True), 1e-12)
+    h = t.mean(axis=1)
+    return h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
+
+
+def program_rotations_T0(cfg: TrajectoryConfig, u) -> np.ndarray:
+    """Tool orientations ``R_T0_tool`` along the program, shape (M, 3, 3).
+
+    ``fixed``: the identity (the tool keeps the start orientation). ``tangent``: the tool's y
+    axis along :func:`seam_headings_T0`, z the workpiece normal (z of T0), x = y × z.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    R = np.repeat(np.eye(3)[None], u.shape[0], axis=0)
+    if cfg.tool_orientation == "tangent":
+        h = seam_headings_T0(cfg, u)
+        R[:, 0, 0], R[:, 1, 0] = h[:, 1], -h[:, 0]
+        R[:, 0, 1], R[:, 1, 1] = h[:, 0], h[:, 1]
+    return R
+
+
 @lru_cache(maxsize=16)
 def tool_chain(robot: RobotConfig) -> KinematicChain:
-    """The nominal robot model (bundled or URDF) with its tool ``tool_length_mm`` along the
-    flange z axis (cached per configuration; chains are immutable)."""
-    T_flange_tool = np.eye(4)
-    T_flange_tool[2, 3] = robot.tool_length_mm
+    """The nominal robot model (bundled or URDF) with its tool ``T_flange_tool``
+    (:meth:`RobotConfig.tool_matrix`: ``robot.tool``, or ``tool_length_mm`` along the flange z
+    axis), cached per configuration; chains are immutable."""
+    T_flange_tool = robot.tool_matrix()
     if robot.urdf is not None:
         chain = load_urdf(robot.urdf, robot.base_link, robot.tip_link)
     else:
@@ -196,6 +243,8 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
     p_T0 = seam_points_T0(traj, u)
     T_program = np.repeat(T0[None], n, axis=0)
     T_program[:, :3, 3] = p_T0 @ T0[:3, :3].T + T0[:3, 3]
+    if traj.tool_orientation != "fixed":
+        T_program[:, :3, :3] = np.matmul(T0[:3, :3], program_rotations_T0(traj, u))
 
     q = ik_seed(robot, chain)
     for _ in range(200):  # converge on the first pose

@@ -1,0 +1,83 @@
+"""The filter's prior and transition width (issue 15): the first cloud drawn from the robot density
+(uniform plateau + tails, offset by init_offset), the transition width from the force rate (paper
+eq. 3, f-dot) or its magnitude, and no worse than kinematics without a laser reading."""
+
+import math
+
+import numpy as np
+import pytest
+
+from posekit.geometry import rotation_vector_from_matrix
+from posekit.seam.engine import filter as filt
+from posekit.seam.engine.densities import RobotMeasurement
+from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.trajectories import nominal_trajectory
+
+
+def _pf(n=4000, sensors=0, **f):
+    cfg = config_from_dict({"trajectory": {"kind": "line", "steps": 20},
+                            "sensors": {"count": sensors, "distances_mm": [20.0, 40.0][:sensors]},
+                            "filter": {"particles": n, **f}})
+    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+    return cfg, nt, SeamParticleFilter(cfg, nt.seam, 0, T_init=nt.T_nominal[0])
+
+
+def test_first_cloud_fills_the_robot_plateau():
+    _, _, pf = _pf(init_offset_mm=(0.0, 0.0, 0.0))
+    mu = np.eye(4)
+    mu[:3, 3] = [400.0, 10.0, -5.0]
+    meas = RobotMeasurement(mu, 1e-6 * np.eye(3), 1e-12 * np.eye(3), 2.0, 0.01)
+    T = pf._draw_from_robot(meas)
+    r = np.linalg.norm(T[:, :3, 3] - mu[:3, 3], axis=1)
+    # a uniform ball of radius 2 (tails 1 µm): all inside, a fraction (1/2)^3 inside radius 1
+    assert r.max() <= 2.0 + 1e-2
+    assert np.mean(r < 1.0) == pytest.approx(0.125, abs=0.02)
+    np.testing.assert_allclose(T[:, :3, 3].mean(0), mu[:3, 3], atol=0.05)
+    ang = np.linalg.norm(rotation_vector_from_matrix(T[:, :3, :3]), axis=1)
+    assert ang.max() <= 0.01 + 1e-5 and np.mean(ang < 0.005) == pytest.approx(0.125, abs=0.02)
+
+
+def test_init_offset_moves_the_first_cloud():
+    _, _, pf = _pf(init_offset_mm=(3.0, 0.0, 0.0), init_offset_deg=(0.0, 0.0, 2.0))
+    meas = RobotMeasurement(np.eye(4), 1e-6 * np.eye(3), 1e-12 * np.eye(3), 0.5, 0.001)
+    T = pf._draw_from_robot(meas)
+    np.testing.assert_allclose(T[:, :3, 3].mean(0), [3.0, 0.0, 0.0], atol=0.02)
+    rv = rotation_vector_from_matrix(T[:, :3, :3]).mean(0)
+    np.testing.assert_allclose(rv, [0.0, 0.0, math.radians(2.0)], atol=2e-4)
+
+
+@pytest.mark.parametrize("mode", ["rate", "magnitude"])
+def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch):
+    seen = []
+    real = filt.transition
+
+    def spy(Ts, inc, st, sr, rng, **kw):
+        seen.append((st, sr))
+        return real(Ts, inc, st, sr, rng, **kw)
+
+    monkeypatch.setattr(filt, "transition", spy)
+    cfg, nt, pf = _pf(n=50, transition_force=mode, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3,
+                      k_rate_r_deg_per_n=2e-3, k_force_t=1e-5, k_force_r=2e-5)
+    forces = [np.array([0.0, 0.0, -1000.0]), np.array([0.0, 0.0, -1000.0]), np.array([30.0, 0.0, -1040.0])]
+    for k, f in enumerate(forces):
+        inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
+        pf.step(StepInputs(inc, nt.T_nominal[k], nt.q[k], f))
+    deg = math.pi / 180
+    if mode == "rate":  # |Δf| = 0, 0, 50 N
+        expect = [(0.01, 0.005 * deg), (0.01, 0.005 * deg), (0.01 + 0.05, (0.005 + 0.1) * deg)]
+    else:  # |f| = 1000, 1000, 1040.4 N
+        fn = np.linalg.norm(forces[2])
+        expect = [(0.02, 0.025 * deg)] * 2 + [(0.01 + 1e-5 * fn, (0.005 + 2e-5 * fn) * deg)]
+    np.testing.assert_allclose(seen, expect, rtol=1e-12)
+
+
+def test_without_lasers_the_estimate_is_the_kinematic_pose():
+    # the symmetric robot density's mean is its centre: no wandering inside the plateau
+    cfg, nt, pf = _pf(n=200, sensors=0)
+    for k in range(10):
+        inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
+        q = nt.q[k] + 1e-4
+        est = pf.step(StepInputs(inc, nt.T_nominal[k], q, np.zeros(3)))
+        np.testing.assert_allclose(est.T, est.T_kinematic, atol=1e-12)
+        assert est.status == "tracking" and est.spread[0] > 0.5  # the plateau, not a point
