@@ -72,3 +72,27 @@ def test_loop_bad_options(tmp_path, capsys):
     assert "--steps-mm: expected comma-separated numbers" in capsys.readouterr().err
     assert main(["profiler", "loop", "--axes", "w", "--no-camera", "--out", str(tmp_path)]) == 1
     assert "unknown axis 'w'" in capsys.readouterr().err
+
+
+def test_a_cycle_without_an_ok_pose_leaves_a_gap_the_metrics_fill(experiment):
+    """A suspect verdict on good data (~1 in 1,000 frames at the default significance) leaves one
+    cycle without a measurement; the step metrics (a spectrum among them) still come out, equal to
+    those of the response with that sample filled from its neighbours (``posekit demo`` once
+    stopped on it: "amplitude_spectrum: t_s must be uniformly sampled")."""
+    import dataclasses
+
+    from posekit.profiler.loop.response import step_metrics
+
+    run = next(r for r in experiment.runs if r.mode == "closed")
+    k = len(run.t_s) // 3
+    meas = run.measured_mm.copy()
+    meas[k] = np.nan
+    gap = dataclasses.replace(run, measured_mm=meas, missed=1)
+    t, y = run.signal()
+    y = y.copy()
+    y[k] = 0.5 * (y[k - 1] + y[k + 1])
+    expect = step_metrics(t, y, run.step_mm, t_step_s=run.t_step_s)
+    got = gap.metrics()
+    assert got.keys() == expect.keys()
+    for key in expect:
+        assert got[key] == pytest.approx(expect[key], rel=1e-12, nan_ok=True), key
