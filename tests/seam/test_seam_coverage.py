@@ -85,7 +85,8 @@ def test_estimates_csv_carries_status_and_the_six_spreads(tmp_path):
     back = read_estimates_csv(write_estimates_csv(tmp_path / "estimates.csv", [r, r]))
     assert back["status"].tolist() == r.status.tolist() * 2
     for i, name in enumerate(STATUS_COLUMNS[1:]):
-        np.testing.assert_allclose(back[name], np.tile(r.spread[:, i], 2), rtol=1e-9)
+        want = r.spread[:, i] if i < 3 else np.degrees(r.spread[:, i])  # the library's rad -> the *_deg columns
+        np.testing.assert_allclose(back[name], np.tile(want, 2), rtol=1e-9)
     assert set(back["status"]) <= {"tracking", "degraded", "lost"}
 
 

@@ -48,11 +48,11 @@ def test_ranking_matches_episodes_run_here():
         dist = [float(v) for v in r["distances_mm"].split(";")] if r["distances_mm"] else None
         c = config_from_dict({"trajectory": {"steps": 60}, "filter": {"particles": 100},
                               "sensors": {"count": r["sensors"], "distances_mm": dist}})
-        e = run_episode(c, seed).error
+        e = run_episode(c, seed).error  # mm, rad
         rm = np.sqrt(np.mean(e ** 2, axis=0))
         assert [r["rmse_x_mm"], r["rmse_y_mm"], r["rmse_z_mm"]] == pytest.approx(rm[:3], rel=1e-9)
-        assert [r["rmse_rx_deg"], r["rmse_ry_deg"], r["rmse_rz_deg"]] == pytest.approx(rm[3:], rel=1e-9)
-        score = np.linalg.norm(rm[:3]) + 100.0 * np.linalg.norm(np.radians(rm[3:]))
+        assert [r["rmse_rx_deg"], r["rmse_ry_deg"], r["rmse_rz_deg"]] == pytest.approx(np.degrees(rm[3:]), rel=1e-9)
+        score = np.linalg.norm(rm[:3]) + 100.0 * np.linalg.norm(rm[3:])
         assert r["score"] == pytest.approx(score, rel=1e-9)
     # two sensors see the seam where none sees nothing: the best has sensors, the last has none
     assert rows[0]["sensors"] == 2 and rows[-1]["sensors"] == 0

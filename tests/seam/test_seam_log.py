@@ -44,9 +44,9 @@ def test_recorded_simulated_run_reproduces_the_run(recorded):
     assert np.abs(tr.truth - res.truth).max() < 1e-9
     m = track_metrics(tr)
     assert sum(m["status_counts"].values()) == 60
-    rm = np.sqrt(np.mean(res.error ** 2, axis=0))
+    rm = np.sqrt(np.mean(res.error ** 2, axis=0))  # mm, rad
     assert m["rmse_mm"]["x"] == pytest.approx(rm[0], abs=1e-5)
-    assert m["rmse_deg"]["rz"] == pytest.approx(rm[5], abs=1e-5)
+    assert m["rmse_deg"]["rz"] == pytest.approx(np.degrees(rm[5]), abs=1e-5)
 
 
 def test_log_force_is_in_the_tool_frame_of_the_measured_pose(recorded):

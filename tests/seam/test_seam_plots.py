@@ -126,7 +126,12 @@ def test_estimates_csv_round_trip(tmp_path):
     assert len(cols["run"]) == 19
     np.testing.assert_array_equal(cols["run"], [0] * 12 + [1] * 7)
     np.testing.assert_array_equal(cols["step"], [*range(12), *range(7)])
-    np.testing.assert_allclose(cols["err_rz_deg"], np.r_[runs[0].error[:, 5], runs[1].error[:, 5]], rtol=1e-9)
+    # EpisodeResult rotations are radians; the CSV's *_deg columns hold degrees
+    np.testing.assert_allclose(cols["err_rz_deg"], np.degrees(np.r_[runs[0].error[:, 5], runs[1].error[:, 5]]),
+                               rtol=1e-9)
+    np.testing.assert_allclose(cols["spread_ry_deg"][:12], np.degrees(runs[0].spread[:, 4]), rtol=1e-9)
+    np.testing.assert_allclose(cols["std_rx_deg"][12:], np.degrees(runs[1].spread[:, 3]), rtol=1e-9)
+    np.testing.assert_allclose(cols["kin_err_y_mm"][:12], runs[0].kinematic_error[:, 1], rtol=1e-9)
     np.testing.assert_allclose(cols["truth_y_mm"][12:], runs[1].truth[:, 1, 3], rtol=1e-9, atol=1e-12)
     # quaternions are unit, scalar first, with qw >= 0, and give back the rotation
     from posekit.geometry import matrix_from_quaternion

@@ -85,7 +85,19 @@ def test_episode_result_contract_and_metrics():
     np.testing.assert_allclose(r.estimate_coords[:, :3] - r.truth_coords[:, :3], r.error[:, :3], atol=1e-9)
     # the recorded particles scatter around the estimate
     np.testing.assert_allclose(r.particles.mean(axis=1)[:, [0, 2]], r.estimate_coords[:, [0, 2]], atol=0.3)
+    # rotations are radians (issue 15): an independent rotation vector (scipy) of R_trueᵀ R_est and of R_nomᵀ R
+    from scipy.spatial.transform import Rotation
+    rv = Rotation.from_matrix(np.einsum("nji,njk->nik", r.truth[:, :3, :3], r.estimate[:, :3, :3])).as_rotvec()
+    np.testing.assert_allclose(r.error[:, 3:], rv, atol=1e-9)
+    rv = Rotation.from_matrix(np.einsum("nji,njk->nik", r.nominal[:, :3, :3], r.truth[:, :3, :3])).as_rotvec()
+    np.testing.assert_allclose(r.truth_coords[:, 3:], rv, atol=1e-9)
     m = metrics([r, run_episode(cfg, 1)])
+    # metrics.json keeps degrees: the pooled RMSE of the radian errors, converted at the edge
+    r1 = run_episode(cfg, 1)
+    rz = np.degrees(np.sqrt(np.mean(np.r_[r.error[:, 5], r1.error[:, 5]] ** 2)))
+    assert m["rmse_deg"]["rz"] == pytest.approx(rz, abs=2e-6)
+    assert m["spread_median_deg"]["rx"] == pytest.approx(np.degrees(np.median(np.r_[r.spread[:, 3], r1.spread[:, 3]])),
+                                                         abs=2e-6)
     assert m["runs"] == 2 and m["steps"] == T and m["particles"] == 100 and m["sensors"] == 2
     assert m["trajectory"] == "xy" and m["sensor_distances_mm"] == [20.0, 40.0]
     assert set(m["rmse_mm"]) == {"x", "y", "z"} and set(m["rmse_deg"]) == {"rx", "ry", "rz"}
@@ -159,4 +171,4 @@ def test_angle_measurement_pins_the_roll():
     ry_plain = np.sqrt(np.mean([(p.error[:, 4] ** 2).mean() for p in plain]))
     ry_angle = np.sqrt(np.mean([(a.error[:, 4] ** 2).mean() for a in angled]))
     assert ry_angle < 0.3 * ry_plain
-    assert ry_angle < 0.1  # deg
+    assert np.degrees(ry_angle) < 0.1  # the errors are in rad; 0.1 deg

@@ -89,11 +89,11 @@ class ConfigurationSet:
     metrics: dict
 
     def errors(self) -> np.ndarray:
-        """(R*T, 6) filter errors of all runs, ``[x, y, z mm, rx, ry, rz deg]``."""
+        """(R*T, 6) filter errors of all runs, ``[x, y, z mm, rx, ry, rz rad]``."""
         return np.concatenate([r.error for r in self.results], axis=0)
 
     def kinematic_errors(self) -> np.ndarray:
-        """(R*T, 6) errors of the kinematics-only pose of all runs."""
+        """(R*T, 6) errors of the kinematics-only pose of all runs, ``[x, y, z mm, rx, ry, rz rad]``."""
         return np.concatenate([r.kinematic_error for r in self.results], axis=0)
 
 

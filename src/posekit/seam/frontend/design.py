@@ -167,10 +167,8 @@ def design_task(task: dict) -> dict:
     try:
         cfg = config_from_dict(task["config"], f"design configuration {task['index']}")
         r = run_episode(cfg, int(task["seed"]))
-        e = np.array(r.error, dtype=np.float64)
-        k = np.array(r.kinematic_error, dtype=np.float64)
-        e[:, 3:] = np.radians(e[:, 3:])
-        k[:, 3:] = np.radians(k[:, 3:])
+        e = np.asarray(r.error, dtype=np.float64)  # mm, rad
+        k = np.asarray(r.kinematic_error, dtype=np.float64)
         return {"index": task["index"], "status": "ok", "sse": (e ** 2).sum(axis=0).tolist(),
                 "kin_sse": (k ** 2).sum(axis=0).tolist(), "steps": int(e.shape[0]), "error": ""}
     except Exception as exc:  # noqa: BLE001 -- recorded in the configuration's row (never drop an item)

@@ -10,7 +10,8 @@
 * :func:`plot_pvalue_heatmap` — Fig. 6: log10 p-values of the tuning study's linear models.
 
 Plotting is kept out of the numerical modules; each function writes one PNG and returns its
-path. Angles are shown in degrees, lengths in mm.
+path. The inputs are in the library's units (lengths in mm, angles in radians); the figures show
+angles in degrees, lengths in mm (the conversion happens here, at the edge).
 """
 
 import inspect
@@ -38,6 +39,14 @@ __all__ = [
 #: Label of each of the six state/error dimensions (translations in mm, rotations in deg).
 AXIS_LABELS = ("x (mm)", "y (mm)", "z (mm)", "rx (deg)", "ry (deg)", "rz (deg)")
 DPI = 100
+
+
+def _rad_to_deg(a: np.ndarray) -> np.ndarray:
+    """A float copy of ``(..., 6)`` rows ``[mm, mm, mm, rad, rad, rad]`` with the rotations in degrees."""
+    a = np.array(a, dtype=float, copy=True)
+    if a.ndim >= 1 and a.shape[-1] == 6:
+        a[..., 3:] = np.degrees(a[..., 3:])
+    return a
 
 
 def _plt():
@@ -117,8 +126,8 @@ def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s
     Parameters
     ----------
     particles : ndarray, shape (T, K, 6)
-        K recorded particles per time step, ``[x, y, z mm, rx, ry, rz deg]`` (the
-        ``EpisodeResult.particles`` convention).
+        K recorded particles per time step, ``[x, y, z mm, rx, ry, rz rad]`` (the
+        ``EpisodeResult.particles`` convention); the rotations are drawn in degrees.
     truth : ndarray, shape (T, 6)
         The true state in the same coordinates (``EpisodeResult.truth_coords``).
     path : path-like
@@ -134,8 +143,8 @@ def plot_particle_density(particles: np.ndarray, truth: np.ndarray, path, *, t_s
     -------
     pathlib.Path
     """
-    particles = np.asarray(particles, dtype=float)
-    truth = np.asarray(truth, dtype=float)
+    particles = _rad_to_deg(particles)
+    truth = _rad_to_deg(truth)
     if particles.ndim != 3 or particles.shape[2] != 6 or truth.shape != (particles.shape[0], 6):
         raise ConfigError(f"particle density plot: expected particles (T, K, 6) and truth (T, 6), "
                           f"got {particles.shape} and {truth.shape}")
@@ -170,7 +179,7 @@ def plot_error_distributions(groups: Mapping[str, np.ndarray], path, *, title: s
     ----------
     groups : mapping of str to ndarray, shape (M, 6)
         Label (e.g. ``'xy, 2 sensors'``) -> per-step errors of all runs,
-        ``[x, y, z mm, rx, ry, rz deg]`` in the seam frame. Non-finite rows are left out.
+        ``[x, y, z mm, rx, ry, rz rad]`` in the seam frame (drawn in degrees). Non-finite rows are left out.
     path : path-like
         PNG file to write.
     title : str
@@ -188,7 +197,7 @@ def plot_error_distributions(groups: Mapping[str, np.ndarray], path, *, title: s
         e = np.asarray(groups[k], dtype=float)
         if e.ndim != 2 or e.shape[1] != 6:
             raise ConfigError(f"error distribution plot: group '{k}' must be (M, 6), got {e.shape}")
-        data.append(e)
+        data.append(_rad_to_deg(e))
     plt = _plt()
     # Horizontal boxes, one row per group, the group names once on the left: the figure keeps
     # the report's width (11 in at DPI 100 = 1100 px, shown unscaled) whatever the number of
@@ -266,7 +275,7 @@ def plot_tracking_errors(error: np.ndarray, kinematic_error: np.ndarray, path, *
     ----------
     error, kinematic_error : ndarray, shape (R, T, 6)
         Errors of the filter estimate and of the robot's FK-only pose for R runs,
-        ``[x, y, z mm, rx, ry, rz deg]`` in the seam frame.
+        ``[x, y, z mm, rx, ry, rz rad]`` in the seam frame (drawn in degrees).
     path : path-like
         PNG file to write.
     t_s : ndarray, shape (T,), optional
@@ -281,9 +290,9 @@ def plot_tracking_errors(error: np.ndarray, kinematic_error: np.ndarray, path, *
     -------
     pathlib.Path
     """
-    e = np.asarray(error, dtype=float)
-    k = np.asarray(kinematic_error, dtype=float)
-    sp = None if spread is None else np.asarray(spread, dtype=float)
+    e = _rad_to_deg(error)
+    k = _rad_to_deg(kinematic_error)
+    sp = None if spread is None else _rad_to_deg(spread)
     if e.ndim != 3 or e.shape[2] != 6 or k.shape != e.shape:
         raise ConfigError(f"error plot: expected two (R, T, 6) error arrays, got {e.shape} and {k.shape}")
     x = np.arange(e.shape[1]) if t_s is None else np.asarray(t_s, dtype=float)

@@ -69,14 +69,17 @@ def write_estimates_csv(path, results: Sequence) -> Path:
     results : sequence of EpisodeResult
         The episodes, in run order. Each provides ``t_s`` (T,), ``truth``, ``estimate``,
         ``nominal`` (T, 4, 4) poses of the tool in the world frame W (mm), ``error`` and
-        ``kinematic_error`` (T, 6) ``[x, y, z mm, rx, ry, rz deg]`` in the seam frame,
-        ``spread`` (T, 6), ``ess`` (T,) and ``step_ms`` (T,).
+        ``kinematic_error`` (T, 6) ``[x, y, z mm, rx, ry, rz rad]`` in the seam frame,
+        ``spread`` (T, 6) (mm, rad), ``ess`` (T,) and ``step_ms`` (T,). The rotations are written
+        in degrees (the ``*_deg`` columns).
 
     Returns
     -------
     pathlib.Path
         ``path``. Columns: :data:`ESTIMATE_COLUMNS`; numbers with 10 significant digits.
     """
+    from posekit.seam.frontend.simulate import STATUS_COLUMNS, status_columns, to_degrees
+
     path = Path(path)
     with path.open("w", newline="") as f:
         w = csv.writer(f)
@@ -84,10 +87,9 @@ def write_estimates_csv(path, results: Sequence) -> Path:
         for run, r in enumerate(results):
             n = len(r.t_s)
             block = np.hstack([np.arange(n)[:, None], np.asarray(r.t_s, float)[:, None], _poses(r.truth),
-                               _poses(r.estimate), _poses(r.nominal), r.error, r.kinematic_error, r.spread,
+                               _poses(r.estimate), _poses(r.nominal), to_degrees(r.error),
+                               to_degrees(r.kinematic_error), to_degrees(r.spread),
                                np.asarray(r.ess, float)[:, None], np.asarray(r.step_ms, float)[:, None]])
-            from posekit.seam.frontend.simulate import STATUS_COLUMNS, status_columns
-
             cols = status_columns(r)  # [seam engine, issue 15] the verdict and the six 1-sigma spreads
             stds = np.column_stack([cols[c] for c in STATUS_COLUMNS[1:]])
             for row, st, sd in zip(block, cols["status"], stds):

@@ -14,7 +14,8 @@ One episode (:func:`run_episode`):
 4. the particle filter, timed per step.
 
 Errors are in the nominal seam frame (DESIGN/SEAM contract): translation
-``R_nomᵀ (p_est - p_true)`` in mm, rotation vector of ``R_trueᵀ R_est`` in degrees.
+``R_nomᵀ (p_est - p_true)`` in mm, rotation vector of ``R_trueᵀ R_est`` in radians (the library's
+unit); :func:`metrics`, the CSV tables, the plots and the printed tables show degrees (:func:`to_degrees`).
 """
 
 import math
@@ -52,6 +53,7 @@ __all__ = [
     "run_episode",
     "seam_knots",
     "simulate_data",
+    "to_degrees",
 ]
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
@@ -102,18 +104,18 @@ class EpisodeResult:
     seam : ndarray, shape (K, 3)
         True seam polyline (base frame, mm).
     error, kinematic_error : ndarray, shape (T, 6)
-        ``[x, y, z (mm), rx, ry, rz (deg)]`` of the estimate / kinematic pose against the truth
-        in the nominal seam frame.
+        ``[x, y, z (mm), rx, ry, rz (rad)]`` of the estimate / kinematic pose against the truth
+        in the nominal seam frame (:func:`seam_frame_errors`).
     spread : ndarray, shape (T, 6)
-        Filter spread ``[x, y, z (mm), rx, ry, rz (deg)]`` in the estimate's frame.
+        Filter spread (1σ) ``[x, y, z (mm), rx, ry, rz (rad)]`` in the estimate's frame.
     ess : ndarray, shape (T,)
     step_ms : ndarray, shape (T,)
         Wall time of each filter step, ms.
     particles : ndarray, shape (T, P, 6) or None
-        P recorded particles per step (drawn by weight), coordinates as ``truth_coords``.
+        P recorded particles per step (drawn by weight), coordinates as ``truth_coords`` (mm, rad).
     truth_coords, estimate_coords : ndarray, shape (T, 6)
         Offset from the nominal pose in its frame: ``R_nomᵀ (p - p_nom)`` (mm) and the rotation
-        vector of ``R_nomᵀ R`` (deg).
+        vector of ``R_nomᵀ R`` (rad) (:func:`pose_coords`).
     knots_kept : int
         Vertices of the trend-filter polyline the filter searches.
     trend_max_error_mm : float
@@ -169,7 +171,7 @@ def seam_frame_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) 
     ndarray, shape (T, 6)
         ``[x, y, z]`` = ``R_nomᵀ (p_est - p_true)`` in mm (x across, y along the seam, z along the
         tool axis), then ``[rx, ry, rz]`` = rotation vector of ``R_trueᵀ R_est`` in **radians**
-        (the library's unit; :class:`EpisodeResult` and the reports show degrees).
+        (the library's unit, as in :class:`EpisodeResult`; the reports show degrees).
     """
     dp = np.matmul(np.swapaxes(T_nom[:, :3, :3], 1, 2), (T_est[:, :3, 3] - T_true[:, :3, 3])[..., None])[..., 0]
     dr = rotation_vector_from_matrix(np.matmul(np.swapaxes(T_true[:, :3, :3], 1, 2), T_est[:, :3, :3]), check=False)
@@ -241,8 +243,19 @@ def _snapshot(pf, inc: np.ndarray, k: int, data, Tn: np.ndarray) -> dict | None:
     return None
 
 
-def _deg(a: np.ndarray) -> np.ndarray:
-    """``[mm, mm, mm, rad, rad, rad]`` rows → ``[mm, mm, mm, deg, deg, deg]`` (the report edge)."""
+def to_degrees(a: np.ndarray) -> np.ndarray:
+    """A copy of ``[mm, mm, mm, rad, rad, rad]`` rows as ``[mm, mm, mm, deg, deg, deg]`` (the report edge).
+
+    Parameters
+    ----------
+    a : array_like, shape (..., 6)
+        Seam-frame errors, spreads or pose coordinates in the library's units (mm, rad).
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        The same values with the last three (rotations) in degrees; float64, a new array.
+    """
     a = np.array(a, dtype=np.float64, copy=True)
     a[..., 3:] = np.degrees(a[..., 3:])
     return a
@@ -388,15 +401,14 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
             idx = systematic_resample(pf.weights, rec_rng)[:: max(1, pf.n // rec)][:rec]
             if idx.shape[0] < rec:
                 idx = np.resize(idx, rec)
-            particles[k] = _deg(pose_coords(pf.T[idx], Tn[k]))
-    spread[:, 3:] = np.degrees(spread[:, 3:])
+            particles[k] = pose_coords(pf.T[idx], Tn[k])
     truth = data.truth
     return EpisodeResult(
         t_s=nt.t_s.copy(), truth=truth, estimate=estimate, kinematic=kinematic, nominal=Tn.copy(),
-        seam=nt.seam.copy(), error=_deg(seam_frame_errors(estimate, truth, Tn)),
-        kinematic_error=_deg(seam_frame_errors(kinematic, truth, Tn)), spread=spread, ess=ess, step_ms=step_ms,
+        seam=nt.seam.copy(), error=seam_frame_errors(estimate, truth, Tn),
+        kinematic_error=seam_frame_errors(kinematic, truth, Tn), spread=spread, ess=ess, step_ms=step_ms,
         particles=particles, knots_kept=int(knots.knots.shape[0]), trend_max_error_mm=knots.max_error_mm,
-        truth_coords=_deg(pose_coords(truth, Tn)), estimate_coords=_deg(pose_coords(estimate, Tn)),
+        truth_coords=pose_coords(truth, Tn), estimate_coords=pose_coords(estimate, Tn),
         laser_mm=data.laser_mm, resampled=resampled, recoveries=pf.recoveries, seed=seed, config=cfg,
         status=status.astype(str), reason=reason, snapshot=snapshot,
     )
@@ -427,10 +439,10 @@ def metrics(results: list[EpisodeResult]) -> dict:
 
         raise EstimationError("metrics: expected at least one episode result, got none")
     cfg = results[0].config
-    err = _rmse(np.concatenate([r.error for r in results]))
-    kin = _rmse(np.concatenate([r.kinematic_error for r in results]))
+    err = to_degrees(_rmse(np.concatenate([r.error for r in results])))  # the metrics.json edge: mm, deg
+    kin = to_degrees(_rmse(np.concatenate([r.kinematic_error for r in results])))
     step = np.concatenate([r.step_ms for r in results])
-    spread = np.median(np.concatenate([r.spread for r in results]), axis=0)
+    spread = to_degrees(np.median(np.concatenate([r.spread for r in results]), axis=0))
     laser = np.concatenate([r.laser_mm.reshape(-1, 2) for r in results])
     cov, counts, beyond = integrity_summary(results)
 
@@ -474,12 +486,13 @@ def status_columns(result: EpisodeResult) -> dict:
     -------
     dict
         :data:`STATUS_COLUMNS` -> array (T,): ``status`` (str: tracking | degraded | lost) and
-        ``std_x_mm .. std_rz_deg``, the filter's 1σ per axis (mm, deg) in the estimate's frame.
+        ``std_x_mm .. std_rz_deg``, the filter's 1σ per axis (mm, deg) in the estimate's frame
+        (the CSV edge: ``EpisodeResult.spread`` converted from rad).
     """
     n = result.t_s.shape[0]
     status = result.status if result.status is not None else np.full(n, "tracking")
     out = {"status": np.asarray(status, dtype=str)}
-    for name, col in zip(STATUS_COLUMNS[1:], np.asarray(result.spread, dtype=np.float64).T):
+    for name, col in zip(STATUS_COLUMNS[1:], to_degrees(result.spread).T):
         out[name] = col
     return out
 

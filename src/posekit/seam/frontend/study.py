@@ -2,7 +2,8 @@
 
 Each *run* of the study draws a random perturbation of the chosen filter parameters (the
 *factors*), simulates ``episodes`` episodes with them and records the RMSE of the six
-tool-pose errors ``x, y, z`` (mm) and ``rx, ry, rz`` (deg). A linear model (statsmodels OLS,
+tool-pose errors ``x, y, z`` (mm) and ``rx, ry, rz`` (rad; the tables and the linear models use
+degrees). A linear model (statsmodels OLS,
 with an intercept) of each RMSE on the factor values then gives one p-value per factor and
 error; :func:`rank_parameters` orders the factors by their smallest p-value. An integer
 parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
@@ -322,7 +323,8 @@ class SeamStudy:
     X : ndarray, shape (R, P)
         Factor values of each run.
     rmse : ndarray, shape (R, 6)
-        RMSE of ``x, y, z`` (mm) and ``rx, ry, rz`` (deg) of each run, NaN for a failed run.
+        RMSE of ``x, y, z`` (mm) and ``rx, ry, rz`` (rad) of each run, NaN for a failed run
+        (``runs.csv``, the effects and the report show the rotations in degrees: :data:`ERROR_NAMES`).
     status : list of str
         ``'ok'`` or ``'error'`` per run; ``messages`` holds the reason of a failure.
     effects : ParameterEffects or None
@@ -352,10 +354,17 @@ class SeamStudy:
         rows = []
         for i in range(len(self.X)):
             row = {"run": i, "status": self.status[i], "seconds": float(self.seconds[i]), "error": self.messages[i]}
-            row.update({name: float(v) for name, v in zip(ERROR_NAMES, self.rmse[i])})
+            row.update({name: float(v) for name, v in zip(ERROR_NAMES, _rmse_deg(self.rmse[i]))})
             row.update({f.name: float(v) for f, v in zip(self.factors, self.X[i])})
             rows.append(row)
         return rows
+
+
+def _rmse_deg(rmse: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` RMSE rows ``[mm, mm, mm, rad, rad, rad]`` as ``[mm, mm, mm, deg, deg, deg]`` (a copy)."""
+    out = np.array(rmse, dtype=float, copy=True)
+    out[..., 3:] = np.degrees(out[..., 3:])
+    return out
 
 
 def _episode_seed(seed: int, run: int, episode: int) -> int:
@@ -363,7 +372,7 @@ def _episode_seed(seed: int, run: int, episode: int) -> int:
 
 
 def study_task(task: dict) -> dict:
-    """One study run (top level, picklable): simulate its episodes, return the RMSE per error axis.
+    """One study run (top level, picklable): simulate its episodes, return the RMSE per error axis (mm, rad).
 
     ``task`` holds ``config`` (a full configuration dict with the factor values set), ``seeds``
     (one int per episode) and ``run``. Any failure (a bad configuration, a failed estimate, a
@@ -376,8 +385,8 @@ def study_task(task: dict) -> dict:
     t0 = time.process_time()
     try:
         cfg = config_from_dict(task["config"], f"study run {task['run']}")
-        errors = np.concatenate([run_episode(cfg, int(s)).error for s in task["seeds"]], axis=0)
-        rmse = np.sqrt(np.nanmean(errors ** 2, axis=0))
+        errors = np.concatenate([run_episode(cfg, int(s)).error for s in task["seeds"]], axis=0)  # mm, rad
+        rmse = np.sqrt(np.nanmean(errors ** 2, axis=0))  # mm, rad
         return {"run": task["run"], "status": "ok", "rmse": rmse.tolist(), "error": "",
                 "seconds": time.process_time() - t0}
     except Exception as exc:  # noqa: BLE001 -- recorded in the run's row (DESIGN: never drop an item)
@@ -459,7 +468,7 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     seconds = np.array([r["seconds"] for r in out], dtype=float)
     names = tuple(f.name for f in factors)
     try:
-        effects = fit_parameter_effects(X, rmse, names)
+        effects = fit_parameter_effects(X, _rmse_deg(rmse), names)  # responses named ERROR_NAMES (mm, deg)
         ranked, why = rank_parameters(effects, factors), ""
     except EstimationError as exc:
         effects, ranked, why = None, [], str(exc)
@@ -500,7 +509,7 @@ def write_study(study: SeamStudy, out) -> Path:
         (out / "parameters_ranked.csv").write_text(",".join(RANKED_COLUMNS) + "\n")
         sections.append(("No linear models", f"<p>{html.escape(study.effects_error)}</p>"))
     failed = [r for r in study.run_rows() if r["status"] != "ok"]
-    ok = study.rmse[np.array(study.status) == "ok"]
+    ok = _rmse_deg(study.rmse[np.array(study.status) == "ok"])
     summary = [{"error": n, "mean": float(np.mean(ok[:, i])) if len(ok) else float("nan"),
                 "min": float(np.min(ok[:, i])) if len(ok) else float("nan"),
                 "max": float(np.max(ok[:, i])) if len(ok) else float("nan")} for i, n in enumerate(ERROR_NAMES)]

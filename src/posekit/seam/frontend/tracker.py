@@ -332,9 +332,10 @@ def write_track(folder, result: SeamTrackResult) -> dict:
     poses = _poses(result.estimate)
     spread = result.spread.copy()
     spread[:, 3:] = np.degrees(spread[:, 3:])
-    err = None
+    err = err_rad = None
     if has_truth:
-        err = seam_frame_errors(result.estimate, result.truth, result.nominal)
+        err_rad = seam_frame_errors(result.estimate, result.truth, result.nominal)
+        err = err_rad.copy()
         err[:, 3:] = np.degrees(err[:, 3:])
     with (folder / "estimates.csv").open("w", newline="") as f:
         w = csv.writer(f)
@@ -352,11 +353,10 @@ def write_track(folder, result: SeamTrackResult) -> dict:
     if result.resampled is not None and result.particles:
         plots.plot_ess(result.ess, result.resampled, result.particles, folder / "ess.png", t_s=result.time_s,
                        status=result.status)
-    if has_truth:
+    if has_truth:  # the plots take mm, rad (they draw degrees)
         kin = seam_frame_errors(result.kinematic, result.truth, result.nominal)
-        kin[:, 3:] = np.degrees(kin[:, 3:])
-        plots.plot_tracking_errors(err[None], kin[None], folder / "errors_time.png", t_s=result.time_s,
-                                   spread=spread[None], title="Tool-pose error in the seam frame against truth.csv")
+        plots.plot_tracking_errors(err_rad[None], kin[None], folder / "errors_time.png", t_s=result.time_s,
+                                   spread=result.spread[None], title="Tool-pose error in the seam frame against truth.csv")
     return m
 
 
