@@ -427,6 +427,15 @@ def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
         out[i, 3, 3] = 1.0
 
 
+@nb.njit(cache=True, inline="always")
+def _row_finite(E, i):
+    """Whether every entry of row ``i`` of ``E`` is finite."""
+    for j in range(E.shape[1]):
+        if not math.isfinite(E[i, j]):
+            return False
+    return True
+
+
 @nb.njit(cache=True, boundscheck=False)
 def weighted_moments_kernel(E, w, mean, C):
     """Weighted mean and covariance of the rows of ``E (N, k)`` whose entries are all finite.
@@ -441,12 +450,7 @@ def weighted_moments_kernel(E, w, mean, C):
         for m in range(k):
             C[j, m] = 0.0
     for i in range(n):
-        ok = True
-        for j in range(k):
-            if not math.isfinite(E[i, j]):
-                ok = False
-                break
-        if ok:
+        if _row_finite(E, i):
             total += w[i]
             for j in range(k):
                 mean[j] += w[i] * E[i, j]
@@ -455,12 +459,7 @@ def weighted_moments_kernel(E, w, mean, C):
     for j in range(k):
         mean[j] /= total
     for i in range(n):
-        ok = True
-        for j in range(k):
-            if not math.isfinite(E[i, j]):
-                ok = False
-                break
-        if ok:
+        if _row_finite(E, i):
             wi = w[i] / total
             for j in range(k):
                 dj = wi * (E[i, j] - mean[j])
