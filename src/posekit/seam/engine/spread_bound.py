@@ -10,8 +10,8 @@ reported spread is far below the error (25 kN default run, 500 particles: rx/ry 
 space of the estimate (tool frame ``[x, y, z, rx, ry, rz]``, mm and rad, as the spread):
 
 * predict: ``P ← P + Q`` with ``Q`` the step's transition variances (eq. 3) times
-  :data:`Q_SCALE` ² (the transition is a random walk; the simulated deflection follows the
-  force, a slow drift plus white jitter, and wanders less than the walk's full width);
+  :data:`Q_SCALE` ² (the transition is a random walk; the bound runs the particles' own walk:
+  in the directions the lasers barely see, the estimate wanders as the cloud does);
 * robot plateau: the robot density is flat inside its plateau and gives no information there, but
   the pose cannot leave it: ``P``'s diagonal is capped at the plateau's variance (a uniform ball
   of radius ``d``: ``d²/5`` per axis; the rotation ellipsoid ``‖A_r Δr‖ <= d_r`` likewise) plus
@@ -24,14 +24,14 @@ The filter reports ``max(cloud variance, diag P)`` per axis. Where the lasers se
 is the Kalman covariance of the same data and rarely exceeds the cloud's; where they do not, it
 stays near the plateau, which is what the data support.
 
-Measured (issue 15, ``posekit seam simulate --runs 10 --seed 0``, 500 particles, 2σ coverage
-x..rz, without -> with the bound): xy 0.99/0.98/0.96/0.93/0.94/0.97 -> 0.99/0.99/0.98/0.97/0.98/0.98;
-yz 0.98/0.91/0.89/0.90/0.97/0.98 -> 0.99/0.94/0.92/0.93/0.99/1.00; 50 particles 0.48-0.79 ->
-0.83-0.95. The estimate is unchanged; one step costs ~0.03 ms (one compiled kernel: 12 poses per
-reading and the 6×6 update). Limit: the bound is linear. Under 25 kN the tool centre point is
-10 mm off the seam and the error of a 500-particle cloud in the roll about the seam line
-(0.36/0.47 deg RMSE in rx/ry) exceeds what the linearised lasers allow; coverage there rises
-only from 0.65 to 0.72 (1,000 particles: 0.79-0.81).
+Measured (issue 15, 10 runs, seeds 0-9, 500 particles, 2σ coverage x..rz with the bound at the
+particles' own walk, ``spread_bound`` 1): xy 1.000/1.000/0.999/1.000/1.000/0.999 (too wide: the
+cloud itself is wider than the error there); yz 1.000/0.987/0.980/0.984/1.000/1.000; 25 kN
+0.987/0.994/0.879/0.908/0.935/0.994 (0.7 % of the steps beyond 3σ; at half the walk 13.4 %).
+The estimate is unchanged; one step costs ~0.03 ms (one compiled kernel: 12 poses per reading and
+the 6×6 update). Limit: the bound is the covariance of a linearised filter, the particles'
+estimate is worse than that where the tool centre point is far off the seam (25 kN: 8-11 mm;
+rx/ry RMSE 0.40/0.49 deg where the bound's own model gives ~0.2-0.3 deg).
 """
 
 import math
@@ -43,10 +43,11 @@ from posekit.seam.engine import _kernels as _k
 __all__ = ["Q_SCALE", "InformationBound", "laser_jacobian", "plateau_covariance"]
 
 #: The default process noise of the bound, fraction of the filter's transition width (``filter.spread_bound``).
-#: Measured (issue 15, 10 default xy runs, 500 particles): 1.0 makes the coverage 0.99-1.0 on five axes
-#: (too wide); 0.5 keeps it 0.97-0.99 and lifts the wrong-start (3 mm / 1.2 deg per axis) rx/ry coverage
-#: from 0.92/0.91 to 0.97/0.97.
-Q_SCALE = 0.5
+#: Measured (issue 15, 10 runs each, 500 particles, seeds 0-9): 0.5 -> 1.0 moves the 25 kN 2σ coverage of
+#: z/rx/ry from 0.76/0.72/0.73 to 0.88/0.91/0.94 and the steps beyond 3σ from 13.4 % to 0.7 %; nominal yz
+#: y/z/rx 0.94/0.91/0.92 -> 0.99/0.98/0.98; nominal xy stays 0.999-1.0 (there the cloud itself is wider
+#: than the error: not solved, issue 15); a start 8 mm / 3° off stays 0.97-0.98.
+Q_SCALE = 1.0
 
 _STEP_T = 1e-3  # mm, central-difference step of the Jacobian (translation)
 _STEP_R = 1e-5  # rad (rotation)
