@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from posekit.ceiling.camera import CameraModel, calibrate_camera, load_camera, save_camera
-from posekit.ceiling.render_chessboard import board_corners, chessboard_poses, render_chessboard
+from posekit.ceiling.render_chessboard import board_corners, chessboard_poses, render_board_view
 from posekit.cli.ceiling_camera import add_camera_parser, parse_board
 from posekit.errors import CalibrationError, ConfigError
 from tests.ceiling.cli_harness import run_verb
@@ -116,7 +116,7 @@ def undistortion_agreement(a, b, region):
 @pytest.fixture(scope="module")
 def views(lens):
     poses = chessboard_poses(lens, BOARD, SQUARE, 9, rng=1)
-    return poses, [(f"v{k}.png", render_chessboard(lens, T, BOARD, SQUARE, supersample=2, rng=k))
+    return poses, [(f"v{k}.png", render_board_view(lens, T, BOARD, SQUARE, supersample=2, rng=k))
                    for k, T in enumerate(poses)]
 
 

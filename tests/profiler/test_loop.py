@@ -7,13 +7,13 @@ import pytest
 
 from posekit.cli.main import main
 from posekit.profiler import bundled_gauge
-from posekit.profiler.loop.loop import TABLE4_COLUMNS, run_experiment, transfer_times
+from posekit.profiler.loop.loop import TABLE4_COLUMNS, run_loop_experiment, transfer_times
 from posekit.profiler.loop.loop_report import write_loop_report
 
 
 @pytest.fixture(scope="module")
 def experiment():
-    return run_experiment(bundled_gauge("demo-5"), axes=("y", "z"), steps_mm=(1.0,), repeats=1, camera=False,
+    return run_loop_experiment(bundled_gauge("demo-5"), axes=("y", "z"), steps_mm=(1.0,), repeats=1, camera=False,
                           duration_s=1.5, seed=3)
 
 

@@ -401,7 +401,7 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
         Fewer than :data:`MIN_VIEWS` boards found (naming the views without one), or images of
         different sizes.
     """
-    obj = board_object_points(board, square_mm)
+    obj = _board_points_from_outer_corner(board, square_mm)
     img_pts, used, skipped = [], [], []
     size = None if image_size is None else (int(image_size[0]), int(image_size[1]))
     for name, gray in views:
@@ -441,7 +441,7 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
     return LensCalibration(model, used, skipped, area, cells, np.array(per_view))
 
 
-def board_object_points(board: tuple[int, int], square_mm: float) -> np.ndarray:
+def _board_points_from_outer_corner(board: tuple[int, int], square_mm: float) -> np.ndarray:
     """Inner corners of the board in its own plane, (cols·rows, 3) mm, OpenCV's order."""
     cols, rows = board
     j, i = np.mgrid[0:rows, 0:cols]

@@ -148,10 +148,10 @@ def lens_from_chessboards(camera, out_dir=None, *, n_views: int = 12, board=(9, 
     LensCalibration
     """
     from .camera import calibrate_camera
-    from .render_chessboard import chessboard_poses, render_chessboard
+    from .render_chessboard import chessboard_poses, render_board_view
 
     poses = chessboard_poses(camera, board, square_mm, n_views, rng=seed)
-    views = [(f"view_{k:02d}", render_chessboard(camera, T, board, square_mm, supersample=2, rng=[seed, k]))
+    views = [(f"view_{k:02d}", render_board_view(camera, T, board, square_mm, supersample=2, rng=[seed, k]))
              for k, T in enumerate(poses)]
     if out_dir is not None:
         cv2 = require("cv2", "vision", "posekit ceiling demo")

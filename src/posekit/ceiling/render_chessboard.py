@@ -23,7 +23,7 @@ from .camera import CameraModel
 
 cv2 = lazy("cv2", "vision", "the chessboard renderer")
 
-__all__ = ["board_corners", "render_chessboard", "chessboard_poses"]
+__all__ = ["board_corners", "render_board_view", "chessboard_poses"]
 
 
 def board_corners(board: tuple[int, int], square_mm: float) -> np.ndarray:
@@ -105,7 +105,7 @@ def _rays(camera: CameraModel, s: int) -> list[np.ndarray]:
     return _RAYS[key]
 
 
-def render_chessboard(camera: CameraModel, T_cam_board: np.ndarray, board: tuple[int, int], square_mm: float,
+def render_board_view(camera: CameraModel, T_cam_board: np.ndarray, board: tuple[int, int], square_mm: float,
                       *, supersample: int = 3, noise_std: float = 1.5, rng=None) -> np.ndarray:
     """A grey image (h, w) uint8 of the board seen by ``camera`` at pose ``T_cam_board``.
 

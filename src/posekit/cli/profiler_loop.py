@@ -48,7 +48,7 @@ def run_loop(args) -> int:
 
     from ..errors import ConfigError
     from ..profiler.estimate.sensor import NoiseModel
-    from ..profiler.loop.loop import run_experiment
+    from ..profiler.loop.loop import run_loop_experiment
     from ..profiler.loop.loop_report import format_table3, format_table4, write_loop_report
 
     try:
@@ -81,7 +81,7 @@ def run_loop(args) -> int:
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "
           f"{'real time (83.3 Hz)' if args.realtime else 'lock-step'} over loopback TCP")
-    exp = run_experiment(gauge, axes=axes, steps_mm=steps, repeats=args.repeats,
+    exp = run_loop_experiment(gauge, axes=axes, steps_mm=steps, repeats=args.repeats,
                          noise=NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um),
                          seed=args.seed, realtime=args.realtime, nonlinear=not args.linear,
                          camera=camera,

@@ -33,7 +33,7 @@ from .loop_sim import AXES, aggregate_table4
 from .response import impulse_resonance, step_metrics
 from .robotsim import RobotSimulator
 
-__all__ = ["LoopRun", "FlangeCompensator", "run_loop_step", "LoopExperiment", "run_experiment",
+__all__ = ["LoopRun", "FlangeCompensator", "run_loop_step", "LoopExperiment", "run_loop_experiment",
            "transfer_times", "stage_stats", "TABLE4_COLUMNS", "TABLE3_COLUMNS"]
 
 TABLE4_COLUMNS = ["axis", "step_mm", "mode", "n", "Mp_pct", "Mp_pct_std", "zeta", "zeta_std", "Mf_um", "Mf_um_std"]
@@ -237,7 +237,7 @@ def stage_stats(system: str, stage: str, values_ms) -> dict:
 
 @dataclass
 class LoopExperiment:
-    """Results of :func:`run_experiment`."""
+    """Results of :func:`run_loop_experiment`."""
 
     runs: list = field(default_factory=list)
     impulse: LoopRun | None = None
@@ -256,7 +256,7 @@ def _table4(runs, source="measured"):
     return aggregate_table4(groups)
 
 
-def run_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(1.0, 2.0), repeats: int = 3,
+def run_loop_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(1.0, 2.0), repeats: int = 3,
                    duration_s: float = 1.5, noise: NoiseModel = NoiseModel(), seed: int = 0,
                    realtime: bool = False, nonlinear: bool = True, controller_factory=PDController,
                    camera: bool = True, progress=None) -> LoopExperiment:
