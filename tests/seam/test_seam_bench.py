@@ -36,6 +36,8 @@ def test_peer_step_equals_posekit_step(bench, scenario):
 
     cfg = apply_overrides(bench.bench_config(64, steps=60), {"filter.sigma_t_mm": 0.0, "filter.sigma_r_deg": 0.0,
                                                    "filter.k_force_t": 0.0, "filter.k_force_r": 0.0,
+                                                   "filter.k_travel_t_mm_per_mm": 0.0, "filter.k_travel_r_deg_per_mm": 0.0,
+                                                   "filter.k_load_travel_t": 0.0, "filter.k_load_travel_r": 0.0,
                                                    "filter.ess_threshold": 1e-9, "filter.anneal_stages": 0,
                                                    "filter.init_from_robot": False,
                                                    # the peer reports the particles' spread; ours reports at

@@ -58,7 +58,8 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch)
 
     monkeypatch.setattr(filt, "transition", spy)
     cfg, nt, pf = _pf(n=50, transition_force=mode, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3,
-                      k_rate_r_deg_per_n=2e-3, k_force_t=1e-5, k_force_r=2e-5)
+                      k_rate_r_deg_per_n=2e-3, k_force_t=1e-5, k_force_r=2e-5, force_rate_smoothing=0.0,
+                      k_travel_t_mm_per_mm=0.0, k_travel_r_deg_per_mm=0.0, k_load_travel_t=0.0, k_load_travel_r=0.0)
     forces = [np.array([0.0, 0.0, -1000.0]), np.array([0.0, 0.0, -1000.0]), np.array([30.0, 0.0, -1040.0])]
     for k, f in enumerate(forces):
         inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
@@ -70,6 +71,44 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch)
         fn = np.linalg.norm(forces[2])
         expect = [(0.02, 0.025 * deg)] * 2 + [(0.01 + 1e-5 * fn, (0.005 + 2e-5 * fn) * deg)]
     np.testing.assert_allclose(seen, expect, rtol=1e-12)
+
+
+def test_transition_smoothed_rate_travel_and_reacquire_terms(monkeypatch):
+    # sigma = sigma0 + k_rate |EMA step of f| + travel (k_travel + k_load |f|), times reacquire_transition_scale
+    # after a step that was not tracking
+    seen = []
+    real = filt.transition
+
+    def spy(Ts, inc, st, sr, rng, **kw):
+        seen.append((st, sr))
+        return real(Ts, inc, st, sr, rng, **kw)
+
+    monkeypatch.setattr(filt, "transition", spy)
+    cfg, nt, pf = _pf(n=50, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3, k_rate_r_deg_per_n=2e-3,
+                      force_rate_smoothing=4.0, k_travel_t_mm_per_mm=0.02, k_travel_r_deg_per_mm=0.01,
+                      k_load_travel_t=1e-6, k_load_travel_r=2e-7, reacquire_transition_scale=5.0)
+    forces = [np.array([0.0, 0.0, -1000.0]), np.array([0.0, 0.0, -1000.0]), np.array([30.0, 0.0, -1040.0])]
+    travel = []
+    for k, f in enumerate(forces):
+        inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
+        travel.append(np.linalg.norm(inc[:3, 3]))
+        est = pf.step(StepInputs(inc, nt.T_nominal[k], nt.q[k], f))
+        assert est.status == "tracking"  # no laser reading, the kinematic pose: nothing to contradict
+    deg = math.pi / 180
+    fn = [1000.0, 1000.0, np.linalg.norm(forces[2])]
+    # the EMA moves by (f - f_prev) / (1 + 4): |(6, 0, -8)| = 10 N at the third step
+    df = [0.0, 0.0, 10.0]
+    expect = [(0.01 + 1e-3 * d + s * (0.02 + 1e-6 * n), (0.005 + 2e-3 * d + s * (0.01 + 2e-7 * n)) * deg)
+              for d, s, n in zip(df, travel, fn)]
+    np.testing.assert_allclose(seen, expect, rtol=1e-12)
+    assert travel[1] > 0.1
+    # a step that was not tracking widens the next transition five times (the EMA moves 8 N here)
+    pf._last_status = "degraded"
+    inc = nt.T_nominal[3] @ np.linalg.inv(nt.T_nominal[2])
+    pf.step(StepInputs(inc, nt.T_nominal[3], nt.q[3], forces[2]))
+    s3, n3 = np.linalg.norm(inc[:3, 3]), fn[2]
+    np.testing.assert_allclose(seen[3], [5.0 * (0.01 + 1e-3 * 8.0 + s3 * (0.02 + 1e-6 * n3)),
+                                         5.0 * (0.005 + 2e-3 * 8.0 + s3 * (0.01 + 2e-7 * n3)) * deg], rtol=1e-12)
 
 
 def test_without_lasers_the_estimate_is_the_kinematic_pose():

@@ -386,8 +386,14 @@ class FilterConfig(_Section):
 
     Issue 15 (defaults describe the simulated cell): ``transition_force: rate`` widens the
     transition with the force change since the last step (``k_rate_*``, the paper's ḟ; the
-    simulated cell moves ≈ 2e-4 mm and 2.8e-4 deg per N of force change per step);
-    ``magnitude`` keeps ``k_force_* ‖f‖``. ``d0 + kd ‖f‖`` is the largest expected positioning
+    simulated cell moves ≈ 2e-4 mm and 2.8e-4 deg per N of force change per step), the force
+    low-passed over ``force_rate_smoothing`` steps first (the difference of two raw readings is
+    mostly their noise: ≈ 130 N per step at any load, so the width did not grow with the load);
+    ``magnitude`` keeps ``k_force_* ‖f‖``. The width also grows with the step's travel,
+    ``k_travel_*`` (the kinematic error is a function of the configuration) plus ``k_load_travel_*
+    ‖f‖`` (the deflection ``C(q) f`` changes with ``q``: the simulated deviation from the nominal
+    path drifts ≈ 0.007 mm and 0.0017 deg per mm at 5.1 kN, ≈ 0.035 mm and 0.0076 deg per mm at
+    25 kN), and ``reacquire_transition_scale`` times after a step that was not ``tracking``. ``d0 + kd ‖f‖`` is the largest expected positioning
     error, as the paper prescribes (max over 30 simulated default episodes of
     ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
     7.5 mm / 1.46 deg at 10.2 kN); ``laser_sigma_mm`` = ``sensors.noise_mm``. ``init_from_robot``
@@ -417,6 +423,16 @@ class FilterConfig(_Section):
     k_force_r: Number = _num(4e-7, 0.0, 1.0, "deg/N")  # 0 .. 1 deg/N ("magnitude")
     k_rate_t_mm_per_n: Number = _num(2e-4, 0.0, 1.0, "mm/N")  # per N of force change per step, 0 .. 1 ("rate")
     k_rate_r_deg_per_n: Number = _num(4e-4, 0.0, 1.0, "deg/N")  # per N of force change per step, 0 .. 1 ("rate")
+    force_rate_smoothing: Number = _num(5.0, 0.0, 1e4, "steps")  # "rate": f-dot of the force low-passed over
+    # this many steps (exponential, time constant; 0: the raw difference of two noisy readings), 0 .. 1e4
+    # the transition also widens with the travel (the robot's error is a function of its configuration) ...
+    k_travel_t_mm_per_mm: Number = _num(0.02, 0.0, 1.0, "mm/mm")  # per mm travelled, 0 .. 1
+    k_travel_r_deg_per_mm: Number = _num(0.01, 0.0, 10.0, "deg/mm")  # per mm travelled, 0 .. 10
+    # ... and with the travel under load (the deflection C(q) f changes with q), per N of force
+    k_load_travel_t: Number = _num(1.4e-6, 0.0, 1e-2, "mm/(N mm)")  # 0 .. 0.01
+    k_load_travel_r: Number = _num(3e-7, 0.0, 1e-2, "deg/(N mm)")  # 0 .. 0.01
+    # after a step that was not "tracking" the transition is this many times wider (re-acquire; 1: off)
+    reacquire_transition_scale: Number = _num(5.0, 1.0, 1e3)  # 1 .. 1000
     d0_mm: Number = _num(3.0, 0.0, 1e3, "mm")  # plateau radius, 0 .. 1 m
     kd_mm_per_n: Number = _num(4.5e-4, 0.0, 1.0, "mm/N")  # 0 .. 1 mm/N
     d0_deg: Number = _num(0.35, 0.0, 180.0, "deg")  # plateau radius, 0 .. 180 deg
@@ -454,7 +470,7 @@ class FilterConfig(_Section):
     spread_bound: Number = _num(1.0, 0.0, 10.0)  # 0 .. 10
     # ... and the bound's translation noise per mm travelled (the kinematic error changes with the configuration;
     # 0.03, was 0.02: with the inflated laser likelihood, yz z coverage 0.885 -> 0.921 over 30 runs, seed 2)
-    spread_bound_k_travel: Number = _num(0.03, 0.0, 1.0, "mm/mm")  # 0 .. 1
+    spread_bound_k_travel: Number = _num(0.0, 0.0, 1.0, "mm/mm")  # 0 .. 1
     # the particles weigh each laser reading with variance sigma^2 + min(laser_inflation x the cloud's spread of
     # in-plane errors, laser_inflation_cap x sigma^2) (engine/filter.py): the likelihood at the true noise is too
     # narrow for a few hundred particles; the integrity test and the spread bound keep the true sigma (0: off)
