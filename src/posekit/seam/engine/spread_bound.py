@@ -25,13 +25,14 @@ is the Kalman covariance of the same data and rarely exceeds the cloud's; where 
 stays near the plateau, which is what the data support.
 
 Measured (issue 15, 10 runs, seeds 0-9, 500 particles, 2σ coverage x..rz with the bound at the
-particles' own walk, ``spread_bound`` 1): xy 1.000/1.000/0.999/1.000/1.000/0.999 (too wide: the
-cloud itself is wider than the error there); yz 1.000/0.987/0.980/0.984/1.000/1.000; 25 kN
-0.987/0.994/0.879/0.908/0.935/0.994 (0.7 % of the steps beyond 3σ; at half the walk 13.4 %).
+particles' own walk, ``spread_bound`` 1, and the default transition): xy
+0.999/0.998/0.990/0.986/0.984/0.991; yz 1.000/0.984/0.975/0.990/1.000/1.000 (x and the roll and
+yaw about the seam too wide); 25 kN 0.996/0.996/0.940/0.927/0.952/0.996 (1.8 % of the steps
+tracking and beyond 3σ; 13.4 % with half the walk and the raw force rate).
 The estimate is unchanged; one step costs ~0.03 ms (one compiled kernel: 12 poses per reading and
-the 6×6 update). Limit: the bound is the covariance of a linearised filter, the particles'
-estimate is worse than that where the tool centre point is far off the seam (25 kN: 8-11 mm;
-rx/ry RMSE 0.40/0.49 deg where the bound's own model gives ~0.2-0.3 deg).
+the 6×6 update). Limit: the bound is the covariance of a linearised filter; the particles'
+estimate can be worse than that while the cloud converges from a wide plateau (25 kN: one of 10
+episodes stays ~3σ off in z, rx and ry together for ~100 steps after the start).
 """
 
 import math

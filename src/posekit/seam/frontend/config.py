@@ -465,8 +465,8 @@ class FilterConfig(_Section):
     # report at least the spread the data support (engine/spread_bound.py: a Kalman covariance from the lasers'
     # Jacobian, capped at the robot plateau) where the particle cloud is narrower; the value is the bound's
     # process noise as a fraction of the transition width (0: no bound). 1 (was 0.5): the bound runs the particles'
-    # own random walk (issue 15, 10 runs at 25 kN: steps beyond 3 sigma 13.4 % -> 0.7 %, rx/ry 2-sigma coverage
-    # 0.72/0.73 -> 0.91/0.94; nominal yz y/z/rx 0.94/0.91/0.92 -> 0.99/0.98/0.98, nominal xy unchanged)
+    # own random walk (issue 15, 10 runs at 25 kN with the raw force rate: steps beyond 3 sigma 13.4 % -> 0.7 %, rx/ry
+    # 2-sigma coverage 0.72/0.73 -> 0.91/0.94; nominal yz y/z/rx 0.94/0.91/0.92 -> 0.99/0.98/0.98)
     spread_bound: Number = _num(1.0, 0.0, 10.0)  # 0 .. 10
     # ... and the bound's translation noise per mm travelled (the kinematic error changes with the configuration;
     # 0.03, was 0.02: with the inflated laser likelihood, yz z coverage 0.885 -> 0.921 over 30 runs, seed 2)
