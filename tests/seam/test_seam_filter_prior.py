@@ -47,8 +47,9 @@ def test_init_offset_moves_the_first_cloud():
     np.testing.assert_allclose(rv, [0.0, 0.0, math.radians(2.0)], atol=2e-4)
 
 
-@pytest.mark.parametrize("mode", ["rate", "magnitude"])
-def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch):
+@pytest.fixture
+def transition_widths(monkeypatch):
+    """The ``(sigma_t, sigma_r)`` each filter step passes to the transition (mm, rad), in order."""
     seen = []
     real = filt.transition
 
@@ -57,6 +58,12 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch)
         return real(Ts, inc, st, sr, rng, **kw)
 
     monkeypatch.setattr(filt, "transition", spy)
+    return seen
+
+
+@pytest.mark.parametrize("mode", ["rate", "magnitude"])
+def test_transition_width_follows_the_force_rate_or_magnitude(mode, transition_widths):
+    seen = transition_widths
     cfg, nt, pf = _pf(n=50, transition_force=mode, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3,
                       k_rate_r_deg_per_n=2e-3, k_force_t=1e-5, k_force_r=2e-5, force_rate_smoothing=0.0,
                       k_travel_t_mm_per_mm=0.0, k_travel_r_deg_per_mm=0.0, k_load_travel_t=0.0, k_load_travel_r=0.0)
@@ -73,17 +80,10 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, monkeypatch)
     np.testing.assert_allclose(seen, expect, rtol=1e-12)
 
 
-def test_transition_smoothed_rate_travel_and_reacquire_terms(monkeypatch):
+def test_transition_smoothed_rate_travel_and_reacquire_terms(transition_widths):
     # sigma = sigma0 + k_rate |EMA step of f| + travel (k_travel + k_load |f|), times reacquire_transition_scale
     # after a step that was not tracking
-    seen = []
-    real = filt.transition
-
-    def spy(Ts, inc, st, sr, rng, **kw):
-        seen.append((st, sr))
-        return real(Ts, inc, st, sr, rng, **kw)
-
-    monkeypatch.setattr(filt, "transition", spy)
+    seen = transition_widths
     cfg, nt, pf = _pf(n=50, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3, k_rate_r_deg_per_n=2e-3,
                       force_rate_smoothing=4.0, k_travel_t_mm_per_mm=0.02, k_travel_r_deg_per_mm=0.01,
                       k_load_travel_t=1e-6, k_load_travel_r=2e-7, reacquire_transition_scale=5.0)
