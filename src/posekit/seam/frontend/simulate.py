@@ -432,7 +432,8 @@ def metrics(results: list[EpisodeResult]) -> dict:
         lost}`` (steps over all runs), ``coverage_2sigma`` ``{x, y, z, rx, ry, rz}`` (fraction of
         steps whose |error| <= 2 × the reported spread) and ``tracking_beyond_3sigma`` (fraction
         of the steps whose error exceeds 3 × the reported spread on some axis that are
-        ``tracking``; null when there are none).
+        ``tracking``; null when there are none) and ``confident_wrong`` (the fraction of all steps
+        that are ``tracking`` and beyond 3 × the spread: :func:`confident_wrong_fraction`).
     """
     if not results:
         from posekit.errors import EstimationError
@@ -472,6 +473,7 @@ def metrics(results: list[EpisodeResult]) -> dict:
         "status_counts": counts,
         "coverage_2sigma": {a: fl(v) for a, v in zip(AXES, cov)},
         "tracking_beyond_3sigma": None if beyond is None else fl(beyond),
+        "confident_wrong": fl(confident_wrong_fraction(results)),
     }
 
 
@@ -519,3 +521,15 @@ def integrity_summary(results: list[EpisodeResult]) -> tuple[np.ndarray, dict, f
     counts = {k: int(np.sum(status == k)) for k in ("tracking", "degraded", "lost")}
     frac = float(np.mean(status[beyond] == "tracking")) if beyond.any() else None
     return coverage, counts, frac
+
+
+def confident_wrong_fraction(results: list[EpisodeResult]) -> float:
+    """Fraction of all steps that are ``tracking`` while the error exceeds 3 × the reported spread on
+    some axis: the confident wrong poses of DESIGN.md "Trust", counted over every step (where
+    :func:`integrity_summary`'s ``tracking_beyond_3sigma`` is their share of the steps beyond 3σ)."""
+    err = np.abs(np.concatenate([r.error for r in results]))
+    spr = np.concatenate([r.spread for r in results])
+    status = np.concatenate([status_columns(r)["status"] for r in results])
+    with np.errstate(invalid="ignore"):
+        beyond = np.any(err > 3.0 * spr, axis=1)
+    return float(np.mean(beyond & (status == "tracking")))
