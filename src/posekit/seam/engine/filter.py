@@ -22,8 +22,8 @@ rate (``transition_force: rate``, paper eq. 3 ``p(x+ | x, ḟ)``: ``σ = σ0 + k
 (``magnitude``), plus the step's travel ``s``: ``s (k_travel + k_load_travel ‖f‖)`` (the robot's
 error and its deflection under load change with the configuration), all times
 ``reacquire_transition_scale`` after a step that was not ``tracking`` (the data contradicted the
-model: a wider walk lets the cloud re-acquire; issue 15, a start 8 mm / 3° off, 10 runs: lost
-for 117 steps instead of 412). Until the first laser reading the estimate is the kinematic
+model: a wider walk lets the cloud re-acquire; issue 15, a start 8 mm / 3° off, 10 runs: 117
+steps ``lost`` instead of 412 without the widening). Until the first laser reading the estimate is the kinematic
 pose (the centre of the symmetric robot density). Every step carries a ``status``
 (``tracking``/``degraded``/``lost``) from :mod:`posekit.seam.engine.integrity`.
 
@@ -438,14 +438,13 @@ class SeamParticleFilter:
                 df = 0.0
             sig_t = f.sigma_t_mm + f.k_rate_t_mm_per_n * df
             sig_r = self._sigma_r + self._k_rate_r * df
-        else:
-            fn = math.sqrt(float(force @ force))
+        fn = math.sqrt(float(force @ force))
+        if not self._rate:
             sig_t = f.sigma_t_mm + f.k_force_t * fn
             sig_r = self._sigma_r + self._k_force_r * fn
         # the robot's error changes as its configuration does: per mm travelled, and more so under load
         travel = float(np.linalg.norm(inputs.T_increment[:3, 3]))
         if travel > 0.0 and math.isfinite(travel):
-            fn = math.sqrt(float(force @ force))
             fn = fn if math.isfinite(fn) else 0.0
             sig_t += travel * (f.k_travel_t_mm_per_mm + f.k_load_travel_t * fn)
             sig_r += travel * math.radians(f.k_travel_r_deg_per_mm + f.k_load_travel_r * fn)
