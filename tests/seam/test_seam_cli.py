@@ -244,6 +244,10 @@ def test_rmse_table_fixed_decimals():
         "xy, 2 sensors                        0.767     2.236     0.000    10.000     0.001   123.457",
         "a label longer than twenty-four      1.000     2.000     3.000     4.000     5.000     6.000",
     ]
+    # a value wider than a column widens every column: they never run together
+    wide = rmse_table([("lost", [988093.0381, 1144.74, 1058.25, 80.5, 82.8, 71.4])]).splitlines()
+    assert wide[1].split() == ["lost", "988093.038", "1144.740", "1058.250", "80.500", "82.800", "71.400"]
+    assert len(wide[0]) == len(wide[1]) == 24 + 6 * 11
 
 
 def test_cli_trajectory_choices_are_the_config_kinds():

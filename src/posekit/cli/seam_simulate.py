@@ -51,14 +51,16 @@ def rmse_table(rows, decimals: int = 3) -> str:
     """Plain-text RMSE table: a header, then one line per ``(label, values (6,))`` row.
 
     Values are ``[x, y, z (mm), rx, ry, rz (deg)]`` printed with ``decimals`` fixed decimals
-    (µm and millidegree resolution by default), right-aligned in 10 columns; labels in a column
-    of at least 24 characters.
+    (µm and millidegree resolution by default), right-aligned in columns of 10 characters (wider
+    when a value needs it, so columns never run together); labels in a column of at least 24.
     """
     width = max([24, *(len(label) + 1 for label, _ in rows)])
-    head = f"{'configuration':<{width}}" + "".join(f"{a + (' mm' if i < 3 else ' deg'):>10}"
+    cells = [[f"{v:.{decimals}f}" for v in values] for _, values in rows]
+    col = max([10, *(len(c) + 1 for row in cells for c in row)])
+    head = f"{'configuration':<{width}}" + "".join(f"{a + (' mm' if i < 3 else ' deg'):>{col}}"
                                                    for i, a in enumerate(AXES))
-    return "\n".join([head, *(f"{label:<{width}}" + "".join(f"{v:>10.{decimals}f}" for v in values)
-                              for label, values in rows)])
+    return "\n".join([head, *(f"{label:<{width}}" + "".join(f"{c:>{col}}" for c in row)
+                              for (label, _), row in zip(rows, cells))])
 
 
 def _episode_flags(p):
