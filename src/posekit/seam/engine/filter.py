@@ -427,7 +427,7 @@ class SeamParticleFilter:
         force = np.asarray(inputs.force_n, dtype=np.float64)
         # 1. state transition (eq. 3): the width grows with the force rate (default) or magnitude
         if self._rate:
-            tau = float(getattr(f, "force_rate_smoothing", 0.0))
+            tau = f.force_rate_smoothing
             f_new = force
             if tau > 0.0 and self._prev_force is not None:
                 f_new = self._prev_force + (force - self._prev_force) / (1.0 + tau)

@@ -393,9 +393,9 @@ class FilterConfig(_Section):
     ``k_travel_*`` (the kinematic error is a function of the configuration) plus ``k_load_travel_*
     ‖f‖`` (the deflection ``C(q) f`` changes with ``q``: the simulated deviation from the nominal
     path drifts ≈ 0.007 mm and 0.0017 deg per mm at 5.1 kN, ≈ 0.035 mm and 0.0076 deg per mm at
-    25 kN), and ``reacquire_transition_scale`` times after a step that was not ``tracking``. ``d0 + kd ‖f‖`` is the largest expected positioning
-    error, as the paper prescribes (max over 30 simulated default episodes of
-    ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
+    25 kN), and ``reacquire_transition_scale`` times after a step that was not ``tracking``.
+    ``d0 + kd ‖f‖`` is the largest expected positioning error, as the paper prescribes (max over
+    30 simulated default episodes of ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
     7.5 mm / 1.46 deg at 10.2 kN); ``laser_sigma_mm`` = ``sensors.noise_mm``. ``init_from_robot``
     draws the first cloud from the robot density; ``init_offset_*`` moves it (a wrong start, for
     tests). ``integrity_*``: the status tests of :mod:`posekit.seam.engine.integrity`.
@@ -468,8 +468,8 @@ class FilterConfig(_Section):
     # own random walk (issue 15, 10 runs at 25 kN with the raw force rate: steps beyond 3 sigma 13.4 % -> 0.7 %, rx/ry
     # 2-sigma coverage 0.72/0.73 -> 0.91/0.94; nominal yz y/z/rx 0.94/0.91/0.92 -> 0.99/0.98/0.98)
     spread_bound: Number = _num(1.0, 0.0, 10.0)  # 0 .. 10
-    # ... and the bound's translation noise per mm travelled (the kinematic error changes with the configuration;
-    # 0.03, was 0.02: with the inflated laser likelihood, yz z coverage 0.885 -> 0.921 over 30 runs, seed 2)
+    # ... plus translation noise per mm travelled in the bound alone (0: the transition's own travel terms,
+    # k_travel_* and k_load_travel_*, already widen the walk the bound runs; it was 0.03 before they existed)
     spread_bound_k_travel: Number = _num(0.0, 0.0, 1.0, "mm/mm")  # 0 .. 1
     # the particles weigh each laser reading with variance sigma^2 + min(laser_inflation x the cloud's spread of
     # in-plane errors, laser_inflation_cap x sigma^2) (engine/filter.py): the likelihood at the true noise is too

@@ -512,12 +512,9 @@ def integrity_summary(results: list[EpisodeResult]) -> tuple[np.ndarray, dict, f
         Of the steps whose error exceeds 3 × the spread on some axis, the fraction reported
         ``tracking`` (the DESIGN "Trust" failure: a confident wrong pose); None if no such step.
     """
-    err = np.abs(np.concatenate([r.error for r in results]))
-    spr = np.concatenate([r.spread for r in results])
-    status = np.concatenate([status_columns(r)["status"] for r in results])
+    err, spr, status, beyond = _pooled_steps(results)
     with np.errstate(invalid="ignore"):
         coverage = np.mean(err <= 2.0 * spr, axis=0)
-        beyond = np.any(err > 3.0 * spr, axis=1)
     counts = {k: int(np.sum(status == k)) for k in ("tracking", "degraded", "lost")}
     frac = float(np.mean(status[beyond] == "tracking")) if beyond.any() else None
     return coverage, counts, frac
@@ -527,9 +524,16 @@ def confident_wrong_fraction(results: list[EpisodeResult]) -> float:
     """Fraction of all steps that are ``tracking`` while the error exceeds 3 × the reported spread on
     some axis: the confident wrong poses of DESIGN.md "Trust", counted over every step (where
     :func:`integrity_summary`'s ``tracking_beyond_3sigma`` is their share of the steps beyond 3σ)."""
+    _, _, status, beyond = _pooled_steps(results)
+    return float(np.mean(beyond & (status == "tracking")))
+
+
+def _pooled_steps(results: list[EpisodeResult]):
+    """Every step of the episodes: ``|error|`` and spread ``(T, 6)``, status ``(T,)`` and whether the
+    error exceeds 3 × the spread on some axis ``(T,)``."""
     err = np.abs(np.concatenate([r.error for r in results]))
     spr = np.concatenate([r.spread for r in results])
     status = np.concatenate([status_columns(r)["status"] for r in results])
     with np.errstate(invalid="ignore"):
         beyond = np.any(err > 3.0 * spr, axis=1)
-    return float(np.mean(beyond & (status == "tracking")))
+    return err, spr, status, beyond
