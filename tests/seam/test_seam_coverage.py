@@ -5,6 +5,7 @@ mostly tracking, a robot 10x more compliant than the filter's model never confid
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from posekit.seam.frontend.config import apply_overrides, config_from_dict
 from posekit.seam.frontend.simulate import (
@@ -60,6 +61,25 @@ def test_nominal_episode_tracks_with_a_2_sigma_spread():
     assert min(cov.values()) >= 0.7 and np.mean(list(cov.values())) >= 0.85
     assert m["spread_median_mm"]["x"] < 0.3
     assert m["confident_wrong"] == confident_wrong_fraction(res) <= 0.02
+
+
+@pytest.mark.parametrize("kind", ["xy", "yz"])
+def test_nominal_2_sigma_coverage_is_honest_on_every_axis(kind):
+    # issue 15 deliverable 2: over 30 default episodes (500 particles, 500 steps) the 2-sigma coverage lies
+    # in [0.9, 0.99] on all six axes, the paper's two seams; the walk per tool axis (filter.axis_scale_*,
+    # load_axis_scale_*) is what brings x (and on yz the roll and yaw) down from 0.999-1.0: the isotropic
+    # walk of the paper's eq. 3 is checked on 10 of the episodes
+    cfg = apply_overrides(config_from_dict({}), {"trajectory.kind": kind})
+    res = [run_episode(cfg, seed) for seed in range(30)]
+    m = metrics(res)
+    cov = np.array([m["coverage_2sigma"][a] for a in ("x", "y", "z", "rx", "ry", "rz")])
+    assert cov.min() >= 0.9 and cov.max() <= 0.99, cov
+    assert m["status_counts"]["tracking"] >= 0.98 * 30 * 500
+    assert m["confident_wrong"] <= 0.015
+    iso = apply_overrides(cfg, {"filter.axis_scale_t": [1.0, 1.0, 1.0], "filter.axis_scale_r": [1.0, 1.0, 1.0],
+                                "filter.load_axis_scale_r": [1.0, 1.0, 1.0]})
+    cov_iso = integrity_summary([run_episode(iso, seed) for seed in range(10)])[0]
+    assert cov_iso[0] > 0.99  # x too wide with one width for all axes
 
 
 def test_compliance_ten_times_the_model_is_never_reported_tracking():

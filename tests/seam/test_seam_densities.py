@@ -70,6 +70,12 @@ def test_transition_mean_and_noise():
     np.testing.assert_allclose(dr.std(axis=0), 0.003, rtol=0.05)
     np.testing.assert_allclose(dp.mean(axis=0), 0.0, atol=0.01)
     np.testing.assert_allclose(np.linalg.det(out[:, :3, :3]), 1.0, atol=1e-12)
+    # one width per tool axis (filter.axis_scale_*): the offsets' std follows each axis
+    out = transition(Ts, inc, [0.2, 0.05, 0.0], [0.0, 0.003, 0.001], rng)
+    dp = (out[:, :3, 3] - ref[:3, 3]) @ ref[:3, :3]
+    dr = rotation_vector_from_matrix(ref[:3, :3].T @ out[:, :3, :3])
+    np.testing.assert_allclose(dp.std(axis=0), [0.2, 0.05, 0.0], rtol=0.05, atol=1e-9)
+    np.testing.assert_allclose(dr.std(axis=0), [0.0, 0.003, 0.001], rtol=0.05, atol=1e-9)
 
 
 def test_robot_density_matches_numpy_reference():

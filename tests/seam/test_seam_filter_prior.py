@@ -49,16 +49,25 @@ def test_init_offset_moves_the_first_cloud():
 
 @pytest.fixture
 def transition_widths(monkeypatch):
-    """The ``(sigma_t, sigma_r)`` each filter step passes to the transition (mm, rad), in order."""
+    """The ``(sigma_t (3,), sigma_r (3,))`` each filter step passes to the transition (mm, rad), in order."""
     seen = []
     real = filt.transition
 
     def spy(Ts, inc, st, sr, rng, **kw):
-        seen.append((st, sr))
+        seen.append((np.broadcast_to(st, 3).copy(), np.broadcast_to(sr, 3).copy()))
         return real(Ts, inc, st, sr, rng, **kw)
 
     monkeypatch.setattr(filt, "transition", spy)
     return seen
+
+
+_ISOTROPIC = {"axis_scale_t": (1.0, 1.0, 1.0), "axis_scale_r": (1.0, 1.0, 1.0),
+              "load_axis_scale_t": (1.0, 1.0, 1.0), "load_axis_scale_r": (1.0, 1.0, 1.0)}
+
+
+def _iso(widths):
+    """``(sigma_t, sigma_r)`` pairs as the same width on all three axes, shape (K, 2, 3)."""
+    return np.repeat(np.asarray(widths, dtype=np.float64)[..., None], 3, axis=-1)
 
 
 @pytest.mark.parametrize("mode", ["rate", "magnitude"])
@@ -66,7 +75,8 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, transition_w
     seen = transition_widths
     cfg, nt, pf = _pf(n=50, transition_force=mode, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3,
                       k_rate_r_deg_per_n=2e-3, k_force_t=1e-5, k_force_r=2e-5, force_rate_smoothing=0.0,
-                      k_travel_t_mm_per_mm=0.0, k_travel_r_deg_per_mm=0.0, k_load_travel_t=0.0, k_load_travel_r=0.0)
+                      k_travel_t_mm_per_mm=0.0, k_travel_r_deg_per_mm=0.0, k_load_travel_t=0.0, k_load_travel_r=0.0,
+                      **_ISOTROPIC)
     forces = [np.array([0.0, 0.0, -1000.0]), np.array([0.0, 0.0, -1000.0]), np.array([30.0, 0.0, -1040.0])]
     for k, f in enumerate(forces):
         inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
@@ -77,7 +87,7 @@ def test_transition_width_follows_the_force_rate_or_magnitude(mode, transition_w
     else:  # |f| = 1000, 1000, 1040.4 N
         fn = np.linalg.norm(forces[2])
         expect = [(0.02, 0.025 * deg)] * 2 + [(0.01 + 1e-5 * fn, (0.005 + 2e-5 * fn) * deg)]
-    np.testing.assert_allclose(seen, expect, rtol=1e-12)
+    np.testing.assert_allclose(seen, _iso(expect), rtol=1e-12)
 
 
 def test_transition_smoothed_rate_travel_and_reacquire_terms(transition_widths):
@@ -86,7 +96,7 @@ def test_transition_smoothed_rate_travel_and_reacquire_terms(transition_widths):
     seen = transition_widths
     cfg, nt, pf = _pf(n=50, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=1e-3, k_rate_r_deg_per_n=2e-3,
                       force_rate_smoothing=4.0, k_travel_t_mm_per_mm=0.02, k_travel_r_deg_per_mm=0.01,
-                      k_load_travel_t=1e-6, k_load_travel_r=2e-7, reacquire_transition_scale=5.0)
+                      k_load_travel_t=1e-6, k_load_travel_r=2e-7, reacquire_transition_scale=5.0, **_ISOTROPIC)
     forces = [np.array([0.0, 0.0, -1000.0]), np.array([0.0, 0.0, -1000.0]), np.array([30.0, 0.0, -1040.0])]
     travel = []
     for k, f in enumerate(forces):
@@ -100,15 +110,62 @@ def test_transition_smoothed_rate_travel_and_reacquire_terms(transition_widths):
     df = [0.0, 0.0, 10.0]
     expect = [(0.01 + 1e-3 * d + s * (0.02 + 1e-6 * n), (0.005 + 2e-3 * d + s * (0.01 + 2e-7 * n)) * deg)
               for d, s, n in zip(df, travel, fn)]
-    np.testing.assert_allclose(seen, expect, rtol=1e-12)
+    np.testing.assert_allclose(seen, _iso(expect), rtol=1e-12)
     assert travel[1] > 0.1
     # a step that was not tracking widens the next transition five times (the EMA moves 8 N here)
     pf._last_status = "degraded"
     inc = nt.T_nominal[3] @ np.linalg.inv(nt.T_nominal[2])
     pf.step(StepInputs(inc, nt.T_nominal[3], nt.q[3], forces[2]))
     s3, n3 = np.linalg.norm(inc[:3, 3]), fn[2]
-    np.testing.assert_allclose(seen[3], [5.0 * (0.01 + 1e-3 * 8.0 + s3 * (0.02 + 1e-6 * n3)),
-                                         5.0 * (0.005 + 2e-3 * 8.0 + s3 * (0.01 + 2e-7 * n3)) * deg], rtol=1e-12)
+    np.testing.assert_allclose(seen[3], _iso([5.0 * (0.01 + 1e-3 * 8.0 + s3 * (0.02 + 1e-6 * n3)),
+                                              5.0 * (0.005 + 2e-3 * 8.0 + s3 * (0.01 + 2e-7 * n3)) * deg]),
+                               rtol=1e-12)
+
+
+def test_transition_width_per_tool_axis(transition_widths):
+    # filter.axis_scale_* multiply the unloaded width per tool axis, load_axis_scale_* the load's part
+    # (k_load_travel_*); the bound runs the same walk; after a lost step the walk is isotropic (and
+    # reacquire_transition_scale wider) for reacquire_isotropic_steps steps
+    seen = transition_widths
+    cfg, nt, pf = _pf(n=50, sigma_t_mm=0.01, sigma_r_deg=0.005, k_rate_t_mm_per_n=0.0, k_rate_r_deg_per_n=0.0,
+                      k_travel_t_mm_per_mm=0.02, k_travel_r_deg_per_mm=0.01, k_load_travel_t=1e-6,
+                      k_load_travel_r=2e-7, axis_scale_t=(0.5, 0.25, 2.0), axis_scale_r=(1.0, 0.0, 0.1),
+                      load_axis_scale_t=(1.0, 3.0, 0.0), load_axis_scale_r=(0.5, 1.0, 2.0),
+                      reacquire_isotropic_steps=2, reacquire_transition_scale=5.0)
+    q_seen = []
+    real = pf._bound.update
+
+    def spy(T, meas, q_t, q_r, *a):
+        q_seen.append((np.broadcast_to(q_t, 3).copy(), np.broadcast_to(q_r, 3).copy()))
+        return real(T, meas, q_t, q_r, *a)
+
+    pf._bound.update = spy
+    force = np.array([0.0, 0.0, -1000.0])
+    travel = []
+    for k in range(6):
+        inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
+        travel.append(np.linalg.norm(inc[:3, 3]))
+        if k == 2:
+            pf._last_status, pf._since_lost = "lost", 0  # as the integrity monitor sets them on a lost step
+        pf.step(StepInputs(inc, nt.T_nominal[k], nt.q[k], force))
+        if k == 2:
+            assert pf._since_lost == 1  # this step tracked (no laser to contradict): one step since the loss
+    deg = math.pi / 180
+    sc_t, sc_r = np.array([0.5, 0.25, 2.0]), np.array([1.0, 0.0, 0.1])
+    lsc_t, lsc_r = np.array([1.0, 3.0, 0.0]), np.array([0.5, 1.0, 2.0])
+    expect = []
+    for k, s in enumerate(travel):
+        base_t, base_r = 0.01 + 0.02 * s, (0.005 + 0.01 * s) * deg
+        load_t, load_r = 1e-6 * 1000.0 * s, 2e-7 * 1000.0 * s * deg
+        if k == 2:  # the step after a lost one: isotropic, five times wider
+            expect.append([np.full(3, 5.0 * (base_t + load_t)), np.full(3, 5.0 * (base_r + load_r))])
+        elif k == 3:  # within reacquire_isotropic_steps of the loss: isotropic
+            expect.append([np.full(3, base_t + load_t), np.full(3, base_r + load_r)])
+        else:
+            expect.append([base_t * sc_t + load_t * lsc_t, base_r * sc_r + load_r * lsc_r])
+    assert travel[1] > 0.1
+    np.testing.assert_allclose(seen, expect, rtol=1e-12)
+    np.testing.assert_allclose(q_seen, expect, rtol=1e-12)
 
 
 def test_without_lasers_the_estimate_is_the_kinematic_pose():

@@ -32,11 +32,12 @@ __all__ = [
 
 
 @nb.njit(cache=True, boundscheck=False)
-def propagate(T, A, z_, sigma_t, sigma_r, out):
-    """``out_i = A @ T_i @ exp(xi_i)``, ``xi_i = [σt z_i,0:3, σr z_i,3:6]`` (standard normal
-    ``z_``); exp by Rodrigues, translation part ``rho`` (small noise).
+def propagate(T, A, z_, sig, out):
+    """``out_i = A @ T_i @ exp(xi_i)``, ``xi_i = sig * z_i`` per axis (standard normal ``z_``,
+    ``sig (6,)`` the widths x, y, z (mm), rx, ry, rz (rad)); exp by Rodrigues, translation part
+    ``rho`` (small noise).
 
-    T (N, 4, 4), A (4, 4), z_ (N, 6) (float32 or float64), out (N, 4, 4).
+    T (N, 4, 4), A (4, 4), z_ (N, 6) (float32 or float64), sig (6,), out (N, 4, 4).
     """
     n = T.shape[0]
     M = np.empty((3, 3))
@@ -50,7 +51,7 @@ def propagate(T, A, z_, sigma_t, sigma_r, out):
         t1 = A[1, 0] * T[i, 0, 3] + A[1, 1] * T[i, 1, 3] + A[1, 2] * T[i, 2, 3] + A[1, 3]
         t2 = A[2, 0] * T[i, 0, 3] + A[2, 1] * T[i, 1, 3] + A[2, 2] * T[i, 2, 3] + A[2, 3]
         # E = exp(hat(phi))
-        x, y, z = sigma_r * z_[i, 3], sigma_r * z_[i, 4], sigma_r * z_[i, 5]
+        x, y, z = sig[3] * z_[i, 3], sig[4] * z_[i, 4], sig[5] * z_[i, 5]
         th2 = x * x + y * y + z * z
         if th2 < 1e-4:  # series to theta^4: truncation < 1e-16 below 0.01 rad
             a = 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0)
@@ -68,7 +69,7 @@ def propagate(T, A, z_, sigma_t, sigma_r, out):
         E[2, 0] = b * x * z - a * y
         E[1, 2] = b * y * z - a * x
         E[2, 1] = b * y * z + a * x
-        rx, ry, rz = sigma_t * z_[i, 0], sigma_t * z_[i, 1], sigma_t * z_[i, 2]
+        rx, ry, rz = sig[0] * z_[i, 0], sig[1] * z_[i, 1], sig[2] * z_[i, 2]
         for r in range(3):
             for c in range(3):
                 out[i, r, c] = M[r, 0] * E[0, c] + M[r, 1] * E[1, c] + M[r, 2] * E[2, c]
@@ -524,7 +525,7 @@ def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
 
 
 @nb.njit(cache=True, boundscheck=False)
-def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, qt2, qr2,
+def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, q2,
                  sigma2, h_t, h_r, std_out):
     """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``.
 
@@ -532,7 +533,7 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
     and knot windows ``los, his (S,)`` (``lo < 0``: skipped) on the seam knots ``P_pts (K, 3)``;
     the robot plateau: tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t`` (mm), ``d_r``
     (rad), ``A_inv (3, 3)`` the inverse plateau shape (identity: a ball); ``first``: start from
-    the plateau; ``qt2, qr2`` the process variances (mm², rad²); ``sigma2`` the laser variance
+    the plateau; ``q2 (6,)`` the process variances per axis (mm², rad²); ``sigma2`` the laser variance
     (mm²); ``h_t, h_r`` the central-difference steps. Writes ``std_out (6,)`` = sqrt(diag P).
     """
     R = T[:3, :3].copy()
@@ -553,7 +554,7 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
     else:
         s = np.empty(6)
         for j in range(6):
-            P[j, j] += qt2 if j < 3 else qr2
+            P[j, j] += q2[j]
             s[j] = math.sqrt(c[j] / P[j, j]) if P[j, j] > c[j] else 1.0
         for a in range(6):
             for b in range(6):

@@ -95,7 +95,7 @@ def plateau_pdf_1d(x, mu: float, d: float, sigma: float) -> np.ndarray:
     return np.exp(plateau_logpdf(flat, d, np.array([[sigma * sigma]]))).reshape(x.shape)
 
 
-def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma_r_rad: float,
+def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm, sigma_r_rad,
                rng: np.random.Generator, *, noise_buffer: np.ndarray | None = None) -> np.ndarray:
     """Sample the state transition of eq. (3) for all particles: ``x+ = T+ x exp(ξ)``.
 
@@ -105,9 +105,9 @@ def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma
         Particle poses ``T_base_tool`` (mm).
     T_increment : ndarray, shape (4, 4)
         ``T+ = Fk(q̄+) Fk(q̄)^-1`` in the base frame.
-    sigma_t_mm, sigma_r_rad : float
+    sigma_t_mm, sigma_r_rad : float or array_like, shape (3,)
         Noise widths (translation mm, rotation rad) in the tool frame, already scaled with
-        the force.
+        the force; one per axis (x, y, z) or one for all three.
     rng : numpy.random.Generator
     noise_buffer : ndarray of float32, shape (N, 6), optional
         Reused for the standard-normal draws (float32: half the cost of float64 draws).
@@ -119,8 +119,11 @@ def transition(Ts: np.ndarray, T_increment: np.ndarray, sigma_t_mm: float, sigma
     n = Ts.shape[0]
     z = np.empty((n, 6), np.float32) if noise_buffer is None else noise_buffer
     rng.standard_normal(out=z, dtype=np.float32)
+    sig = np.empty(6)
+    sig[:3] = sigma_t_mm
+    sig[3:] = sigma_r_rad
     out = np.empty_like(Ts)
-    _k.propagate(Ts, np.asarray(T_increment, dtype=np.float64), z, float(sigma_t_mm), float(sigma_r_rad), out)
+    _k.propagate(Ts, np.asarray(T_increment, dtype=np.float64), z, sig, out)
     return out
 
 

@@ -229,9 +229,14 @@ class SeamParticleFilter:
         self._k_force_r = f.k_force_r * deg
         self._k_rate_r = getattr(f, "k_rate_r_deg_per_n", 0.0) * deg
         self._rate = getattr(f, "transition_force", "magnitude") == "rate"
+        self._axis_t = np.asarray(getattr(f, "axis_scale_t", (1.0, 1.0, 1.0)), dtype=np.float64)
+        self._axis_r = np.asarray(getattr(f, "axis_scale_r", (1.0, 1.0, 1.0)), dtype=np.float64)
+        self._load_axis_t = np.asarray(getattr(f, "load_axis_scale_t", (1.0, 1.0, 1.0)), dtype=np.float64)
+        self._load_axis_r = np.asarray(getattr(f, "load_axis_scale_r", (1.0, 1.0, 1.0)), dtype=np.float64)
         self._prev_force = None
         self._lasers_seen = 0
         self._last_status = "tracking"
+        self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
         self.integrity = IntegrityMonitor(f.particles, getattr(f, "integrity_window", 10),
                                           getattr(f, "integrity_alpha_degraded", 1e-3),
                                           getattr(f, "integrity_alpha_lost", 1e-7),
@@ -275,6 +280,7 @@ class SeamParticleFilter:
         self._prev_force = None
         self._lasers_seen = 0
         self._last_status = "tracking"
+        self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
         self._sig_eff = {}
         self._offset = transform_from(matrix_from_rotation_vector(off_r), off_t, check=False)
         self._init_pending = bool(getattr(f, "init_from_robot", False))
@@ -426,6 +432,7 @@ class SeamParticleFilter:
         f = self.cfg.filter
         force = np.asarray(inputs.force_n, dtype=np.float64)
         # 1. state transition (eq. 3): the width grows with the force rate (default) or magnitude
+        fn = math.sqrt(float(force @ force))
         if self._rate:
             tau = f.force_rate_smoothing
             f_new = force
@@ -436,23 +443,34 @@ class SeamParticleFilter:
                 self._prev_force = f_new
             else:
                 df = 0.0
-            sig_t = f.sigma_t_mm + f.k_rate_t_mm_per_n * df
-            sig_r = self._sigma_r + self._k_rate_r * df
-        fn = math.sqrt(float(force @ force))
-        if not self._rate:
-            sig_t = f.sigma_t_mm + f.k_force_t * fn
-            sig_r = self._sigma_r + self._k_force_r * fn
+            base_t = f.sigma_t_mm + f.k_rate_t_mm_per_n * df
+            base_r = self._sigma_r + self._k_rate_r * df
+        else:
+            base_t = f.sigma_t_mm + f.k_force_t * fn
+            base_r = self._sigma_r + self._k_force_r * fn
         # the robot's error changes as its configuration does: per mm travelled, and more so under load
         travel = float(np.linalg.norm(inputs.T_increment[:3, 3]))
+        load_t = load_r = 0.0
         if travel > 0.0 and math.isfinite(travel):
             fn = fn if math.isfinite(fn) else 0.0
-            sig_t += travel * (f.k_travel_t_mm_per_mm + f.k_load_travel_t * fn)
-            sig_r += travel * math.radians(f.k_travel_r_deg_per_mm + f.k_load_travel_r * fn)
+            base_t += travel * f.k_travel_t_mm_per_mm
+            base_r += travel * math.radians(f.k_travel_r_deg_per_mm)
+            load_t = travel * f.k_load_travel_t * fn
+            load_r = travel * math.radians(f.k_load_travel_r * fn)
         if self._last_status != "tracking":
-            # the last step's data did not agree with the model: widen the walk so the cloud can re-acquire
-            # (process-noise inflation on a failed consistency test)
-            sig_t *= f.reacquire_transition_scale
-            sig_r *= f.reacquire_transition_scale
+            # the last step's data did not agree with the model: widen the walk on every axis so the cloud
+            # can re-acquire (process-noise inflation on a failed consistency test)
+            sig_t = (base_t + load_t) * f.reacquire_transition_scale
+            sig_r = (base_r + load_r) * f.reacquire_transition_scale
+        elif self._since_lost is not None and self._since_lost < f.reacquire_isotropic_steps:
+            # re-acquired lately: the cloud was rebuilt from few survivors, keep the walk isotropic for a while
+            sig_t = base_t + load_t
+            sig_r = base_r + load_r
+        else:
+            # the unloaded walk per tool axis (filter.axis_scale_*: the kinematic error drifts unlike on each
+            # axis), the load's part on all axes alike
+            sig_t = base_t * self._axis_t + load_t * self._load_axis_t
+            sig_r = base_r * self._axis_r + load_r * self._load_axis_r
         self.T = transition(self.T, inputs.T_increment, sig_t, sig_r, self.rng, noise_buffer=self._noise)
         # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
         with np.errstate(invalid="ignore"):  # non-finite readings: every weight vanishes, recovered below
@@ -516,6 +534,10 @@ class SeamParticleFilter:
             spread = np.maximum(spread, bound)
         rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered)
         self._last_status = rep.status
+        if rep.status == "lost":
+            self._since_lost = 0
+        elif self._since_lost is not None:
+            self._since_lost += 1
         if rep.status == "lost" and self._bound is not None:
             self._bound.reset()  # the information gathered before the track was lost no longer holds
         return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages,

@@ -169,9 +169,10 @@ class InformationBound:
             The filter's estimate of the step (mm).
         meas : RobotMeasurement
             The step's robot density.
-        q_t, q_r : float
-            The bound's process standard deviations of the step (mm, rad): the filter passes
-            ``q_scale`` times its transition width (plus ``spread_bound_k_travel`` times the travel).
+        q_t, q_r : float or array_like, shape (3,)
+            The bound's process standard deviations of the step (mm, rad), per tool axis or one
+            for all three: the filter passes ``q_scale`` times its transition width (plus
+            ``spread_bound_k_travel`` times the travel).
         readings, points
             As :func:`laser_jacobian` (the step's used laser readings).
 
@@ -191,12 +192,15 @@ class InformationBound:
         lo = np.array([r[3] for r in readings], dtype=np.int64)
         hi = np.array([r[4] for r in readings], dtype=np.int64)
         A_inv = np.eye(3) if meas.A_r is None else np.linalg.inv(meas.A_r)
+        q2 = np.empty(6)
+        q2[:3] = q_t
+        q2[3:] = q_r
         std = np.empty(6)
         _k.bound_kernel(np.ascontiguousarray(T_est, dtype=np.float64), mx, mz, Ms, lo, hi,
                         np.ascontiguousarray(points, dtype=np.float64), self.P, first,
                         np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
                         np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A_inv, float(meas.d_t_mm),
-                        float(meas.d_r_rad), q_t * q_t, q_r * q_r, self.sigma * self.sigma,
+                        float(meas.d_r_rad), q2 * q2, self.sigma * self.sigma,
                         _STEP_T, _STEP_R, std)
         return std
 
@@ -207,7 +211,7 @@ class InformationBound:
         if self.P is None or not np.isfinite(self.P).all():
             P = C.copy()
         else:
-            P = self.P + np.diag([q_t * q_t] * 3 + [q_r * q_r] * 3)
+            P = self.P + np.diag(np.square(np.r_[np.broadcast_to(q_t, 3), np.broadcast_to(q_r, 3)]))
             c = np.diag(C)
             p = np.diag(P)
             with np.errstate(invalid="ignore", divide="ignore"):

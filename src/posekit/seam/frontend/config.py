@@ -429,8 +429,17 @@ class FilterConfig(_Section):
     k_travel_t_mm_per_mm: Number = _num(0.02, 0.0, 1.0, "mm/mm")  # per mm travelled, 0 .. 1
     k_travel_r_deg_per_mm: Number = _num(0.01, 0.0, 10.0, "deg/mm")  # per mm travelled, 0 .. 10
     # ... and with the travel under load (the deflection C(q) f changes with q), per N of force
-    k_load_travel_t: Number = _num(1.4e-6, 0.0, 1e-2, "mm/(N mm)")  # 0 .. 0.01
-    k_load_travel_r: Number = _num(3e-7, 0.0, 1e-2, "deg/(N mm)")  # 0 .. 0.01
+    k_load_travel_t: Number = _num(2.8e-6, 0.0, 1e-2, "mm/(N mm)")  # 0 .. 0.01
+    k_load_travel_r: Number = _num(1.2e-6, 0.0, 1e-2, "deg/(N mm)")  # 0 .. 0.01
+    # the unloaded width (sigma_*, k_rate_* or k_force_*, k_travel_*) per tool axis (x, y, z; rx, ry, rz), times:
+    # the pose error does not drift alike on every axis (1, 1, 1: isotropic as the paper's eq. 3)
+    axis_scale_t: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((0.1, 0.3, 1.0))  # each 0 .. 100
+    axis_scale_r: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((1.0, 0.8, 0.1))  # each 0 .. 100
+    # the load's part of the width (k_load_travel_*) per tool axis, times (the deflection is not alike on every axis)
+    load_axis_scale_t: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((1.0, 1.0, 1.0))  # 0 .. 100
+    load_axis_scale_r: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((1.0, 1.0, 0.7))  # 0 .. 100
+    # for this many steps after a "lost" step the axis scales are not applied (re-acquiring: an isotropic walk)
+    reacquire_isotropic_steps: Integer = _num(200, 0, 100000)  # 0 .. 100000
     # after a step that was not "tracking" the transition is this many times wider (re-acquire; 1: off)
     reacquire_transition_scale: Number = _num(5.0, 1.0, 1e3)  # 1 .. 1000
     d0_mm: Number = _num(3.0, 0.0, 1e3, "mm")  # plateau radius, 0 .. 1 m
