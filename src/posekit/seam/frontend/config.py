@@ -394,6 +394,13 @@ class FilterConfig(_Section):
     ‖f‖`` (the deflection ``C(q) f`` changes with ``q``: the simulated deviation from the nominal
     path drifts ≈ 0.007 mm and 0.0017 deg per mm at 5.1 kN, ≈ 0.035 mm and 0.0076 deg per mm at
     25 kN), and ``reacquire_transition_scale`` times after a step that was not ``tracking``.
+    The unloaded width is scaled per tool axis (``axis_scale_*``) and the load's part too
+    (``load_axis_scale_*``): the simulated cell's pose error drifts about x and the yaw rz ~10× less
+    than along z and about rx, and one isotropic walk made the spread 2× too wide on x (2σ coverage
+    0.999); chosen by the 2σ coverage of 30 default episodes per seam (seeds 0–29, xy and yz: every
+    axis in 0.90–0.99), checked on seeds 30–59. For ``reacquire_isotropic_steps`` after a ``lost``
+    step the walk is isotropic again (the cloud was rebuilt from few survivors; with the scales at
+    once, a wrong start left rz 3σ off for tens of steps: 1.3 % of the steps confidently wrong).
     ``d0 + kd ‖f‖`` is the largest expected positioning error, as the paper prescribes (max over
     30 simulated default episodes of ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
     7.5 mm / 1.46 deg at 10.2 kN); ``laser_sigma_mm`` = ``sensors.noise_mm``. ``init_from_robot``
