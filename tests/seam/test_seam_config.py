@@ -77,6 +77,14 @@ def test_dump_load_round_trip(tmp_path):
          "cfg.yaml: trajectory.start_mm: too few values (no item 2), got [450, -100]"),
         ("trajectory:\n  start_mm: [1, 2, 3, 4]\n",
          "cfg.yaml: trajectory.start_mm: expected at most 3 values, got [1, 2, 3, 4]"),
+        ("filter:\n  axis_scale_t: [1.0, 2.0]\n",
+         "cfg.yaml: filter.axis_scale_t: too few values (no item 2), got [1.0, 2.0]"),
+        ("filter:\n  axis_scale_r: [1.0, -2.0, 1]\n",
+         "cfg.yaml: filter.axis_scale_r.1: expected >= 0.0, got -2.0 (allowed 0..100)"),
+        ("filter:\n  load_axis_scale_r: [1.0, .nan, 1]\n",
+         "cfg.yaml: filter.load_axis_scale_r.1: expected a finite number, got nan"),
+        ("filter:\n  reacquire_isotropic_steps: -1\n",
+         "cfg.yaml: filter.reacquire_isotropic_steps: expected >= 0, got -1"),
     ],
 )
 def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, message):
