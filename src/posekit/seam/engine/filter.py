@@ -25,9 +25,10 @@ error and its deflection under load change with the configuration), all times
 model: a wider walk lets the cloud re-acquire; issue 15, a start 8 mm / 3° off, 10 runs: 117
 steps ``lost`` instead of 412 without the widening). The unloaded part of the width and the load's
 part are scaled per tool axis (``axis_scale_*``, ``load_axis_scale_*``: the pose error drifts
-unlike on each axis), except for ``reacquire_isotropic_steps`` after a ``lost`` step. Until the first laser reading the estimate is the kinematic
-pose (the centre of the symmetric robot density). Every step carries a ``status``
-(``tracking``/``degraded``/``lost``) from :mod:`posekit.seam.engine.integrity`.
+unlike on each axis), except for ``reacquire_isotropic_steps`` after a ``lost`` step. Until the
+first laser reading the estimate is the kinematic pose (the centre of the symmetric robot
+density). Every step carries a ``status`` (``tracking``/``degraded``/``lost``) from
+:mod:`posekit.seam.engine.integrity`.
 
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
@@ -469,8 +470,8 @@ class SeamParticleFilter:
             sig_t = base_t + load_t
             sig_r = base_r + load_r
         else:
-            # the unloaded walk per tool axis (filter.axis_scale_*: the kinematic error drifts unlike on each
-            # axis), the load's part on all axes alike
+            # per tool axis (filter.axis_scale_*, load_axis_scale_*): the pose error does not drift alike on every
+            # axis, unloaded or under load
             sig_t = base_t * self._axis_t + load_t * self._load_axis_t
             sig_r = base_r * self._axis_r + load_r * self._load_axis_r
         self.T = transition(self.T, inputs.T_increment, sig_t, sig_r, self.rng, noise_buffer=self._noise)
