@@ -85,6 +85,7 @@ def test_dump_load_round_trip(tmp_path):
          "cfg.yaml: filter.load_axis_scale_r.1: expected a finite number, got nan"),
         ("filter:\n  reacquire_isotropic_steps: -1\n",
          "cfg.yaml: filter.reacquire_isotropic_steps: expected >= 0, got -1"),
+        ("filter:\n  walk_adapt_max: 0.5\n", "cfg.yaml: filter.walk_adapt_max: expected >= 1.0, got 0.5"),
     ],
 )
 def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, message):

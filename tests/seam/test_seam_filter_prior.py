@@ -177,3 +177,56 @@ def test_without_lasers_the_estimate_is_the_kinematic_pose():
         est = pf.step(StepInputs(inc, nt.T_nominal[k], q, np.zeros(3)))
         np.testing.assert_allclose(est.T, est.T_kinematic, atol=1e-12)
         assert est.status == "tracking" and est.spread[0] > 0.5  # the plateau, not a point
+
+
+def test_walk_adapts_to_the_innovations(monkeypatch):
+    # covariance matching (filter.walk_adapt_*): per tracking step with readings the walk is multiplied by
+    # exp(rate (a - walk_adapt_nis)), a the NIS per degree of freedom averaged over walk_adapt_window steps (one
+    # step counts at most 3), within 1 .. walk_adapt_max times the configured width
+    from posekit.seam.frontend.simulate import simulate_data
+
+    data = simulate_data(config_from_dict({"trajectory": {"kind": "line", "steps": 60}}), 0)
+    nt = data.nominal
+    level = {"v": 1.5}
+    real = filt.innovation_nis
+
+    def nis(E, w, sigma):
+        _, dof = real(E, w, sigma)
+        return level["v"] * dof, dof
+
+    monkeypatch.setattr(filt, "innovation_nis", nis)
+    widths = []
+    spy = filt.transition
+
+    def record(Ts, inc, st, sr, rng, **kw):
+        widths.append(np.r_[st, sr])
+        return spy(Ts, inc, st, sr, rng, **kw)
+
+    monkeypatch.setattr(filt, "transition", record)
+    runs = {}
+    for rate in (0.5, 0.0):
+        cfg = config_from_dict({"trajectory": {"kind": "line", "steps": 60},
+                                "filter": {"particles": 200, "walk_adapt_rate": rate, "walk_adapt_window": 4.0,
+                                           "walk_adapt_max": 2.0}})
+        pf = SeamParticleFilter(cfg, nt.seam, 0, T_init=nt.T_nominal[0])
+        widths.clear()
+        gains = []
+        for k in range(60):
+            level["v"] = 1.5 if k < 30 else (9.0 if k == 30 else 0.2)  # k = 30: one huge reading, then small ones
+            inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
+            est = pf.step(StepInputs(inc, nt.T_nominal[k], data.q_meas[k], data.force_meas_n[k], data.laser_mm[k]))
+            assert est.status == "tracking"
+            gains.append(pf._walk_gain)
+        runs[rate] = (np.array(gains), np.array(widths))
+    g, w = runs[0.5]
+    a, expect = 1.0, []
+    for k in range(60):
+        x = 1.5 if k < 30 else (3.0 if k == 30 else 0.2)  # the huge reading counts 3
+        a += (x - a) / 4.0
+        expect.append(min(max((expect[-1] if expect else 1.0) * math.exp(0.5 * (a - 1.0)), 1.0), 2.0))
+    np.testing.assert_allclose(g, expect, rtol=1e-12)
+    assert g[:30].max() == 2.0 and g[-1] == 1.0  # capped at walk_adapt_max, never below the configured width
+    g0, w0 = runs[0.0]
+    assert (g0 == 1.0).all()  # off
+    # the transition of step k is the configured one times the gain after step k - 1
+    np.testing.assert_allclose(w[1:], w0[1:] * g[:-1, None], rtol=1e-12)

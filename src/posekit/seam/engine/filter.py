@@ -240,6 +240,8 @@ class SeamParticleFilter:
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
+        self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
+        self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self.integrity = IntegrityMonitor(f.particles, getattr(f, "integrity_window", 10),
                                           getattr(f, "integrity_alpha_degraded", 1e-3),
                                           getattr(f, "integrity_alpha_lost", 1e-7),
@@ -284,6 +286,8 @@ class SeamParticleFilter:
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
+        self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
+        self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self._sig_eff = {}
         self._offset = transform_from(matrix_from_rotation_vector(off_r), off_t, check=False)
         self._init_pending = bool(getattr(f, "init_from_robot", False))
@@ -474,6 +478,8 @@ class SeamParticleFilter:
             # axis, unloaded or under load
             sig_t = base_t * self._axis_t + load_t * self._load_axis_t
             sig_r = base_r * self._axis_r + load_r * self._load_axis_r
+        sig_t = sig_t * self._walk_gain
+        sig_r = sig_r * self._walk_gain
         self.T = transition(self.T, inputs.T_increment, sig_t, sig_r, self.rng, noise_buffer=self._noise)
         # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
         with np.errstate(invalid="ignore"):  # non-finite readings: every weight vanishes, recovered below
@@ -536,6 +542,15 @@ class SeamParticleFilter:
                                        self.seam.points)
             spread = np.maximum(spread, bound)
         rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered)
+        if f.walk_adapt_rate > 0.0 and dof and self._last_status == "tracking" and rep.status == "tracking":
+            # covariance matching: innovations larger than the predicted cloud says (the NIS per degree of
+            # freedom, averaged over walk_adapt_window steps, above walk_adapt_nis) widen the walk, smaller ones
+            # narrow it back, within 1 .. walk_adapt_max times the configured width; one reading counts at most
+            # 3 (a seam feature's few large innovations do not blow the walk up)
+            x = min(nis / dof, 3.0) if math.isfinite(nis) else 3.0
+            self._nis_avg += (x - self._nis_avg) / f.walk_adapt_window
+            self._walk_gain = min(max(self._walk_gain * math.exp(f.walk_adapt_rate * (self._nis_avg - f.walk_adapt_nis)),
+                                      1.0), f.walk_adapt_max)
         self._last_status = rep.status
         if rep.status == "lost":
             self._since_lost = 0

@@ -445,6 +445,13 @@ class FilterConfig(_Section):
     # the load's part of the width (k_load_travel_*) per tool axis, times (the deflection is not alike on every axis)
     load_axis_scale_t: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((1.0, 1.0, 1.0))  # 0 .. 100
     load_axis_scale_r: tuple[_item(0.0, 100.0), _item(0.0, 100.0), _item(0.0, 100.0)] = _num((1.0, 1.0, 0.7))  # 0 .. 100
+    # the walk adapts to the data (covariance matching): per tracking step with laser readings it is multiplied by
+    # exp(rate (avg NIS/dof - walk_adapt_nis)), the average over walk_adapt_window steps, kept within
+    # 1 .. walk_adapt_max times the configured width (0: off)
+    walk_adapt_rate: Number = _num(0.2, 0.0, 1.0)  # 0 .. 1
+    walk_adapt_window: Number = _num(20.0, 1.0, 1e4, "steps")  # 1 .. 1e4
+    walk_adapt_max: Number = _num(10.0, 1.0, 1e3)  # 1 .. 1000
+    walk_adapt_nis: Number = _num(1.0, 0.1, 10.0)  # the NIS per degree of freedom it steers to, 0.1 .. 10
     # for this many steps after a "lost" step the axis scales are not applied (re-acquiring: an isotropic walk)
     reacquire_isotropic_steps: Integer = _num(200, 0, 100000)  # 0 .. 100000
     # after a step that was not "tracking" the transition is this many times wider (re-acquire; 1: off)

@@ -130,6 +130,9 @@ class EpisodeResult:
         Per step ``tracking``, ``degraded`` or ``lost`` (:mod:`posekit.seam.engine.integrity`).
     reason : list of (str or None), length T
         Which consistency test failed at each step (None when tracking).
+    plateau_ratio : ndarray, shape (T,)
+        The truth's offset from the kinematic pose over the filter's robot-density plateau radius
+        (:func:`plateau_ratio`; above 1: outside, the filter's model does not describe the cell).
     """
 
     t_s: np.ndarray
@@ -156,6 +159,7 @@ class EpisodeResult:
     status: np.ndarray | None = None
     reason: list | None = None
     snapshot: dict | None = None  # Fig. 5 measurement hypotheses of one step (run_episode with record_particles)
+    plateau_ratio: np.ndarray | None = None  # per step: the truth's offset over the filter's robot plateau radius
 
 
 def seam_frame_errors(T_est: np.ndarray, T_true: np.ndarray, T_nom: np.ndarray) -> np.ndarray:
@@ -411,7 +415,62 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
         truth_coords=pose_coords(truth, Tn), estimate_coords=pose_coords(estimate, Tn),
         laser_mm=data.laser_mm, resampled=resampled, recoveries=pf.recoveries, seed=seed, config=cfg,
         status=status.astype(str), reason=reason, snapshot=snapshot,
+        plateau_ratio=plateau_ratio(cfg, truth, kinematic, data.force_meas_n),
     )
+
+
+def _plateau_metrics(results: list[EpisodeResult]) -> dict:
+    """``plateau_ratio_max`` and ``outside_plateau_runs`` of :func:`metrics` (none without the ratios)."""
+    ratios = [r.plateau_ratio for r in results if r.plateau_ratio is not None and r.plateau_ratio.size]
+    if len(ratios) < len(results):
+        return {}
+    peak = np.array([float(np.max(x)) for x in ratios])
+    return {"plateau_ratio_max": float(round(float(peak.max()), 6)),
+            "outside_plateau_runs": float(round(float(np.mean(peak > 1.0)), 6))}
+
+
+def plateau_ratio(cfg: SeamConfig, truth: np.ndarray, kinematic: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+    """How far the true pose lies from the kinematic pose, in radii of the filter's robot plateau.
+
+    The paper chooses the plateau radius ``d = d0 + kd ‖f‖`` as the largest expected positioning
+    error (eq. 7); a simulated cell whose truth leaves it is one the filter's model does not
+    describe (a user's robot with the PUMA 560 defaults: the reported spread then misses the
+    error). The plateau is the filter's: a ball of radius ``d_t`` in translation, in rotation
+    ``‖A_r Δr‖ <= d_r`` with ``Δr = log(R_true R_kinᵀ)`` (base frame; with ``bending_plateau`` the
+    radius along the force is ``d0_deg``, :func:`~posekit.seam.engine.densities.robot_measurement`).
+
+    Parameters
+    ----------
+    cfg : SeamConfig
+    truth, kinematic : ndarray, shape (T, 4, 4)
+        True poses and the robot measurement means ``Fk(q + Cj(τ))`` (mm).
+    force_n : ndarray, shape (T, 3)
+        The measured force per step, N (what the filter's plateau is computed from).
+
+    Returns
+    -------
+    ndarray, shape (T,)
+        ``max(‖Δt‖ / d_t, ‖A_r Δr‖ / d_r)`` per step (inf where a radius is 0 and the offset is not).
+    """
+    f = cfg.filter
+    force = np.asarray(force_n, dtype=np.float64)
+    fn = np.linalg.norm(force, axis=1)
+    d_t = f.d0_mm + f.kd_mm_per_n * fn
+    d0_r = math.radians(f.d0_deg)
+    d_r = d0_r + math.radians(f.kd_deg_per_n) * fn
+    dt = np.linalg.norm(truth[:, :3, 3] - kinematic[:, :3, 3], axis=1)
+    dr = rotation_vector_from_matrix(truth[:, :3, :3] @ np.swapaxes(kinematic[:, :3, :3], 1, 2), check=False)
+    if f.bending_plateau:
+        # A_r dr = dr + (d_r / d0 - 1) (u . dr) u, u the force direction: along u the radius is d0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            u = np.where(fn[:, None] > 0.0, force / fn[:, None], 0.0)
+        ratio = d_r / np.maximum(d0_r, 1e-3 * d_r) - 1.0
+        dr = dr + (ratio * np.einsum("ij,ij->i", u, dr))[:, None] * u
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r_t = np.where(dt > 0.0, dt / d_t, 0.0)
+        nr = np.linalg.norm(dr, axis=1)
+        r_r = np.where(nr > 0.0, nr / d_r, 0.0)
+    return np.maximum(r_t, r_r)
 
 
 def _rmse(errors: np.ndarray) -> np.ndarray:
@@ -433,7 +492,11 @@ def metrics(results: list[EpisodeResult]) -> dict:
         steps whose |error| <= 2 × the reported spread) and ``tracking_beyond_3sigma`` (fraction
         of the steps whose error exceeds 3 × the reported spread on some axis that are
         ``tracking``; null when there are none) and ``confident_wrong`` (the fraction of all steps
-        that are ``tracking`` and beyond 3 × the spread: :func:`confident_wrong_fraction`).
+        that are ``tracking`` and beyond 3 × the spread: :func:`confident_wrong_fraction`);
+        ``plateau_ratio_max`` (the largest offset of the truth from the kinematic pose in radii
+        of the filter's robot plateau, :func:`plateau_ratio`) and ``outside_plateau_runs`` (the
+        fraction of runs whose truth leaves the plateau at some step: the filter's ``d0``/``kd``
+        do not describe the simulated robot, paper eq. 7).
     """
     if not results:
         from posekit.errors import EstimationError
@@ -474,6 +537,7 @@ def metrics(results: list[EpisodeResult]) -> dict:
         "coverage_2sigma": {a: fl(v) for a, v in zip(AXES, cov)},
         "tracking_beyond_3sigma": None if beyond is None else fl(beyond),
         "confident_wrong": fl(confident_wrong_fraction(results)),
+        **_plateau_metrics(results),
     }
 
 
