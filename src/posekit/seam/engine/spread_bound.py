@@ -25,10 +25,11 @@ is the Kalman covariance of the same data and rarely exceeds the cloud's; where 
 stays near the plateau, which is what the data support.
 
 Measured (issue 15, 30 episodes, seeds 0-29, 500 particles, 2σ coverage x..rz with the bound at
-the particles' own walk, ``spread_bound`` 1, and the default transition per tool axis): xy
-0.966/0.979/0.983/0.978/0.980/0.939; yz 0.983/0.971/0.963/0.972/0.978/0.961; 25 kN
-0.980/0.982/0.960/0.926/0.928/0.987 (0.95 % of the steps tracking and beyond 3σ; 13.4 % with half
-the walk and the raw force rate). With one isotropic walk x was 0.999 on both seams.
+the particles' own walk, ``spread_bound`` 1, and the default transition per tool axis, adaptive): xy
+0.976/0.984/0.988/0.982/0.982/0.944; yz 0.982/0.973/0.967/0.979/0.978/0.967; 25 kN
+0.981/0.985/0.963/0.934/0.940/0.989 (1.5 % of the steps tracking and beyond 3σ, 0.5 % on seeds
+30-59; 13.4 % with half the walk and the raw force rate). With one isotropic walk x was 0.999 on
+both seams.
 The estimate is unchanged; one step costs ~0.03 ms (one compiled kernel: 12 poses per reading and
 the 6×6 update). Limit: the bound is the covariance of a linearised filter; the particles'
 estimate can be worse than that while the cloud converges from a wide plateau (25 kN: one of 10

@@ -401,6 +401,12 @@ class FilterConfig(_Section):
     axis in 0.90–0.99), checked on seeds 30–59. For ``reacquire_isotropic_steps`` after a ``lost``
     step the walk is isotropic again (the cloud was rebuilt from few survivors; with the scales at
     once, a wrong start left rz 3σ off for tens of steps: 1.3 % of the steps confidently wrong).
+    ``walk_adapt_*``: the walk follows the data (covariance matching on the lasers' NIS per degree
+    of freedom, averaged over ``walk_adapt_window`` steps, within 1 .. ``walk_adapt_max`` times the
+    configured width): on a robot the defaults do not describe (the bundled UR10 with its own
+    plateau, 10 runs) the confidently wrong steps fell from 6.0 % to 0.6 %; on the PUMA 560 cell
+    the coverage stays in 0.94-0.99. Per step one reading counts at most 3 (without the average
+    and the cap a 90° seam corner blew the walk up and the track was lost).
     ``d0 + kd ‖f‖`` is the largest expected positioning error, as the paper prescribes (max over
     30 simulated default episodes of ``|truth - Fk(q_meas)|``: 2.9 mm / 0.34 deg at 0 N, 5.1 mm / 0.89 deg at 5.1 kN,
     7.5 mm / 1.46 deg at 10.2 kN); ``laser_sigma_mm`` = ``sensors.noise_mm``. ``init_from_robot``
