@@ -44,6 +44,11 @@ def test_track_reproduces_simulate_and_reports_status(simulated, capsys):
     for a in ("rx", "ry", "rz"):
         assert m["rmse_deg"][a] == pytest.approx(sim["rmse_deg"][a], abs=1e-5)
     assert set(m["coverage_2sigma"]) == {"x", "y", "z", "rx", "ry", "rz"}
+    # the truth against the filter's robot plateau and the confidently wrong steps, as simulate saw them
+    assert m["plateau_ratio_max"] == pytest.approx(sim["plateau_ratio_max"], abs=1e-3) and m["plateau_ratio_max"] < 1
+    assert m["outside_plateau_steps"] == 0.0
+    assert m["confident_wrong"] == pytest.approx(sim["confident_wrong"], abs=1e-9)
+    assert "warning" not in err
     with (simulated / "tr" / "estimates.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 80
@@ -64,6 +69,23 @@ def test_track_without_truth_reports_no_errors(simulated, tmp_path, capsys):
     assert "err_x_mm" not in header and "status" in header
     est = np.loadtxt(tmp_path / "tr" / "estimates.csv", delimiter=",", skiprows=1, usecols=(2, 3, 4))
     assert est.shape == (80, 3)
+
+
+def test_track_warns_when_the_truth_leaves_the_filter_plateau(simulated, tmp_path, capsys):
+    # a recorded episode with a reference (truth.csv) of a robot the filter's plateau does not describe
+    import yaml
+
+    shutil.copytree(simulated / "log", tmp_path / "log")
+    setup = yaml.safe_load((tmp_path / "log" / "setup.yaml").read_text())
+    setup["filter"].update({"d0_mm": 0.2, "kd_mm_per_n": 3e-5})
+    (tmp_path / "log" / "setup.yaml").write_text(yaml.safe_dump(setup))
+    rc, out, err = run_cli(capsys, "seam", "track", tmp_path / "log", "--out", tmp_path / "tr")
+    assert rc == 0
+    m = json.loads((tmp_path / "tr" / "metrics.json").read_text())
+    assert m["outside_plateau_steps"] > 0.5 and m["plateau_ratio_max"] > 2.0
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warning: the true pose left the filter's robot plateau at ")
+    assert lines[0].endswith("(paper eq. 7)")
 
 
 def test_track_bad_log_is_one_line(simulated, tmp_path, capsys):

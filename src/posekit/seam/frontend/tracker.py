@@ -214,6 +214,10 @@ class SeamTrackResult:
     interpolated : ndarray of bool, shape (T,)
     truth : ndarray, shape (T, 4, 4) or None
         True tool poses in the base frame (``Fk(qref) T_seam_tool``), when the log has truth.
+    force_base_n : ndarray, shape (T, 3) or None
+        The measured force in the base frame (``R(Fk(q)) f_tool``), N, as the filter used it.
+    config : SeamConfig or None
+        The configuration the log was tracked with.
     """
 
     time_s: np.ndarray
@@ -229,6 +233,8 @@ class SeamTrackResult:
     truth: np.ndarray | None
     resampled: np.ndarray | None = None
     particles: int = 0
+    force_base_n: np.ndarray | None = None
+    config: SeamConfig | None = None
 
 
 def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
@@ -263,17 +269,24 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
         if on_step is not None:
             on_step(k, r)
     truth = None if log.truth_seam_tool is None else np.matmul(nom, log.truth_seam_tool)
+    R_meas = tracker.chain.forward_kinematics(np.asarray(log.q, dtype=np.float64), check=False)[:, :3, :3]
+    force_base = np.matmul(R_meas, np.asarray(log.force_tool_n, dtype=np.float64)[:, :3, None])[..., 0]
     return SeamTrackResult(log.time_s.copy(), est, kin, nom, spread, status, ess, ms, used, log.interpolated.copy(),
-                           truth, resampled, log.config.filter.particles)
+                           truth, resampled, log.config.filter.particles, force_base, log.config)
 
 
 def track_metrics(result: SeamTrackResult) -> dict:
     """``metrics.json`` of ``posekit seam track``: steps, status counts, step times; with truth also
-    the RMSE per axis in the seam frame (``rmse_mm``, ``rmse_deg``), the kinematics-only RMSE and
-    ``coverage_2sigma`` (fraction of steps with ``|error| <= 2 × spread``, per axis)."""
+    the RMSE per axis in the seam frame (``rmse_mm``, ``rmse_deg``), the kinematics-only RMSE,
+    ``coverage_2sigma`` (fraction of steps with ``|error| <= 2 × spread``, per axis),
+    ``confident_wrong`` (fraction of steps ``tracking`` and beyond 3 × the spread on some axis),
+    ``plateau_ratio_max`` and ``outside_plateau_steps`` (the truth's largest offset from the
+    kinematic pose in radii of the filter's robot plateau, and the fraction of steps outside it:
+    :func:`posekit.seam.frontend.simulate.plateau_ratio`; outside, the filter's ``d0``/``kd`` do not
+    describe the robot, paper eq. 7))."""
     from collections import Counter
 
-    from posekit.seam.frontend.simulate import AXES, seam_frame_errors
+    from posekit.seam.frontend.simulate import AXES, plateau_ratio, seam_frame_errors
 
     def fl(v):
         return float(round(float(v), 6))
@@ -300,7 +313,13 @@ def track_metrics(result: SeamTrackResult) -> dict:
             "kinematic_rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], rk[:3])},
             "kinematic_rmse_deg": {a: fl(math.degrees(v)) for a, v in zip(AXES[3:], rk[3:])},
             "coverage_2sigma": {a: fl(v) for a, v in zip(AXES, cover)},
+            "confident_wrong": fl(np.mean(np.any(np.abs(err) > 3.0 * result.spread, axis=1)
+                                          & (np.asarray(result.status) == "tracking"))),
         })
+        if result.config is not None and result.force_base_n is not None:
+            ratio = plateau_ratio(result.config, result.truth, result.kinematic, result.force_base_n)
+            out.update({"plateau_ratio_max": fl(np.max(ratio)) if np.isfinite(np.max(ratio)) else None,
+                        "outside_plateau_steps": fl(np.mean(ratio > 1.0))})
     return out
 
 
