@@ -25,12 +25,12 @@ error and its deflection under load change with the configuration), all times
 model: a wider walk lets the cloud re-acquire; issue 15, a start 8 mm / 3° off, 10 runs: 117
 steps ``lost`` instead of 412 without the widening). The unloaded part of the width and the load's
 part are scaled per tool axis (``axis_scale_*``, ``load_axis_scale_*``: the pose error drifts
-unlike on each axis), except for ``reacquire_isotropic_steps`` after a ``lost`` step; and by
-an adaptive gain (``walk_adapt_*``: covariance matching, the averaged NIS of the lasers steers it
-within 1 .. ``walk_adapt_max``). Until the
-first laser reading the estimate is the kinematic pose (the centre of the symmetric robot
-density). Every step carries a ``status`` (``tracking``/``degraded``/``lost``) from
-:mod:`posekit.seam.engine.integrity`.
+unlike on each axis), except for ``reacquire_isotropic_steps`` after a ``lost`` step; the whole
+width is multiplied by an adaptive gain (``walk_adapt_*``: covariance matching, the lasers' NIS
+averaged over steps steers it within 1 .. ``walk_adapt_max``; it is kept, not updated, while the
+track is not ``tracking``). Until the first laser reading the estimate is the kinematic pose (the
+centre of the symmetric robot density). Every step carries a ``status``
+(``tracking``/``degraded``/``lost``) from :mod:`posekit.seam.engine.integrity`.
 
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
