@@ -213,14 +213,20 @@ def run_simulate(args) -> int:
     if "status_counts" in m:
         print("status: " + ", ".join(f"{k} {v}" for k, v in m["status_counts"].items()))
     if m.get("outside_plateau_runs", 0.0) > 0.0:
-        print(f"warning: the simulated robot left the filter's robot plateau in {100 * m['outside_plateau_runs']:.0f} % "
-              f"of the runs (up to {m['plateau_ratio_max']:.2f} times its radius): the filter's model does not "
-              "describe this robot and its spread cannot be trusted; set filter.d0_mm, kd_mm_per_n, d0_deg and "
-              "kd_deg_per_n to the robot's largest positioning error (paper eq. 7)", file=sys.stderr)
+        plateau_warning("the simulated robot", f"in {100 * m['outside_plateau_runs']:.0f} % of the runs",
+                        m["plateau_ratio_max"])
     print(f"wrote {args.out}: {', '.join(p.name for p in paths.values())}")
     if args.save_log:
         print(f"wrote {args.save_log}: setup.yaml, seam.csv, log.csv, truth.csv (run 0, seed {results[0].seed})")
     return 0
+
+
+def plateau_warning(who: str, where: str, peak) -> None:
+    """One stderr line: ``who`` left the filter's robot plateau ``where``, up to ``peak`` (None: inf) radii."""
+    size = "inf" if peak is None else f"{peak:.2f}"
+    print(f"warning: {who} left the filter's robot plateau {where} (up to {size} times its radius): the filter's "
+          "model does not describe this robot and its spread cannot be trusted; set filter.d0_mm, kd_mm_per_n, "
+          "d0_deg and kd_deg_per_n to the robot's largest positioning error (paper eq. 7)", file=sys.stderr)
 
 
 def run_demo(args) -> int:

@@ -66,11 +66,10 @@ def run_track(args) -> int:
         print("RMSE per axis in the seam frame against truth.csv (mm, deg):")
         print(rmse_table([("filter", _rmse_values(m)), ("kinematics only", _rmse_values(m, "kinematic_"))]))
     if m.get("outside_plateau_steps", 0.0) > 0.0:
-        peak = m["plateau_ratio_max"]
-        print(f"warning: the true pose left the filter's robot plateau at {100 * m['outside_plateau_steps']:.1f} % of "
-              f"the steps (up to {'inf' if peak is None else f'{peak:.2f}'} times its radius): the filter's model does "
-              "not describe this robot and its spread cannot be trusted; set filter.d0_mm, kd_mm_per_n, d0_deg and "
-              "kd_deg_per_n to the robot's largest positioning error (paper eq. 7)", file=sys.stderr)
+        from .seam_simulate import plateau_warning
+
+        plateau_warning("the true pose", f"at {100 * m['outside_plateau_steps']:.1f} % of the steps",
+                        m["plateau_ratio_max"])
     print(f"wrote {args.out}: estimates.csv, metrics.json, ess.png" + (", errors_time.png" if "rmse_mm" in m else ""))
     sys.stdout.flush()
     return 0

@@ -32,6 +32,7 @@ __all__ = [
     "RobotMeasurement",
     "angle_loglik",
     "ball_volume",
+    "bending_stretch",
     "joint_compliance",
     "laser_loglik",
     "plateau_logpdf",
@@ -167,6 +168,13 @@ class RobotMeasurement:
         self.A_r = A_r
 
 
+def bending_stretch(d_r, d0_rad):
+    """The bending plateau's stretch along the force: ``A_r = I + s u uᵀ`` (``u`` the force direction)
+    with ``s = d_r / d0 - 1``, so that ``‖A_r Δr‖ <= d_r`` allows ``d_r`` across the force and ``d0``
+    along it (``d0`` floored at ``1e-3 d_r``: no infinite stretch for ``d0 = 0``). Scalars or arrays, rad."""
+    return d_r / np.maximum(d0_rad, 1e-3 * d_r) - 1.0
+
+
 def robot_measurement(chain: KinematicChain, q_meas: np.ndarray, force_n: np.ndarray, *, joint_sigma_rad: float,
                       floor_t_mm: float, floor_r_rad: float, d0_mm: float, kd_mm_per_n: float,
                       d0_rad: float, kd_rad_per_n: float, bending: bool = False,
@@ -211,7 +219,7 @@ def robot_measurement(chain: KinematicChain, q_meas: np.ndarray, force_n: np.nda
     if bending and fn > 0.0 and d_r > 0.0:
         # ‖A Δ‖ <= d_r: Δ across f within d_r, along f within d0 (ratio capped for d0 = 0)
         u = np.asarray(force_n, dtype=np.float64) / fn
-        A_r = np.eye(3) + (d_r / max(d0_rad, 1e-3 * d_r) - 1.0) * np.outer(u, u)
+        A_r = np.eye(3) + float(bending_stretch(d_r, d0_rad)) * np.outer(u, u)
     return RobotMeasurement(
         T,
         S[:3, :3] + floor_t_mm ** 2 * np.eye(3),

@@ -234,10 +234,10 @@ class SeamParticleFilter:
         self._k_force_r = f.k_force_r * deg
         self._k_rate_r = getattr(f, "k_rate_r_deg_per_n", 0.0) * deg
         self._rate = getattr(f, "transition_force", "magnitude") == "rate"
-        self._axis_t = np.asarray(getattr(f, "axis_scale_t", (1.0, 1.0, 1.0)), dtype=np.float64)
-        self._axis_r = np.asarray(getattr(f, "axis_scale_r", (1.0, 1.0, 1.0)), dtype=np.float64)
-        self._load_axis_t = np.asarray(getattr(f, "load_axis_scale_t", (1.0, 1.0, 1.0)), dtype=np.float64)
-        self._load_axis_r = np.asarray(getattr(f, "load_axis_scale_r", (1.0, 1.0, 1.0)), dtype=np.float64)
+        self._axis_t = np.asarray(f.axis_scale_t, dtype=np.float64)
+        self._axis_r = np.asarray(f.axis_scale_r, dtype=np.float64)
+        self._load_axis_t = np.asarray(f.load_axis_scale_t, dtype=np.float64)
+        self._load_axis_r = np.asarray(f.load_axis_scale_r, dtype=np.float64)
         self._prev_force = None
         self._lasers_seen = 0
         self._last_status = "tracking"

@@ -138,6 +138,14 @@ def plateau_covariance(meas, R_est: np.ndarray) -> np.ndarray:
     return C
 
 
+def _process_variances(q_t, q_r) -> np.ndarray:
+    """``(6,)`` variances ``[q_t², q_r²]`` per tool axis from widths given per axis (3,) or for all three."""
+    q = np.empty(6)
+    q[:3] = q_t
+    q[3:] = q_r
+    return q * q
+
+
 class InformationBound:
     """The covariance the data support, run beside the particle cloud (see the module docstring).
 
@@ -193,15 +201,13 @@ class InformationBound:
         lo = np.array([r[3] for r in readings], dtype=np.int64)
         hi = np.array([r[4] for r in readings], dtype=np.int64)
         A_inv = np.eye(3) if meas.A_r is None else np.linalg.inv(meas.A_r)
-        q2 = np.empty(6)
-        q2[:3] = q_t
-        q2[3:] = q_r
+        q2 = _process_variances(q_t, q_r)
         std = np.empty(6)
         _k.bound_kernel(np.ascontiguousarray(T_est, dtype=np.float64), mx, mz, Ms, lo, hi,
                         np.ascontiguousarray(points, dtype=np.float64), self.P, first,
                         np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
                         np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A_inv, float(meas.d_t_mm),
-                        float(meas.d_r_rad), q2 * q2, self.sigma * self.sigma,
+                        float(meas.d_r_rad), q2, self.sigma * self.sigma,
                         _STEP_T, _STEP_R, std)
         return std
 
@@ -212,7 +218,7 @@ class InformationBound:
         if self.P is None or not np.isfinite(self.P).all():
             P = C.copy()
         else:
-            P = self.P + np.diag(np.square(np.r_[np.broadcast_to(q_t, 3), np.broadcast_to(q_r, 3)]))
+            P = self.P + np.diag(_process_variances(q_t, q_r))
             c = np.diag(C)
             p = np.diag(P)
             with np.errstate(invalid="ignore", divide="ignore"):

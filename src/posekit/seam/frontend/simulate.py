@@ -32,6 +32,7 @@ from posekit.geometry import (
     transform_from,
 )
 from posekit.robots import KinematicChain
+from posekit.seam.engine.densities import bending_stretch
 from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
 from posekit.seam.engine.particles import systematic_resample
 from posekit.seam.engine.seamline import SeamLine
@@ -44,10 +45,13 @@ __all__ = [
     "EpisodeResult",
     "SimulatedData",
     "STATUS_COLUMNS",
+    "confident_wrong_fraction",
+    "confident_wrong_share",
     "integrity_summary",
     "measurement_hypotheses",
     "metrics",
     "status_columns",
+    "plateau_ratio",
     "pose_coords",
     "seam_frame_errors",
     "run_episode",
@@ -461,11 +465,10 @@ def plateau_ratio(cfg: SeamConfig, truth: np.ndarray, kinematic: np.ndarray, for
     dt = np.linalg.norm(truth[:, :3, 3] - kinematic[:, :3, 3], axis=1)
     dr = rotation_vector_from_matrix(truth[:, :3, :3] @ np.swapaxes(kinematic[:, :3, :3], 1, 2), check=False)
     if f.bending_plateau:
-        # A_r dr = dr + (d_r / d0 - 1) (u . dr) u, u the force direction: along u the radius is d0
+        # A_r dr = dr + s (u . dr) u, u the force direction (the filter's plateau: along u the radius is d0)
         with np.errstate(invalid="ignore", divide="ignore"):
             u = np.where(fn[:, None] > 0.0, force / fn[:, None], 0.0)
-        ratio = d_r / np.maximum(d0_r, 1e-3 * d_r) - 1.0
-        dr = dr + (ratio * np.einsum("ij,ij->i", u, dr))[:, None] * u
+        dr = dr + (bending_stretch(d_r, d0_r) * np.einsum("ij,ij->i", u, dr))[:, None] * u
     with np.errstate(invalid="ignore", divide="ignore"):
         r_t = np.where(dt > 0.0, dt / d_t, 0.0)
         nr = np.linalg.norm(dr, axis=1)
@@ -589,7 +592,13 @@ def confident_wrong_fraction(results: list[EpisodeResult]) -> float:
     some axis: the confident wrong poses of DESIGN.md "Trust", counted over every step (where
     :func:`integrity_summary`'s ``tracking_beyond_3sigma`` is their share of the steps beyond 3σ)."""
     _, _, status, beyond = _pooled_steps(results)
-    return float(np.mean(beyond & (status == "tracking")))
+    return confident_wrong_share(beyond, status)
+
+
+def confident_wrong_share(beyond: np.ndarray, status) -> float:
+    """Fraction of steps ``tracking`` among ``beyond (T,)`` (error beyond 3 × the spread on some axis)
+    and ``status (T,)``: :func:`confident_wrong_fraction` of one array of steps (``seam track``)."""
+    return float(np.mean(np.asarray(beyond, dtype=bool) & (np.asarray(status) == "tracking")))
 
 
 def _pooled_steps(results: list[EpisodeResult]):

@@ -286,7 +286,7 @@ def track_metrics(result: SeamTrackResult) -> dict:
     describe the robot, paper eq. 7))."""
     from collections import Counter
 
-    from posekit.seam.frontend.simulate import AXES, plateau_ratio, seam_frame_errors
+    from posekit.seam.frontend.simulate import AXES, confident_wrong_share, plateau_ratio, seam_frame_errors
 
     def fl(v):
         return float(round(float(v), 6))
@@ -313,8 +313,8 @@ def track_metrics(result: SeamTrackResult) -> dict:
             "kinematic_rmse_mm": {a: fl(v) for a, v in zip(AXES[:3], rk[:3])},
             "kinematic_rmse_deg": {a: fl(math.degrees(v)) for a, v in zip(AXES[3:], rk[3:])},
             "coverage_2sigma": {a: fl(v) for a, v in zip(AXES, cover)},
-            "confident_wrong": fl(np.mean(np.any(np.abs(err) > 3.0 * result.spread, axis=1)
-                                          & (np.asarray(result.status) == "tracking"))),
+            "confident_wrong": fl(confident_wrong_share(np.any(np.abs(err) > 3.0 * result.spread, axis=1),
+                                                        result.status)),
         })
         if result.config is not None and result.force_base_n is not None:
             ratio = plateau_ratio(result.config, result.truth, result.kinematic, result.force_base_n)
