@@ -111,6 +111,21 @@ def test_monitor_holds_degraded_while_re_acquiring_after_lost():
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0).status == "tracking"
 
 
+def test_monitor_a_force_beyond_the_plateau_s_measured_range_is_degraded_but_not_for_the_walk():
+    mon = IntegrityMonitor(500, window=3, max_force_n=12000.0)
+    r = mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=11999.0)
+    assert r.status == "tracking" and r.tests_status == "tracking"
+    r = mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=24900.0)
+    assert r.status == "degraded" and r.tests_status == "tracking"
+    assert r.reason == "force 24.9 kN beyond the 12 kN the robot plateau was measured at (filter.plateau_max_force_n)"
+    assert mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=np.nan).status == "degraded"  # an unreadable force
+    # a failed test keeps its own level and both reasons are given
+    r = mon.update(2.0, 2, 0.0, chi2.isf(1e-9, 3), 400.0, force_norm_n=24900.0)
+    assert r.status == "lost" and r.tests_status == "lost" and r.reason.endswith("(filter.plateau_max_force_n)")
+    # 0: no limit
+    assert IntegrityMonitor(500, window=3).update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=1e6).status == "tracking"
+
+
 def _numpy_plane_errors(T, m, M, P):
     """Reference: the sensor frame T M, the nearest crossing of its x-z plane with the polyline P."""
     out = np.full((T.shape[0], 2), np.nan)

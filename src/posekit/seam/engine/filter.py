@@ -35,7 +35,11 @@ centre of the symmetric robot density). Every step carries a ``status``
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
 estimate, capped at the robot plateau, reset when the track is lost); the integrity test uses
-the cloud's own spread. The seam is searched at least as far as the robot density reaches
+the cloud's own spread. The cloud itself is kept at least ``cloud_floor`` times the bound's
+covariance (:meth:`SeamParticleFilter._floor_cloud`: Gaussian noise of covariance
+``(c P - Σ_cloud)+`` in the tangent space at its mean, nothing where the cloud is wider): a cloud
+narrower than what the data support cannot move where new information puts the pose (25 kN, seed
+5: the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ off for ~100 steps). The seam is searched at least as far as the robot density reaches
 (plateau + 3 tails + the rotation plateau times the sensor's lever; ``search_window_mm`` is the
 minimum): under 25 kN the tool is 10 mm off the seam.
 
@@ -86,7 +90,7 @@ from posekit.seam.frontend.trajectories import tool_chain
 # uncapped inflation discounts the lasers). Issue 15, ``posekit seam simulate --runs 10 --seed 0``: xy RMSE
 # x/y 0.082/0.084 -> 0.063/0.062 mm, rx/ry 0.162/0.198 -> 0.153/0.191 deg; yz y/z 0.23/0.80 -> 0.10/0.27 mm.
 
-__all__ = ["SeamParticleFilter", "StepEstimate", "StepInputs"]
+__all__ = ["SeamParticleFilter", "StepEstimate", "StepInputs", "floor_factor"]
 
 
 @dataclass
@@ -116,6 +120,30 @@ class StepInputs:
     force_n: np.ndarray
     laser_mm: np.ndarray | None = None
     angle_rad: np.ndarray | None = None
+
+
+def floor_factor(P: np.ndarray, L: np.ndarray) -> np.ndarray | None:
+    """A factor ``B (6, 6)``, ``B Bᵀ = (P - L Lᵀ)+``, of what a cloud of covariance ``L Lᵀ`` lacks to cover ``P``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (6, 6)
+        The covariance to cover (tool-frame tangent space: mm², rad²).
+    L : ndarray, shape (6, 6)
+        Cholesky factor of the cloud's weighted covariance (same space).
+
+    Returns
+    -------
+    ndarray, shape (6, 6), or None
+        ``V diag(√λ+)`` from the eigen-decomposition of ``P - L Lᵀ`` (its negative part dropped: the
+        cloud keeps what it has where it is wider); None when nothing is missing or ``P`` is not finite.
+    """
+    if not np.isfinite(P).all():
+        return None
+    lam, V = np.linalg.eigh(P - L @ L.T)
+    if not lam.max() > 0.0:
+        return None
+    return V * np.sqrt(np.clip(lam, 0.0, None))[None, :]
 
 
 @dataclass
@@ -248,7 +276,7 @@ class SeamParticleFilter:
                                           getattr(f, "integrity_alpha_degraded", 1e-3),
                                           getattr(f, "integrity_alpha_lost", 1e-7),
                                           getattr(f, "integrity_ess_min", 0.002),
-                                          getattr(f, "integrity_recovery", 0))
+                                          getattr(f, "integrity_recovery", 0), f.plateau_max_force_n)
         self._robot_kw = {
             "joint_sigma_rad": f.joint_sigma_deg * deg, "floor_t_mm": f.robot_floor_t_mm,
             "floor_r_rad": f.robot_floor_r_deg * deg, "d0_mm": f.d0_mm, "kd_mm_per_n": f.kd_mm_per_n,
@@ -415,7 +443,8 @@ class SeamParticleFilter:
         T_mean, spread, mu = _k.cloud_kernel(T, w, xi, L)
         return T_mean, spread, xi, mu, L
 
-    def _kernel_resample(self, T: np.ndarray, w: np.ndarray, h: float, shrink: bool, cloud=None) -> np.ndarray:
+    def _kernel_resample(self, T: np.ndarray, w: np.ndarray, h: float, shrink: bool, cloud=None,
+                         extra=None) -> np.ndarray:
         """Resample by ``w`` from a Gaussian kernel density of the cloud, in the tangent space at
         its weighted mean: ``ξ' = a ξ_i + (1 - a) μ + h L z``, ``L Lᵀ = Σ`` the weighted
         covariance of the offsets ``ξ`` (6-D, with the correlations), ``z`` standard normal.
@@ -426,15 +455,40 @@ class SeamParticleFilter:
         yaw, height with pitch) and leaves others free (along the seam, the rotation about
         it); noise axis by axis would break the pinned combinations, the next update would
         discard those copies and the cloud would collapse in the free directions as well.
-        ``cloud``: :meth:`_cloud` of ``(T, w)`` when already computed.
+        ``cloud``: :meth:`_cloud` of ``(T, w)`` when already computed. ``extra``: a factor ``B``
+        (6, 6) of a covariance added on top (the cloud floor): the kernel is ``h² Σ + B Bᵀ``.
         """
-        T_mean, _, xi, mu, L = self._cloud(T, w) if cloud is None else cloud
-        idx = self._resample(w, self.rng)
+        cloud = self._cloud(T, w) if cloud is None else cloud
+        L = cloud[4]
+        K = h * L
+        if extra is not None:
+            try:
+                K = np.linalg.cholesky(h * h * (L @ L.T) + extra @ extra.T)
+            except np.linalg.LinAlgError:  # a cloud collapsed to one point and nothing to add: the plain kernel
+                pass
+        return self._move(cloud, self._resample(w, self.rng), math.sqrt(1.0 - h * h) if shrink else 1.0, K)
+
+    def _move(self, cloud, idx: np.ndarray, a: float, B: np.ndarray) -> np.ndarray:
+        """New particles ``T_mean exp(a ξ_idx + (1 - a) μ + B z)`` from :meth:`_cloud`'s ``cloud``, ``z`` standard
+        normal (drawn here): ancestors ``idx (N,)``, shrinkage ``a``, noise factor ``B (6, 6)``."""
+        T_mean, _, xi, mu, _ = cloud
         z = self._noise
         self.rng.standard_normal(out=z, dtype=np.float32)
-        out = np.empty_like(T)
-        _k.kernel_move(T_mean, xi, idx, mu, math.sqrt(1.0 - h * h) if shrink else 1.0, h * L, z, out)
+        out = np.empty_like(self.T)
+        _k.kernel_move(T_mean, xi, idx, mu, a, np.ascontiguousarray(B, dtype=np.float64), z, out)
         return out
+
+    def _floor_cloud(self, P: np.ndarray) -> None:
+        """Widen the cloud to at least the covariance ``P (6, 6)`` (tool-frame tangent space at its weighted
+        mean: mm², rad²): every particle moves by Gaussian noise of covariance ``(P - Σ)+``, the positive part
+        of the difference to the cloud's own weighted covariance ``Σ`` (the weights are kept). A ``P`` that is
+        not finite, or that the cloud covers already, leaves the particles untouched. (The filter's step does
+        the same inside its resampling move: :func:`floor_factor`.)"""
+        w = self.weights
+        cloud = self._cloud(self.T, w / w.sum())
+        B = floor_factor(P, cloud[4])
+        if B is not None:
+            self.T = self._move(cloud, np.arange(self.n), 1.0, B)
 
     def step(self, inputs: StepInputs) -> StepEstimate:
         """Propagate, weight, estimate and (if needed) resample; see the module docstring."""
@@ -519,16 +573,10 @@ class SeamParticleFilter:
         w = norm.w
         resampled = ess < f.ess_threshold * self.n
         h = f.regularize_h if resampled else 0.0
-        cloud = self._cloud(self.T, w) if h > 0.0 else None  # the mean pass also gives the kernel
+        floor = f.cloud_floor > 0.0 and self._bound is not None and not norm.recovered
+        # the mean pass also gives the resampling kernel and the covariance the floor compares with
+        cloud = self._cloud(self.T, w) if (h > 0.0 or floor) else None
         T_mean, spread = weighted_mean_se3(self.T, w) if cloud is None else cloud[:2]
-        # 4. resample (regularised: see _kernel_resample)
-        if resampled:
-            self.T = (self._kernel_resample(self.T, w, h, shrink=True, cloud=cloud) if h > 0.0
-                      else self.T[self._resample(w, self.rng)])
-            self.logw = np.full(self.n, -math.log(self.n))
-            self.resamplings += 1
-        else:
-            self.logw = norm.logw
         self._lasers_seen += used
         if self._lasers_seen == 0 and not norm.recovered:
             # no laser reading yet (none since reset, or no sensor): the robot measurement is the only
@@ -537,14 +585,32 @@ class SeamParticleFilter:
             # without sensors: x 0.62 vs 0.56 mm RMSE); the cloud still gives the spread.
             T_mean = meas.T_mean.copy()
         m_t, m_r = robot_consistency(T_mean, spread, meas)
+        extra = None  # a factor B of the covariance the floor adds, (c P - Σ_cloud)+ = B Bᵀ
         if self._bound is not None and np.isfinite(T_mean).all():
             # the bound runs the particles' walk (travel terms included); spread_bound_k_travel adds to it alone
             q_t = self._bound.q_scale * sig_t + f.spread_bound_k_travel * (travel if math.isfinite(travel) else 0.0)
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
                                        self.seam.points)
             spread = np.maximum(spread, bound)
-        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered)
-        if f.walk_adapt_rate > 0.0 and dof and self._last_status == "tracking" and rep.status == "tracking":
+            if floor:
+                extra = floor_factor(f.cloud_floor * self._bound.P, cloud[4])
+        # 4. resample (regularised: see _kernel_resample); the cloud kept at least as wide as the floor (one move)
+        if resampled:
+            if h > 0.0:
+                self.T = self._kernel_resample(self.T, w, h, shrink=True, cloud=cloud, extra=extra)
+            elif extra is not None:
+                self.T = self._move(cloud, self._resample(w, self.rng), 1.0, extra)
+            else:
+                self.T = self.T[self._resample(w, self.rng)]
+            self.logw = np.full(self.n, -math.log(self.n))
+            self.resamplings += 1
+        else:
+            self.logw = norm.logw
+            if extra is not None:
+                self.T = self._move(cloud, np.arange(self.n), 1.0, extra)
+        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, math.sqrt(float(force @ force)))
+        tests = rep.tests_status  # the walk reacts to the consistency tests, not to the robot model's force range
+        if f.walk_adapt_rate > 0.0 and dof and self._last_status == "tracking" and tests == "tracking":
             # covariance matching: innovations larger than the predicted cloud says (the NIS per degree of
             # freedom, averaged over walk_adapt_window steps, above walk_adapt_nis) widen the walk, smaller ones
             # narrow it back, within 1 .. walk_adapt_max times the configured width; one reading counts at most
@@ -553,12 +619,12 @@ class SeamParticleFilter:
             self._nis_avg += (x - self._nis_avg) / f.walk_adapt_window
             self._walk_gain = min(max(self._walk_gain * math.exp(f.walk_adapt_rate * (self._nis_avg - f.walk_adapt_nis)),
                                       1.0), f.walk_adapt_max)
-        self._last_status = rep.status
-        if rep.status == "lost":
+        self._last_status = tests
+        if tests == "lost":
             self._since_lost = 0
         elif self._since_lost is not None:
             self._since_lost += 1
-        if rep.status == "lost" and self._bound is not None:
+        if tests == "lost" and self._bound is not None:
             self._bound.reset()  # the information gathered before the track was lost no longer holds
         return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages,
                             rep.status, rep.reason, nis, ess_update)
