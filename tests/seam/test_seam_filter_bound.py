@@ -4,6 +4,7 @@ the robot plateau, reported where the particle cloud is narrower (issue 15, an h
 import math
 
 import numpy as np
+import pytest
 
 from posekit.seam.engine.densities import RobotMeasurement
 from posekit.seam.engine.spread_bound import InformationBound, laser_jacobian, plateau_covariance
@@ -128,3 +129,40 @@ def test_compiled_step_equals_the_numpy_reference():
         sb = b.update_numpy(T, meas, 0.02, 1e-3, rd, SEAM)
         np.testing.assert_allclose(sa, sb, rtol=1e-6, atol=1e-12)
         np.testing.assert_allclose(a.P, b.P, rtol=1e-6, atol=1e-12)
+
+
+def test_per_reading_variances_match_the_numpy_reference_and_the_kalman_form():
+    # the filter may pass each reading's weighing variance (filter.bound_inflation); compiled = NumPy, and one
+    # step from the plateau is the Kalman covariance with R = diag(variances), by hand
+    meas = RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 3.0, math.radians(0.5))
+    T = np.eye(4)
+    T[:3, 3] = [0.2, 1.0, -0.5]
+    rd = _readings(T, (20.0, 40.0))
+    v = [0.05 ** 2 * 1.7, 0.05 ** 2 * 3.0]
+    a, b = InformationBound(0.05), InformationBound(0.05)
+    sa = a.update(T, meas, 0.0, 0.0, rd, SEAM, v)
+    sb = b.update_numpy(T, meas, 0.0, 0.0, rd, SEAM, v)
+    np.testing.assert_allclose(sa, sb, rtol=1e-9)
+    H1, H2 = laser_jacobian(T, rd[:1], SEAM), laser_jacobian(T, rd[1:], SEAM)
+    H = np.vstack([H1, H2])
+    R = np.diag([v[0]] * H1.shape[0] + [v[1]] * H2.shape[0])
+    P0 = plateau_covariance(meas, np.eye(3))
+    np.testing.assert_allclose(a.P, np.linalg.inv(np.linalg.inv(P0) + H.T @ np.linalg.solve(R, H)), rtol=1e-6,
+                               atol=1e-12)
+    # sigma² for every reading is the default
+    c = InformationBound(0.05)
+    np.testing.assert_allclose(c.update(T, meas, 0.0, 0.0, rd, SEAM, [0.05 ** 2] * 2),
+                               InformationBound(0.05).update(T, meas, 0.0, 0.0, rd, SEAM), rtol=1e-12)
+    with pytest.raises(ValueError, match=r"sigma2: expected one variance per reading \(2\), got 1"):
+        InformationBound(0.05).update(T, meas, 0.0, 0.0, rd, SEAM, [0.01])
+
+
+def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
+    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0}
+    cfg = apply_overrides(config_from_dict({}), base)
+    off = run_episode(cfg, 2)
+    on = run_episode(apply_overrides(cfg, {"filter.bound_inflation": 1.0}), 2)
+    np.testing.assert_array_equal(on.estimate, off.estimate)
+    # the bound at the particles' weighing variance (~1.35 sigma² when converged): wider on every axis on average
+    assert np.all(on.spread.mean(axis=0) > off.spread.mean(axis=0))
+    assert np.all(on.spread.mean(axis=0) < 1.5 * off.spread.mean(axis=0))

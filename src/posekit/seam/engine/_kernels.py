@@ -526,15 +526,15 @@ def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
 
 @nb.njit(cache=True, boundscheck=False)
 def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, q2,
-                 sigma2, h_t, h_r, std_out):
+                 sig2s, h_t, h_r, std_out):
     """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``.
 
     ``T (4, 4)`` the estimate (mm); readings ``mxs, mzs (S,)`` (mm) with mounts ``Ms (S, 4, 4)``
     and knot windows ``los, his (S,)`` (``lo < 0``: skipped) on the seam knots ``P_pts (K, 3)``;
     the robot plateau: tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t`` (mm), ``d_r``
     (rad), ``A_inv (3, 3)`` the inverse plateau shape (identity: a ball); ``first``: start from
-    the plateau; ``q2 (6,)`` the process variances per axis (mm², rad²); ``sigma2`` the laser variance
-    (mm²); ``h_t, h_r`` the central-difference steps. Writes ``std_out (6,)`` = sqrt(diag P).
+    the plateau; ``q2 (6,)`` the process variances per axis (mm², rad²); ``sig2s (S,)`` each reading's
+    laser variance (mm²); ``h_t, h_r`` the central-difference steps. Writes ``std_out (6,)`` = sqrt(diag P).
     """
     R = T[:3, :3].copy()
     Rt = R.T.copy()
@@ -580,6 +580,7 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
             G[k1, k2] = -sn
             Tp[6 + k, :3, :3] = R @ G
     H = np.empty((2 * S_n, 6))
+    r2 = np.empty(2 * S_n)
     E = np.empty((12, 2))
     m = 0
     for i in range(S_n):
@@ -598,13 +599,14 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
                 if not math.isfinite(H[m, j]):
                     ok = False
             if ok:
+                r2[m] = sig2s[i]
                 m += 1
     if m > 0:
         Hm = H[:m]
         PH = P @ Hm.T.copy()
         Sm = Hm @ PH
         for a in range(m):
-            Sm[a, a] += sigma2
+            Sm[a, a] += r2[a]
         K = np.linalg.solve(Sm, PH.T.copy())  # (m, 6)
         P -= PH @ K
     for a in range(6):

@@ -287,6 +287,7 @@ class SeamParticleFilter:
         q_bound = float(getattr(f, "spread_bound", 0.0))
         self._bound = InformationBound(f.laser_sigma_mm, q_bound) if q_bound > 0.0 else None
         self._readings: list = []
+        self._reading_sensor: list = []
         self._sig_eff: dict = {}
         self.n = f.particles
         self.recoveries = 0
@@ -367,6 +368,7 @@ class SeamParticleFilter:
         cols = []
         if errors:
             self._readings = []
+            self._reading_sensor = []  # the sensor index of each reading in _readings
         if inputs.laser_mm is not None and self.sensor_mounts.shape[0]:
             Tn = inputs.T_nominal
             sig = f.laser_sigma_mm
@@ -388,6 +390,7 @@ class SeamParticleFilter:
                 lo, hi = self.seam.window(centre, S[:3, 1], max(f.search_window_mm, reach + meas.d_r_rad * lever[i]))
                 if errors:
                     self._readings.append((float(m[0]), float(m[1]), M, lo, hi))
+                    self._reading_sensor.append(i)
                 E = np.empty((T.shape[0], 2))
                 if lo < 0:
                     E.fill(np.nan)
@@ -589,8 +592,11 @@ class SeamParticleFilter:
         if self._bound is not None and np.isfinite(T_mean).all():
             # the bound runs the particles' walk (travel terms included); spread_bound_k_travel adds to it alone
             q_t = self._bound.q_scale * sig_t + f.spread_bound_k_travel * (travel if math.isfinite(travel) else 0.0)
+            # bound_inflation: the share of the particles' laser inflation the bound takes (0: the true σ)
+            s2 = f.laser_sigma_mm ** 2
+            sig2 = [s2 + f.bound_inflation * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
-                                       self.seam.points)
+                                       self.seam.points, sig2)
             spread = np.maximum(spread, bound)
             if floor:
                 extra = floor_factor(f.cloud_floor * self._bound.P, cloud[4])

@@ -18,7 +18,8 @@ space of the estimate (tool frame ``[x, y, z, rx, ry, rz]``, mm and rad, as the 
   its Gaussian tails, by scaling rows and columns (the correlations are kept);
 * lasers: ``P ← P - P Hᵀ (H P Hᵀ + σ² I)⁻¹ H P`` with ``H`` the Jacobian of the step's in-plane
   laser errors with respect to the tangent offset of the estimate (central differences of the
-  laser density's own error function, eq. 9).
+  laser density's own error function, eq. 9); ``σ²`` per reading (``filter.bound_inflation``: the
+  filter may pass the variance its particles weigh the reading with).
 
 The filter reports ``max(cloud variance, diag P)`` per axis. Where the lasers see the pose, ``P``
 is the Kalman covariance of the same data and rarely exceeds the cloud's; where they do not, it
@@ -167,8 +168,17 @@ class InformationBound:
         """Forget the covariance (a new episode: the first step starts from the plateau)."""
         self.P = None
 
+    def _sigma2(self, readings: list, sigma2) -> np.ndarray:
+        """``(S,)`` laser variances of the readings (mm²): ``sigma2`` per reading, or ``σ²`` for all."""
+        if sigma2 is None:
+            return np.full(len(readings), self.sigma * self.sigma)
+        out = np.asarray(sigma2, dtype=np.float64).reshape(-1)
+        if out.shape[0] != len(readings):
+            raise ValueError(f"sigma2: expected one variance per reading ({len(readings)}), got {out.shape[0]}")
+        return out
+
     def update(self, T_est: np.ndarray, meas, q_t: float, q_r: float, readings: list,
-               points: np.ndarray) -> np.ndarray:
+               points: np.ndarray, sigma2=None) -> np.ndarray:
         """One step: predict, cap at the robot plateau, condition on the lasers (compiled:
         :func:`~posekit.seam.engine._kernels.bound_kernel`; :meth:`update_numpy` is the same in NumPy).
 
@@ -184,6 +194,9 @@ class InformationBound:
             ``spread_bound_k_travel`` times the travel).
         readings, points
             As :func:`laser_jacobian` (the step's used laser readings).
+        sigma2 : array_like, shape (S,), optional
+            The variance each reading is weighed with (mm²): the filter passes its particles' (σ² plus the
+            inflation, :mod:`posekit.seam.engine.filter`); default ``σ²``.
 
         Returns
         -------
@@ -207,12 +220,12 @@ class InformationBound:
                         np.ascontiguousarray(points, dtype=np.float64), self.P, first,
                         np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
                         np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A_inv, float(meas.d_t_mm),
-                        float(meas.d_r_rad), q2, self.sigma * self.sigma,
+                        float(meas.d_r_rad), q2, self._sigma2(readings, sigma2),
                         _STEP_T, _STEP_R, std)
         return std
 
     def update_numpy(self, T_est: np.ndarray, meas, q_t: float, q_r: float, readings: list,
-                     points: np.ndarray) -> np.ndarray:
+                     points: np.ndarray, sigma2=None) -> np.ndarray:
         """:meth:`update` in NumPy (the reference the compiled kernel is tested against)."""
         C = plateau_covariance(meas, np.asarray(T_est, dtype=np.float64)[:3, :3])
         if self.P is None or not np.isfinite(self.P).all():
@@ -226,10 +239,12 @@ class InformationBound:
             s[~np.isfinite(s)] = 1.0
             P = P * s[:, None] * s[None, :]
         if readings:
-            H = laser_jacobian(T_est, readings, points)
+            r2 = self._sigma2(readings, sigma2)
+            rows = [laser_jacobian(T_est, [rd], points) for rd in readings]
+            H = np.vstack(rows)
             if H.shape[0]:
                 PH = P @ H.T
-                S = H @ PH + (self.sigma * self.sigma) * np.eye(H.shape[0])
+                S = H @ PH + np.diag(np.concatenate([np.full(Hi.shape[0], v) for Hi, v in zip(rows, r2)]))
                 P = P - PH @ np.linalg.solve(S, PH.T)
         P = 0.5 * (P + P.T)
         self.P = P
