@@ -86,6 +86,10 @@ def test_dump_load_round_trip(tmp_path):
         ("filter:\n  reacquire_isotropic_steps: -1\n",
          "cfg.yaml: filter.reacquire_isotropic_steps: expected >= 0, got -1"),
         ("filter:\n  walk_adapt_max: 0.5\n", "cfg.yaml: filter.walk_adapt_max: expected >= 1.0, got 0.5"),
+        ("filter:\n  plateau_max_force_n: -1\n",
+         "cfg.yaml: filter.plateau_max_force_n: expected >= 0.0, got -1 (allowed 0..10000000 N)"),
+        ("filter:\n  cloud_floor: .nan\n", "cfg.yaml: filter.cloud_floor: expected a finite number, got nan"),
+        ("filter:\n  bound_inflation: 1.5\n", "cfg.yaml: filter.bound_inflation: expected <= 1.0, got 1.5 (allowed 0..1)"),
     ],
 )
 def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, message):
