@@ -166,3 +166,22 @@ def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
     # the bound at the particles' weighing variance (~1.35 sigma² when converged): wider on every axis on average
     assert np.all(on.spread.mean(axis=0) > off.spread.mean(axis=0))
     assert np.all(on.spread.mean(axis=0) < 1.5 * off.spread.mean(axis=0))
+
+
+def test_the_bound_takes_the_particles_inflation_only_while_re_acquiring():
+    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0}
+    start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
+    cfg = apply_overrides(config_from_dict({}), start)
+    on = run_episode(cfg, 0)
+    off = run_episode(apply_overrides(cfg, {"filter.bound_inflation_reacquire": 0.0}), 0)
+    np.testing.assert_array_equal(on.estimate, off.estimate)
+    lost = np.flatnonzero(on.status == "lost")
+    assert lost.size and lost.max() < 20
+    after = slice(lost.max() + 1, 150)  # within reacquire_isotropic_steps (200) of the loss
+    assert np.all(on.spread[after].mean(axis=0) > off.spread[after].mean(axis=0))
+    # a run that never lost the track is the same with or without it
+    nominal = apply_overrides(config_from_dict({}), base)
+    a = run_episode(nominal, 1)
+    b = run_episode(apply_overrides(nominal, {"filter.bound_inflation_reacquire": 0.0}), 1)
+    assert "lost" not in set(a.status)
+    np.testing.assert_array_equal(a.spread, b.spread)

@@ -594,7 +594,10 @@ class SeamParticleFilter:
             q_t = self._bound.q_scale * sig_t + f.spread_bound_k_travel * (travel if math.isfinite(travel) else 0.0)
             # bound_inflation: the share of the particles' laser inflation the bound takes (0: the true σ)
             s2 = f.laser_sigma_mm ** 2
-            sig2 = [s2 + f.bound_inflation * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
+            infl = f.bound_inflation
+            if self._since_lost is not None and self._since_lost < f.reacquire_isotropic_steps:
+                infl = max(infl, f.bound_inflation_reacquire)
+            sig2 = [s2 + infl * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
                                        self.seam.points, sig2)
             spread = np.maximum(spread, bound)
