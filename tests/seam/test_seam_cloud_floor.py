@@ -3,14 +3,14 @@
 A cloud narrower than the covariance the data support cannot move where new information puts the
 pose: under 25 kN (seed 5) the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ
 off for a hundred steps. The floor adds Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the
-tangent space at the cloud's mean: nothing where the cloud is already wider.
+tangent space at the cloud's mean (:func:`floor_factor`): nothing where the cloud is already wider.
 """
 
 import numpy as np
 import pytest
 
 from posekit.geometry import invert_transform, matrix_from_rotation_vector, se3_log, transform_from
-from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.engine.filter import SeamParticleFilter, StepInputs, floor_factor
 from posekit.seam.engine.particles import weighted_mean_se3
 from posekit.seam.frontend.config import apply_overrides, config_from_dict
 from posekit.seam.frontend.simulate import seam_knots, simulate_data
@@ -22,6 +22,15 @@ def _pf(n):
                             "filter": {"particles": n}})
     nt = nominal_trajectory(cfg.trajectory, cfg.robot)
     return SeamParticleFilter(cfg, nt.seam, 0, T_init=nt.T_nominal[0])
+
+
+def _floor(pf, P):
+    """The step's floor move on its own: the cloud's covariance, the missing factor, one move (weights kept)."""
+    w = pf.weights
+    cloud = pf._cloud(pf.T, w / w.sum())
+    B = floor_factor(P, cloud[4])
+    if B is not None:
+        pf.T = pf._move(cloud, np.arange(pf.n), 1.0, B)
 
 
 def _offsets(T, T0):
@@ -46,7 +55,7 @@ def test_floor_widens_a_narrow_cloud_to_the_covariance_and_keeps_its_mean():
     A = np.array([[0.4, 0.0, 0.0, 0.0, 0.0, 0.0], [0.1, 0.3, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.02, 0.0, 0.0, 0.0],
                   [0.0, 0.0, 0.0, 2e-3, 0.0, 0.0], [0.0, 0.0, 0.0, 1e-3, 3e-3, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0, 5e-5]])
     P = A @ A.T  # correlated; z and rz narrower than the cloud already is
-    pf._floor_cloud(P)
+    _floor(pf, P)
     got = _offsets(pf.T, T0)
     C = np.cov(got.T)
     want = np.diag(s ** 2)
@@ -59,9 +68,9 @@ def test_floor_widens_a_narrow_cloud_to_the_covariance_and_keeps_its_mean():
     assert (np.abs(got.mean(0)) <= 4 * np.sqrt(np.diag(C) / pf.n)).all()
     # a covariance the cloud already covers leaves every particle where it was
     before = pf.T.copy()
-    pf._floor_cloud(1e-3 * np.diag(s ** 2))
+    _floor(pf, 1e-3 * np.diag(s ** 2))
     np.testing.assert_array_equal(pf.T, before)
-    pf._floor_cloud(np.full((6, 6), np.nan))  # a bound that is not finite is ignored
+    _floor(pf, np.full((6, 6), np.nan))  # a bound that is not finite is ignored
     np.testing.assert_array_equal(pf.T, before)
 
 

@@ -35,13 +35,16 @@ centre of the symmetric robot density). Every step carries a ``status``
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
 estimate, capped at the robot plateau, reset when the track is lost); the integrity test uses
-the cloud's own spread. The cloud itself is kept at least ``cloud_floor`` times the bound's
-covariance (:meth:`SeamParticleFilter._floor_cloud`: Gaussian noise of covariance
-``(c P - Σ_cloud)+`` in the tangent space at its mean, nothing where the cloud is wider): a cloud
+the cloud's own spread. While re-acquiring (``reacquire_isotropic_steps`` after a ``lost`` step)
+the bound weighs each laser reading with the variance the particles use (``bound_inflation_reacquire``;
+``bound_inflation`` always). The cloud itself is kept at least ``cloud_floor`` times the bound's
+covariance (:func:`floor_factor`: Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the tangent
+space at its mean, added in the resampling move, nothing where the cloud is wider): a cloud
 narrower than what the data support cannot move where new information puts the pose (25 kN, seed
-5: the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ off for ~100 steps). The seam is searched at least as far as the robot density reaches
-(plateau + 3 tails + the rotation plateau times the sensor's lever; ``search_window_mm`` is the
-minimum): under 25 kN the tool is 10 mm off the seam.
+5: the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ off for ~100 steps). The
+seam is searched at least as far as the robot density reaches (plateau + 3 tails + the rotation
+plateau times the sensor's lever; ``search_window_mm`` is the minimum): under 25 kN the tool is
+10 mm off the seam.
 
 The laser likelihood (eq. 9) is evaluated with the variance ``σ² + min(c Var_w(e), 3σ²)`` per sensor
 (``c`` = 0.5, ``Var_w(e)`` the spread of the particles' in-plane errors under the predicted cloud): a
@@ -480,18 +483,6 @@ class SeamParticleFilter:
         out = np.empty_like(self.T)
         _k.kernel_move(T_mean, xi, idx, mu, a, np.ascontiguousarray(B, dtype=np.float64), z, out)
         return out
-
-    def _floor_cloud(self, P: np.ndarray) -> None:
-        """Widen the cloud to at least the covariance ``P (6, 6)`` (tool-frame tangent space at its weighted
-        mean: mm², rad²): every particle moves by Gaussian noise of covariance ``(P - Σ)+``, the positive part
-        of the difference to the cloud's own weighted covariance ``Σ`` (the weights are kept). A ``P`` that is
-        not finite, or that the cloud covers already, leaves the particles untouched. (The filter's step does
-        the same inside its resampling move: :func:`floor_factor`.)"""
-        w = self.weights
-        cloud = self._cloud(self.T, w / w.sum())
-        B = floor_factor(P, cloud[4])
-        if B is not None:
-            self.T = self._move(cloud, np.arange(self.n), 1.0, B)
 
     def step(self, inputs: StepInputs) -> StepEstimate:
         """Propagate, weight, estimate and (if needed) resample; see the module docstring."""

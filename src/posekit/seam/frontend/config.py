@@ -415,7 +415,10 @@ class FilterConfig(_Section):
     ``spread_bound``: the reported spread is at least the one the data support
     (:mod:`posekit.seam.engine.spread_bound`; the value scales its process noise, 0: off;
     ``spread_bound_k_travel`` adds translation noise per mm travelled). ``integrity_recovery``:
-    steps after a ``lost`` step reported ``degraded`` at best. ``regularize_h`` 0.5 (was 0.3;
+    steps after a ``lost`` step reported ``degraded`` at best; ``plateau_max_force_n``: above this
+    force the plateau is extrapolated and every step ``degraded`` at best. ``cloud_floor``: the
+    cloud kept at least this times the bound's covariance; ``bound_inflation`` (always) and
+    ``bound_inflation_reacquire`` (while re-acquiring): the bound weighs the lasers as the particles do. ``regularize_h`` 0.5 (was 0.3;
     ``posekit seam simulate --runs 10 --seed 0``): xy RMSE rx/ry 0.18/0.22 -> 0.16/0.20 deg, the rest
     within 0.002; yz rx 0.24 -> 0.20 deg, z 0.76 -> 0.80 mm; yz y/z/rx coverage 0.88/0.87/0.87 -> 0.91/0.90/0.91.
     """
