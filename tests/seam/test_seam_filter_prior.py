@@ -131,7 +131,7 @@ def test_transition_width_per_tool_axis(transition_widths):
                       k_travel_t_mm_per_mm=0.02, k_travel_r_deg_per_mm=0.01, k_load_travel_t=1e-6,
                       k_load_travel_r=2e-7, axis_scale_t=(0.5, 0.25, 2.0), axis_scale_r=(1.0, 0.0, 0.1),
                       load_axis_scale_t=(1.0, 3.0, 0.0), load_axis_scale_r=(0.5, 1.0, 2.0),
-                      reacquire_isotropic_steps=2, reacquire_transition_scale=5.0)
+                      reacquire_isotropic_steps=2, reacquire_transition_scale=5.0, integrity_recovery=0)
     q_seen = []
     real = pf._bound.update
 
@@ -146,10 +146,11 @@ def test_transition_width_per_tool_axis(transition_widths):
         inc = np.eye(4) if k == 0 else nt.T_nominal[k] @ np.linalg.inv(nt.T_nominal[k - 1])
         travel.append(np.linalg.norm(inc[:3, 3]))
         if k == 2:
-            pf._last_status, pf._since_lost = "lost", 0  # as the integrity monitor sets them on a lost step
+            # as a lost step leaves them (no degraded hold after it: integrity_recovery 0)
+            pf._last_status, pf.integrity._since_lost = "lost", 0
         pf.step(StepInputs(inc, nt.T_nominal[k], nt.q[k], force))
         if k == 2:
-            assert pf._since_lost == 1  # this step tracked (no laser to contradict): one step since the loss
+            assert pf.integrity.since_lost == 1  # this step tracked (no laser to contradict): one step since the loss
     deg = math.pi / 180
     sc_t, sc_r = np.array([0.5, 0.25, 2.0]), np.array([1.0, 0.0, 0.1])
     lsc_t, lsc_r = np.array([1.0, 3.0, 0.0]), np.array([0.5, 1.0, 2.0])

@@ -272,7 +272,6 @@ class SeamParticleFilter:
         self._prev_force = None
         self._lasers_seen = 0
         self._last_status = "tracking"
-        self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
         self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self.integrity = IntegrityMonitor(f.particles, getattr(f, "integrity_window", 10),
@@ -319,7 +318,6 @@ class SeamParticleFilter:
         self._prev_force = None
         self._lasers_seen = 0
         self._last_status = "tracking"
-        self._since_lost = None  # steps since the last ``lost`` step (None: none since reset)
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
         self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self._sig_eff = {}
@@ -514,12 +512,16 @@ class SeamParticleFilter:
             base_r += travel * math.radians(f.k_travel_r_deg_per_mm)
             load_t = travel * f.k_load_travel_t * fn
             load_r = travel * math.radians(f.k_load_travel_r * fn)
+        # re-acquired lately (the integrity monitor counts the steps since the last lost one): the cloud was rebuilt
+        # from few survivors
+        since = self.integrity.since_lost
+        reacquiring = since is not None and since < f.reacquire_isotropic_steps
         if self._last_status != "tracking":
             # the last step's data did not agree with the model: widen the walk on every axis so the cloud
             # can re-acquire (process-noise inflation on a failed consistency test)
             sig_t = (base_t + load_t) * f.reacquire_transition_scale
             sig_r = (base_r + load_r) * f.reacquire_transition_scale
-        elif self._since_lost is not None and self._since_lost < f.reacquire_isotropic_steps:
+        elif reacquiring:
             # re-acquired lately: the cloud was rebuilt from few survivors, keep the walk isotropic for a while
             sig_t = base_t + load_t
             sig_r = base_r + load_r
@@ -585,9 +587,7 @@ class SeamParticleFilter:
             q_t = self._bound.q_scale * sig_t + f.spread_bound_k_travel * (travel if math.isfinite(travel) else 0.0)
             # bound_inflation: the share of the particles' laser inflation the bound takes (0: the true σ)
             s2 = f.laser_sigma_mm ** 2
-            infl = f.bound_inflation
-            if self._since_lost is not None and self._since_lost < f.reacquire_isotropic_steps:
-                infl = max(infl, f.bound_inflation_reacquire)
+            infl = max(f.bound_inflation, f.bound_inflation_reacquire) if reacquiring else f.bound_inflation
             sig2 = [s2 + infl * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
                                        self.seam.points, sig2)
@@ -620,10 +620,6 @@ class SeamParticleFilter:
             self._walk_gain = min(max(self._walk_gain * math.exp(f.walk_adapt_rate * (self._nis_avg - f.walk_adapt_nis)),
                                       1.0), f.walk_adapt_max)
         self._last_status = tests
-        if tests == "lost":
-            self._since_lost = 0
-        elif self._since_lost is not None:
-            self._since_lost += 1
         if tests == "lost" and self._bound is not None:
             self._bound.reset()  # the information gathered before the track was lost no longer holds
         return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages,

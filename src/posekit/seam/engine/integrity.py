@@ -220,6 +220,11 @@ class IntegrityMonitor:
             self._q_cache[dof] = q
         return q
 
+    @property
+    def since_lost(self) -> int | None:
+        """Steps since the last ``lost`` step (None: none since reset); the filter's re-acquiring phase."""
+        return self._since_lost
+
     def reset(self) -> None:
         """Forget the window (a new episode)."""
         self._nis.clear()

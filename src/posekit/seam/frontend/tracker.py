@@ -119,6 +119,8 @@ class SeamTracker:
         self._base_cj = (joint_compliance(cfg.filter.compliance_rad_per_nm)
                          if cfg.filter.compliance_rad_per_nm > 0.0 else None)
         self.steps = 0
+        #: The last step's measured force in the base frame (``R(Fk(q)) f_tool``, N), as the filter used it.
+        self.force_base_n: np.ndarray | None = None
 
     def _check(self, name, a, shape):
         a = np.asarray(a, dtype=np.float64)
@@ -163,6 +165,7 @@ class SeamTracker:
         T_nom = self.chain.forward_kinematics(qref, check=False)
         R_meas = self.chain.forward_kinematics(q, check=False)[:3, :3]
         force_base = R_meas @ w
+        self.force_base_n = force_base
         if self.filter is None:
             self.filter = SeamParticleFilter(self.cfg, self.knots_mm, self.rng, T_init=T_nom,
                                              seam_normal=self.seam_normal)
@@ -255,6 +258,7 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
     ms = np.empty(T)
     used = np.empty(T, dtype=int)
     resampled = np.zeros(T, dtype=bool)
+    force_base = np.empty((T, 3))
     status = []
     it = range(T) if progress is None else progress(range(T), total=T, desc="steps")
     for k in it:
@@ -266,11 +270,10 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
         ess[k], ms[k], used[k] = r.ess, r.step_ms, r.lasers_used
         status.append(r.status)
         resampled[k] = r.raw.resampled
+        force_base[k] = tracker.force_base_n
         if on_step is not None:
             on_step(k, r)
     truth = None if log.truth_seam_tool is None else np.matmul(nom, log.truth_seam_tool)
-    R_meas = tracker.chain.forward_kinematics(np.asarray(log.q, dtype=np.float64), check=False)[:, :3, :3]
-    force_base = np.matmul(R_meas, np.asarray(log.force_tool_n, dtype=np.float64)[:, :3, None])[..., 0]
     return SeamTrackResult(log.time_s.copy(), est, kin, nom, spread, status, ess, ms, used, log.interpolated.copy(),
                            truth, resampled, log.config.filter.particles, force_base, log.config)
 
