@@ -177,16 +177,18 @@ def test_angle_measurement_pins_the_roll():
 def _seam_model_yaw_deg(cfg):
     """Per step, the yaw (deg) the filter would read from the two sensors if its seam model (the knot polyline)
     were the seam: the difference of the two sensors' across-readings on the knot polyline and on the seam itself,
-    at the nominal poses, over their 20 mm baseline."""
+    at the nominal poses, over their baseline (20 mm by default)."""
     nt = nominal_trajectory(cfg.trajectory, cfg.robot, cfg.trajectory.seam_extension_mm)
+    mounts = cfg.sensors.resolved_mounts()
+    baseline = float(np.linalg.norm(mounts[1][:3, 3] - mounts[0][:3, 3]))
     dx = []
-    for M in cfg.sensors.resolved_mounts():
+    for M in mounts:
         S = np.matmul(nt.T_nominal, M)
         o, R = S[:, :3, 3], S[:, :3, :3]
         x = [((SeamLine(p).intersect(o, R[:, :, 1]).point - o) * R[:, :, 0]).sum(1)
              for p in (nt.seam, seam_knots(cfg).polyline)]
         dx.append(x[1] - x[0])
-    return np.degrees((dx[1] - dx[0]) / 20.0)
+    return np.degrees((dx[1] - dx[0]) / baseline)
 
 
 def test_the_seam_model_does_not_bias_the_yaw():
