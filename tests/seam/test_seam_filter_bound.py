@@ -158,7 +158,7 @@ def test_per_reading_variances_match_the_numpy_reference_and_the_kalman_form():
 
 
 def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
-    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0}
+    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0}
     cfg = apply_overrides(config_from_dict({}), base)
     off = run_episode(cfg, 2)
     on = run_episode(apply_overrides(cfg, {"filter.bound_inflation": 1.0}), 2)
@@ -169,7 +169,8 @@ def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
 
 
 def test_the_bound_takes_the_particles_inflation_only_while_re_acquiring():
-    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0}
+    # (with bound_inflation 0: at the default 1 the bound always weighs the lasers as the particles do)
+    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0}
     start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
     cfg = apply_overrides(config_from_dict({}), start)
     on = run_episode(cfg, 0)
