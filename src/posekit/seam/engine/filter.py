@@ -35,9 +35,11 @@ centre of the symmetric robot density). Every step carries a ``status``
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
 estimate, capped at the robot plateau, reset when the track is lost); the integrity test uses
-the cloud's own spread. While re-acquiring (``reacquire_isotropic_steps`` after a ``lost`` step)
-the bound weighs each laser reading with the variance the particles use (``bound_inflation_reacquire``;
-``bound_inflation`` always). The cloud itself is kept at least ``cloud_floor`` times the bound's
+the cloud's own spread. The bound weighs each laser reading with the variance the particles use
+(``bound_inflation`` 1, the default; ``bound_inflation_reacquire`` while re-acquiring,
+``reacquire_isotropic_steps`` after a ``lost`` step, when that is lower): with the true σ it contracted
+faster than the particles' estimate follows when a seam corner brings information (issue 15: after a wrong
+start, the tails tracking 3-4σ off were such steps). The cloud itself is kept at least ``cloud_floor`` times the bound's
 covariance (:func:`floor_factor`: Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the tangent
 space at its mean, added in the resampling move, nothing where the cloud is wider): a cloud
 narrower than what the data support cannot move where new information puts the pose (25 kN, seed
