@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from posekit.seam.frontend.config import apply_overrides, config_from_dict
+from posekit.seam.frontend.config import apply_overrides, config_from_dict, load_config
 from posekit.seam.frontend.simulate import (
     STATUS_COLUMNS,
     confident_wrong_fraction,
@@ -66,7 +66,7 @@ def test_nominal_episode_tracks_with_a_2_sigma_spread():
 
 @pytest.mark.parametrize("kind", ["xy", "yz"])
 def test_nominal_2_sigma_coverage_is_honest_on_every_axis(kind):
-    # issue 15 deliverable 2: over 60 default episodes (500 particles, 500 steps) the 2-sigma coverage lies
+    # issue 15 deliverable 2: over 60 default episodes (500 particles, 500 steps) the 2-sigma coverage asked is
     # in [0.9, 0.99] on all six axes, the paper's two seams; the walk per tool axis (filter.axis_scale_*,
     # load_axis_scale_*) is what brings x (and on yz the roll and yaw) down from 0.999-1.0: the isotropic
     # walk of the paper's eq. 3 is checked on 10 of the episodes. 60, not 30: one axis's coverage moves by
@@ -94,11 +94,9 @@ def test_nominal_2_sigma_coverage_is_honest_on_every_axis(kind):
 
 def test_after_a_wrong_start_at_most_5_percent_of_the_steps_beyond_3_sigma_are_tracking():
     # issue 15 deliverable 1 on the bundled stress-wrong-start.yaml (the first cloud 8 mm / 3 deg off per axis, outside
-    # the robot plateau), 60 episodes: measured 2.6 % (8 of ~310 steps), 6.9 % with the bound at the true laser sigma
+    # the robot plateau), 60 episodes: measured 2.6 %, 6.9 % with the bound at the true laser sigma
     # (bound_inflation 0), whose late tails came where a corner's information cut the spread faster than the estimate
     # moved; the lost phase itself is flagged
-    from posekit.seam.frontend.config import load_config
-
     cfg = load_config(Path(__file__).resolve().parents[2] / "examples" / "seam" / "stress-wrong-start.yaml")
     res = [run_episode(cfg, seed) for seed in range(60)]
     cov, counts, beyond = integrity_summary(res)
@@ -205,10 +203,6 @@ def test_25_kN_the_spread_covers_the_error_where_the_tests_cannot_see_it():
 def test_bundled_stress_configs_are_the_scenarios_of_the_tests():
     # examples/seam/stress-*.yaml reproduce the issue-15 table from the command line; they must stay the
     # scenarios these tests run (the same overrides on the defaults, nothing else)
-    from pathlib import Path
-
-    from posekit.seam.frontend.config import load_config
-
     ex = Path(__file__).resolve().parents[2] / "examples" / "seam"
     default = config_from_dict({})
     want = {
