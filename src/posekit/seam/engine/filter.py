@@ -489,7 +489,8 @@ class SeamParticleFilter:
         f = self.cfg.filter
         force = np.asarray(inputs.force_n, dtype=np.float64)
         # 1. state transition (eq. 3): the width grows with the force rate (default) or magnitude
-        fn = math.sqrt(float(force @ force))
+        force_norm = math.sqrt(float(force @ force))  # N; NaN stays NaN for the integrity monitor
+        fn = force_norm
         if self._rate:
             tau = f.force_rate_smoothing
             f_new = force
@@ -610,7 +611,7 @@ class SeamParticleFilter:
             self.logw = norm.logw
             if extra is not None:
                 self.T = self._move(cloud, np.arange(self.n), 1.0, extra)
-        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, math.sqrt(float(force @ force)))
+        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm)
         tests = rep.tests_status  # the walk reacts to the consistency tests, not to the robot model's force range
         if f.walk_adapt_rate > 0.0 and dof and self._last_status == "tracking" and tests == "tracking":
             # covariance matching: innovations larger than the predicted cloud says (the NIS per degree of
