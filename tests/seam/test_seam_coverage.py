@@ -71,14 +71,15 @@ def test_nominal_2_sigma_coverage_is_honest_on_every_axis(kind):
     # load_axis_scale_*) is what brings x (and on yz the roll and yaw) down from 0.999-1.0: the isotropic
     # walk of the paper's eq. 3 is checked on 10 of the episodes. 60, not 30: one axis's coverage moves by
     # +-0.005 between sets of 30 (xy yaw 0.989 on seeds 0-29, 0.980 on 30-59, 0.995 on the CLI's --runs 30).
-    # The upper end is 0.995, not the 0.99 asked: the bound weighs the lasers as the particles do
-    # (filter.bound_inflation 1) so that it cannot contract faster than the estimate follows, and that puts xy z and
-    # yaw at 0.991-0.993 (seeds 0-59: 0.991 / 0.993); the wrong start's verdicts (next test) are what it buys
+    # Seeds 0-59: xy 0.968-0.985, yz 0.968-0.982. With the bound weighing the lasers as the particles do on every
+    # step (filter.bound_inflation 1, one session's default) xy z and yaw were 0.991 / 0.993: that inflation now
+    # applies only after a loss (bound_inflation_reacquire; the next test), and a run that never lost the track
+    # keeps the bound at the true sigma
     cfg = apply_overrides(config_from_dict({}), {"trajectory.kind": kind})
     res = [run_episode(cfg, seed) for seed in range(60)]
     m = metrics(res)
     cov = np.array([m["coverage_2sigma"][a] for a in ("x", "y", "z", "rx", "ry", "rz")])
-    assert cov.min() >= 0.9 and cov.max() <= 0.995, cov
+    assert cov.min() >= 0.9 and cov.max() <= 0.99, cov
     assert m["status_counts"]["tracking"] >= 0.98 * 60 * 500
     if kind == "xy":
         # no yaw bias once the tool passes a peak of the wave (steps 300-350: the mean of error / spread over
@@ -94,9 +95,10 @@ def test_nominal_2_sigma_coverage_is_honest_on_every_axis(kind):
 
 def test_after_a_wrong_start_at_most_5_percent_of_the_steps_beyond_3_sigma_are_tracking():
     # issue 15 deliverable 1 on the bundled stress-wrong-start.yaml (the first cloud 8 mm / 3 deg off per axis, outside
-    # the robot plateau), 60 episodes: measured 2.6 %, 6.9 % with the bound at the true laser sigma
-    # (bound_inflation 0), whose late tails came where a corner's information cut the spread faster than the estimate
-    # moved; the lost phase itself is flagged
+    # the robot plateau), 60 episodes: measured 0.7 % (1.4 / 2.5 % on seeds 0-179 / 180-359); 6.9 % with the bound at
+    # the true laser sigma after the loss too (bound_inflation_reacquire 0, spread_shrink_reacquire 0), whose late
+    # tails came where a corner's information cut the spread faster than the estimate moved; the lost phase itself is
+    # flagged
     cfg = load_config(Path(__file__).resolve().parents[2] / "examples" / "seam" / "stress-wrong-start.yaml")
     res = [run_episode(cfg, seed) for seed in range(60)]
     cov, counts, beyond = integrity_summary(res)

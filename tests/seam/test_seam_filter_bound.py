@@ -169,8 +169,9 @@ def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
 
 
 def test_the_bound_takes_the_particles_inflation_only_while_re_acquiring():
-    # (with bound_inflation 0: at the default 1 the bound always weighs the lasers as the particles do)
-    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0}
+    # (the shrink limit off: it too widens the report after a loss, tested below)
+    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0,
+            "filter.spread_shrink_reacquire": 0.0}
     start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
     cfg = apply_overrides(config_from_dict({}), start)
     on = run_episode(cfg, 0)
@@ -178,11 +179,41 @@ def test_the_bound_takes_the_particles_inflation_only_while_re_acquiring():
     np.testing.assert_array_equal(on.estimate, off.estimate)
     lost = np.flatnonzero(on.status == "lost")
     assert lost.size and lost.max() < 20
-    after = slice(lost.max() + 1, 150)  # within reacquire_isotropic_steps (200) of the loss
+    after = slice(lost.max() + 1, 150)  # within bound_reacquire_steps (500) of the loss
     assert np.all(on.spread[after].mean(axis=0) > off.spread[after].mean(axis=0))
     # a run that never lost the track is the same with or without it
     nominal = apply_overrides(config_from_dict({}), base)
     a = run_episode(nominal, 1)
     b = run_episode(apply_overrides(nominal, {"filter.bound_inflation_reacquire": 0.0}), 1)
+    assert "lost" not in set(a.status)
+    np.testing.assert_array_equal(a.spread, b.spread)
+
+
+def test_after_a_loss_the_reported_spread_shrinks_at_most_by_the_limit_per_step():
+    base = {"trajectory.steps": 150, "filter.particles": 300}
+    start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
+    cfg = apply_overrides(config_from_dict({}), start)
+    assert cfg.filter.spread_shrink_reacquire == 0.97 and cfg.filter.bound_reacquire_steps == 500
+    on = run_episode(cfg, 0)
+    off = run_episode(apply_overrides(cfg, {"filter.spread_shrink_reacquire": 0.0}), 0)
+    np.testing.assert_array_equal(on.estimate, off.estimate)  # the report only: the estimate is the same
+    lost = np.flatnonzero(on.status == "lost")
+    assert lost.size and lost.max() < 20
+    after = np.arange(lost.min() + 1, 150)
+    ratio = on.spread[after] / on.spread[after - 1]
+    assert ratio.min() >= 0.97 - 1e-12
+    assert (off.spread[after] / off.spread[after - 1]).min() < 0.9  # without it a step halved part of the spread
+    assert np.all(on.spread >= off.spread) and np.any(on.spread[after] > off.spread[after])
+    # beyond bound_reacquire_steps after the last loss the limit no longer applies (the report only differs within)
+    window = {"filter.bound_reacquire_steps": 40}
+    short = run_episode(apply_overrides(cfg, window), 0)
+    short_off = run_episode(apply_overrides(cfg, {**window, "filter.spread_shrink_reacquire": 0.0}), 0)
+    late = slice(int(lost.max()) + 41, 150)  # steps 1 .. 40 after the last lost one are within
+    np.testing.assert_array_equal(short.spread[late], short_off.spread[late])
+    assert np.any(short.spread[: late.start] > short_off.spread[: late.start])
+    # a run that never lost the track is the same with or without it
+    nominal = apply_overrides(config_from_dict({}), base)
+    a = run_episode(nominal, 1)
+    b = run_episode(apply_overrides(nominal, {"filter.spread_shrink_reacquire": 0.0}), 1)
     assert "lost" not in set(a.status)
     np.testing.assert_array_equal(a.spread, b.spread)

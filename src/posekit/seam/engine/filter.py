@@ -35,12 +35,14 @@ centre of the symmetric robot density). Every step carries a ``status``
 The reported spread is at least the one the data support (``spread_bound``,
 :mod:`posekit.seam.engine.spread_bound`: a Kalman covariance from the lasers' Jacobian at the
 estimate, capped at the robot plateau, reset when the track is lost); the integrity test uses
-the cloud's own spread. The bound weighs each laser reading with the variance the particles use
-(``bound_inflation`` 1, the default; ``bound_inflation_reacquire`` while re-acquiring,
-``reacquire_isotropic_steps`` after a ``lost`` step, when that is lower): with the true σ it contracted
-faster than the particles' estimate follows when a seam corner brings information (issue 15: after a wrong
-start, the tails tracking 3-4σ off were such steps). The cloud itself is kept at least ``cloud_floor`` times the bound's
-covariance (:func:`floor_factor`: Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the tangent
+the cloud's own spread. The bound weighs each laser reading with the true σ (``bound_inflation`` 0, the
+default), and for ``bound_reacquire_steps`` after a ``lost`` step with the variance the particles use
+(``bound_inflation_reacquire``), while the reported spread shrinks by at most ``spread_shrink_reacquire`` per
+step: a cloud rebuilt from few survivors may be off in directions the lasers have not seen again, and the bound
+at the true σ contracted faster than that estimate follows when a seam corner brought the information (issue
+15: after a wrong start, the tails tracking 3-4σ off were such steps, 200-480 steps after the loss). A run that
+never lost the track keeps the bound at the true σ (its 2σ coverage within 0.9-0.99). The cloud itself is
+kept at least ``cloud_floor`` times the bound's covariance (:func:`floor_factor`: Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the tangent
 space at its mean, added in the resampling move, nothing where the cloud is wider): a cloud
 narrower than what the data support cannot move where new information puts the pose (25 kN, seed
 5: the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ off for ~100 steps). The
@@ -275,6 +277,7 @@ class SeamParticleFilter:
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
+        self._prev_spread = None
         self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self.integrity = IntegrityMonitor(f.particles, getattr(f, "integrity_window", 10),
                                           getattr(f, "integrity_alpha_degraded", 1e-3),
@@ -321,6 +324,7 @@ class SeamParticleFilter:
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
+        self._prev_spread = None
         self._nis_avg = 1.0  # the NIS per degree of freedom, averaged over walk_adapt_window steps
         self._sig_eff = {}
         self._offset = transform_from(matrix_from_rotation_vector(off_r), off_t, check=False)
@@ -519,6 +523,7 @@ class SeamParticleFilter:
         # from few survivors
         since = self.integrity.since_lost
         reacquiring = since is not None and since < f.reacquire_isotropic_steps
+        after_loss = since is not None and since < f.bound_reacquire_steps  # the reported spread's regime
         if self._last_status != "tracking":
             # the last step's data did not agree with the model: widen the walk on every axis so the cloud
             # can re-acquire (process-noise inflation on a failed consistency test)
@@ -590,13 +595,18 @@ class SeamParticleFilter:
             q_t = self._bound.q_scale * sig_t + f.spread_bound_k_travel * (travel if math.isfinite(travel) else 0.0)
             # bound_inflation: the share of the particles' laser inflation the bound takes (0: the true σ)
             s2 = f.laser_sigma_mm ** 2
-            infl = max(f.bound_inflation, f.bound_inflation_reacquire) if reacquiring else f.bound_inflation
+            infl = max(f.bound_inflation, f.bound_inflation_reacquire) if after_loss else f.bound_inflation
             sig2 = [s2 + infl * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
                                        self.seam.points, sig2)
             spread = np.maximum(spread, bound)
             if floor:
                 extra = floor_factor(f.cloud_floor * self._bound.P, cloud[4])
+        if np.isfinite(spread).all():
+            if after_loss and f.spread_shrink_reacquire > 0.0 and self._prev_spread is not None:
+                # after a loss the estimate may be off where the lasers have not looked again: the spread shrinks slowly
+                spread = np.maximum(spread, f.spread_shrink_reacquire * self._prev_spread)
+            self._prev_spread = spread
         # 4. resample (regularised: see _kernel_resample); the cloud kept at least as wide as the floor (one move)
         if resampled:
             if h > 0.0:
