@@ -42,8 +42,9 @@ step: a cloud rebuilt from few survivors may be off in directions the lasers hav
 at the true σ contracted faster than that estimate follows when a seam corner brought the information (issue
 15: after a wrong start, the tails tracking 3-4σ off were such steps, 200-480 steps after the loss). A run that
 never lost the track keeps the bound at the true σ (its 2σ coverage within 0.9-0.99). The cloud itself is
-kept at least ``cloud_floor`` times the bound's covariance (:func:`floor_factor`: Gaussian noise of covariance ``(c P - Σ_cloud)+`` in the tangent
-space at its mean, added in the resampling move, nothing where the cloud is wider): a cloud
+kept at least ``cloud_floor`` times the bound's covariance (:func:`floor_factor`: Gaussian noise of
+covariance ``(c P - Σ_cloud)+`` in the tangent space at its mean, added in the resampling move,
+nothing where the cloud is wider): a cloud
 narrower than what the data support cannot move where new information puts the pose (25 kN, seed
 5: the rx/ry cloud fell to 0.36 of the bound and the estimate stayed 3σ off for ~100 steps). The
 seam is searched at least as far as the robot density reaches (plateau + 3 tails + the rotation
