@@ -90,6 +90,9 @@ def test_dump_load_round_trip(tmp_path):
          "cfg.yaml: filter.plateau_max_force_n: expected >= 0.0, got -1 (allowed 0..10000000 N)"),
         ("filter:\n  cloud_floor: .nan\n", "cfg.yaml: filter.cloud_floor: expected a finite number, got nan"),
         ("filter:\n  bound_inflation: 1.5\n", "cfg.yaml: filter.bound_inflation: expected <= 1.0, got 1.5 (allowed 0..1)"),
+        ("filter:\n  spread_shrink_reacquire: 1.5\n",
+         "cfg.yaml: filter.spread_shrink_reacquire: expected <= 1.0, got 1.5 (allowed 0..1)"),
+        ("filter:\n  bound_reacquire_steps: -5\n", "cfg.yaml: filter.bound_reacquire_steps: expected >= 0, got -5"),
     ],
 )
 def test_bad_config_gives_one_line_error_naming_key_and_file(tmp_path, text, message):
