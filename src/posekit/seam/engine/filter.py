@@ -607,7 +607,7 @@ class SeamParticleFilter:
             if after_loss and f.spread_shrink_reacquire > 0.0 and self._prev_spread is not None:
                 # after a loss the estimate may be off where the lasers have not looked again: the spread shrinks slowly
                 spread = np.maximum(spread, f.spread_shrink_reacquire * self._prev_spread)
-            self._prev_spread = spread
+            self._prev_spread = spread.copy()  # not the returned array: a caller may convert it in place
         # 4. resample (regularised: see _kernel_resample); the cloud kept at least as wide as the floor (one move)
         if resampled:
             if h > 0.0:
