@@ -44,7 +44,9 @@ def test_peer_step_equals_posekit_step(bench, scenario):
                                                    # least the information bound (engine/spread_bound.py): off here
                                                    "filter.spread_bound": 0.0,
                                                    # and the peer weighs lasers with the plain sigma
-                                                   "filter.laser_inflation": 0.0})
+                                                   "filter.laser_inflation": 0.0,
+                                                   # and has no compliance model (robot density at Fk(q))
+                                                   "filter.compliance_rad_per_nm": 0.0})
     peer = bench.UserStepFilter(cfg, scenario.polyline, scenario.T_start, seed=3)
     ours = SeamParticleFilter(cfg, scenario.polyline, 0, T_init=scenario.T_start,
                               seam_normal=scenario.nominal.seam_normal)

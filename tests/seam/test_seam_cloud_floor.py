@@ -76,12 +76,15 @@ def test_floor_widens_a_narrow_cloud_to_the_covariance_and_keeps_its_mean():
 
 def test_the_cloud_stays_at_least_root_c_of_the_bound_under_25_kN():
     # the episode whose rx/ry cloud collapsed to 0.36 of the bound (seed 5, 25 kN, the force-range verdict off; with
-    # the seam model and the bound of the time, trend_eps_mm 0.02 and bound_inflation 0: the mechanism under test)
+    # the seam model, the bound and the robot model of the time, trend_eps_mm 0.02, bound_inflation 0, no particle
+    # noise in the bound, no compliance model and its plateau: the mechanism under test)
     def run(c):
         cfg = apply_overrides(config_from_dict({}), {"process.force_n": [490.0, -4900.0, -24500.0],
                                                       "filter.plateau_max_force_n": 0.0, "filter.cloud_floor": c,
                                                       "filter.trend_eps_mm": 0.02, "filter.axis_scale_r": [1, 0.8, 0.1],
-                                                      "filter.bound_inflation": 0.0})
+                                                      "filter.bound_inflation": 0.0, "filter.bound_particle_noise": 0.0,
+                                                      "filter.compliance_rad_per_nm": 0.0,
+                                                      "filter.kd_mm_per_n": 4.5e-4})
         data = simulate_data(cfg, 5)
         Tn = data.nominal.T_nominal
         pf = SeamParticleFilter(cfg, seam_knots(cfg).polyline, np.random.default_rng(7), T_init=Tn[0],

@@ -154,11 +154,13 @@ def test_start_far_outside_the_plateau_is_lost_then_re_acquired_honestly():
     assert r.reason[last + 16] == "re-acquiring: lost 16 step(s) ago"
     assert (r.status[-50:] == "tracking").all()
     assert beyond is not None and beyond <= 0.05
-    assert cov.min() >= 0.85
-    # without the re-acquiring hold, the bound and the wider walk, the same run's spread is too narrow
+    assert cov.min() >= 0.95  # measured 0.960-0.973, none of its steps beyond 3 sigma tracking
+    # without the re-acquiring hold, the bound and the wider walk, the same run's spread is too narrow (measured
+    # coverage 0.66-0.85) and the track is lost for 45 steps instead of 10
     old = run_episode(_cfg(**over, **{"filter.integrity_recovery": 0, "filter.spread_bound": 0.0,
                                       "filter.reacquire_transition_scale": 1.0}), 0)
-    assert integrity_summary([old])[0].min() < 0.8
+    cov_old, counts_old, _ = integrity_summary([old])
+    assert cov_old.min() < 0.8 and counts_old["lost"] > 2 * counts["lost"]
 
 
 def test_25_kN_is_degraded_beyond_the_plateau_s_measured_range_and_the_walk_does_not_change():

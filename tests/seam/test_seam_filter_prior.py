@@ -135,9 +135,9 @@ def test_transition_width_per_tool_axis(transition_widths):
     q_seen = []
     real = pf._bound.update
 
-    def spy(T, meas, q_t, q_r, *a):
+    def spy(T, meas, q_t, q_r, *a, **kw):
         q_seen.append((np.broadcast_to(q_t, 3).copy(), np.broadcast_to(q_r, 3).copy()))
-        return real(T, meas, q_t, q_r, *a)
+        return real(T, meas, q_t, q_r, *a, **kw)
 
     pf._bound.update = spy
     force = np.array([0.0, 0.0, -1000.0])

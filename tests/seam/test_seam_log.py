@@ -9,7 +9,7 @@ import pytest
 
 from posekit.errors import ConfigError, InputFileError
 from posekit.geometry import matrix_from_rotation_vector
-from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.config import apply_overrides, config_from_dict
 from posekit.seam.frontend.log import log_columns, read_episode_log, write_episode_log
 from posekit.seam.frontend.simulate import run_episode, simulate_data
 from posekit.seam.frontend.tracker import track_log, track_metrics
@@ -99,8 +99,9 @@ def test_filter_uses_the_mount_a_wrong_mount_in_setup_is_caught(tmp_path):
     wrong = _small(sensors={"count": 2, "distances_mm": [30.0, 50.0]})
     write_episode_log(tmp_path / "bad", wrong, data, 5)   # the same rows, the mounts of the wrong setup
     bad = track_metrics(track_log(read_episode_log(tmp_path / "bad")))
-    for a in ("x", "z"):
-        assert good["rmse_mm"][a] < 0.5 * good["kinematic_rmse_mm"][a], a
+    # measured: x 0.312 vs 0.603 mm, z 0.122 vs 0.178 mm (kinematics with the compliance model: the deflection)
+    assert good["rmse_mm"]["x"] < 0.6 * good["kinematic_rmse_mm"]["x"]
+    assert good["rmse_mm"]["z"] < 0.75 * good["kinematic_rmse_mm"]["z"]
     assert bad["rmse_mm"]["x"] > 4.0 * good["rmse_mm"]["x"]
     assert good["status_counts"].get("tracking", 0) >= 55
     assert bad["status_counts"].get("tracking", 0) <= 6
@@ -211,5 +212,16 @@ def test_a_log_with_a_6d_wrench_is_read_and_tracked(recorded, tmp_path):
     log = read_episode_log(tmp_path / "w")
     assert log.torque_tool_nm.shape == (60, 3)
     assert log.torque_tool_nm[3] == pytest.approx([1.5, -2.0, 0.04])
-    m = track_metrics(track_log(log))           # no compliance model by default: the torque changes nothing
-    assert m["rmse_mm"] == track_metrics(track_log(read_episode_log(folder)))["rmse_mm"]
+    m = track_metrics(track_log(log))
+    plain = track_metrics(track_log(read_episode_log(folder)))
+    # the default compliance model takes the torque into the joint torques: the particles move otherwise (measured
+    # RMSE x/y/z 0.046/0.048/0.079 mm against 0.050/0.043/0.075 without the torque columns: the filter's own spread)
+    assert m["rmse_mm"] != plain["rmse_mm"]
+    assert all(abs(m["rmse_mm"][a] - plain["rmse_mm"][a]) < 0.05 for a in "xyz")
+    assert m["status_counts"] == plain["status_counts"]
+    # without a compliance model the torque changes nothing
+    off = {"filter.compliance_rad_per_nm": 0.0}
+    log.config = apply_overrides(log.config, off)
+    plain_log = read_episode_log(folder)
+    plain_log.config = apply_overrides(plain_log.config, off)
+    assert track_metrics(track_log(log))["rmse_mm"] == track_metrics(track_log(plain_log))["rmse_mm"]

@@ -70,16 +70,22 @@ def test_cli_warns_when_the_truth_leaves_the_plateau(tmp_path, capsys):
 
 @pytest.mark.parametrize("example", ["ur10-urdf.yaml", "abb_irb6640.yaml"])
 def test_bundled_arms_are_honest_with_their_own_plateau(example):
-    # the UR10 with the PUMA 560's plateau: 4-15 % of the steps tracking and > 3 sigma off; the IRB 6640:
-    # every step lost. With the plateau of their own largest error (the examples' filter sections):
+    # with the plateau of their own largest error (the examples' filter sections): measured confidently wrong 0.3 % /
+    # 1.3 % of the steps, 2-sigma coverage >= 0.93 / 0.96, 1 / 9 of 2000 steps degraded (UR10 / IRB 6640; the IRB's
+    # deflection, 29 mm at 5 kN, is the filter's compliance model's: before it, ~6 % of its steps were degraded)
     cfg = load_config(EXAMPLES / example)
     res = [run_episode(cfg, s) for s in range(4)]
     m = metrics(res)
     assert m["outside_plateau_runs"] == 0.0
     assert m["confident_wrong"] <= 0.02
     assert min(m["coverage_2sigma"].values()) >= 0.9
-    # (the IRB 6640's deflection, 29 mm at 5 kN, changes fast along the path: ~6 % of its steps degraded)
-    assert m["status_counts"]["tracking"] >= 0.9 * 4 * 500
-    puma = apply_overrides(cfg, {"filter.d0_mm": 3.0, "filter.kd_mm_per_n": 4.5e-4, "filter.d0_deg": 0.35,
+    assert m["status_counts"]["tracking"] >= 0.99 * 4 * 500
+    # with the PUMA 560's plateau (the defaults): the IRB 6640 leaves it (1 of 4 runs, 500 steps lost); the UR10, whose
+    # deflection the compliance model explains, stays inside it (measured 0.45 % confidently wrong)
+    puma = apply_overrides(cfg, {"filter.d0_mm": 3.0, "filter.kd_mm_per_n": 1e-4, "filter.d0_deg": 0.35,
                                  "filter.kd_deg_per_n": 1.1e-4})
-    assert metrics([run_episode(puma, s) for s in range(4)])["outside_plateau_runs"] > 0.0
+    mp = metrics([run_episode(puma, s) for s in range(4)])
+    if example == "abb_irb6640.yaml":
+        assert mp["outside_plateau_runs"] > 0.0 and mp["status_counts"].get("lost", 0) >= 100
+    else:
+        assert mp["outside_plateau_runs"] == 0.0 and mp["confident_wrong"] <= 0.02

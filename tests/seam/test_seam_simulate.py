@@ -163,15 +163,16 @@ def test_angle_measurement_pins_the_roll():
     """The rotation about the laser-plane normal (roll ry about the travel direction) is what
     the optional angle measurement sees; position-only lasers leave it weakly determined."""
     kw = {"trajectory": {"kind": "xy", "steps": 200}, "filter": {"particles": 300}}
-    # two seeds: the roll is weakly seen through the seam's curvature, so without the angle it is
-    # sometimes right (0.07 deg, seed 1) and sometimes off by the plateau scale (0.46 deg, seed 2)
+    # two seeds: the roll is weakly seen through the seam's curvature; without the angle it stays near the
+    # kinematics' error (measured 0.129 / 0.106 deg against the kinematics' 0.133 / 0.087 deg, seeds 1 / 2), with it
+    # 0.031 / 0.037 deg
     plain = [run_episode(config_from_dict(kw), s) for s in (1, 2)]
     angled = [run_episode(config_from_dict({**kw, "sensors": {"angle": True}}), s) for s in (1, 2)]
     assert all(np.isfinite(a.laser_mm).all() for a in angled)
     ry_plain = np.sqrt(np.mean([(p.error[:, 4] ** 2).mean() for p in plain]))
     ry_angle = np.sqrt(np.mean([(a.error[:, 4] ** 2).mean() for a in angled]))
-    assert ry_angle < 0.3 * ry_plain
-    assert np.degrees(ry_angle) < 0.1  # the errors are in rad; 0.1 deg
+    assert ry_angle < 0.4 * ry_plain
+    assert np.degrees(ry_angle) < 0.05  # the errors are in rad; 0.05 deg
 
 
 def _seam_model_yaw_deg(cfg):

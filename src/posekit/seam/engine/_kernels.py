@@ -526,15 +526,18 @@ def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
 
 @nb.njit(cache=True, boundscheck=False)
 def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, q2,
-                 sig2s, h_t, h_r, std_out):
-    """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``.
+                 sig2s, h_t, h_r, std_out, A, g2, Q_pf, ratio_out):
+    """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``
+    and the error covariance ``A (6, 6)`` of the same gain when the pose drifts by ``g2`` times the walk.
 
     ``T (4, 4)`` the estimate (mm); readings ``mxs, mzs (S,)`` (mm) with mounts ``Ms (S, 4, 4)``
     and knot windows ``los, his (S,)`` (``lo < 0``: skipped) on the seam knots ``P_pts (K, 3)``;
     the robot plateau: tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t`` (mm), ``d_r``
     (rad), ``A_inv (3, 3)`` the inverse plateau shape (identity: a ball); ``first``: start from
     the plateau; ``q2 (6,)`` the process variances per axis (mm², rad²); ``sig2s (S,)`` each reading's
-    laser variance (mm²); ``h_t, h_r`` the central-difference steps. Writes ``std_out (6,)`` = sqrt(diag P).
+    laser variance (mm²); ``h_t, h_r`` the central-difference steps; ``Q_pf (6, 6)`` the particle
+    approximation's own noise of the step, added to both. Writes ``std_out (6,)`` = sqrt(diag P) and
+    ``ratio_out (6,)`` = sqrt(diag A / diag P), at most 1 (1 where ``P`` is 0).
     """
     R = T[:3, :3].copy()
     Rt = R.T.copy()
@@ -551,14 +554,23 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
         P[:, :] = 0.0
         P[:3, :3] = Ct
         P[3:, 3:] = Cr
+        A[:, :] = P
     else:
         s = np.empty(6)
+        sa = np.empty(6)
+        for a in range(6):
+            for b in range(6):
+                P[a, b] += Q_pf[a, b]
+                A[a, b] += Q_pf[a, b]
         for j in range(6):
             P[j, j] += q2[j]
+            A[j, j] += g2 * q2[j]
             s[j] = math.sqrt(c[j] / P[j, j]) if P[j, j] > c[j] else 1.0
+            sa[j] = math.sqrt(c[j] / A[j, j]) if A[j, j] > c[j] else 1.0
         for a in range(6):
             for b in range(6):
                 P[a, b] *= s[a] * s[b]
+                A[a, b] *= sa[a] * sa[b]
     # the lasers' Jacobian by central differences of the in-plane error (right perturbation)
     S_n = mxs.shape[0]
     Tp = np.empty((12, 4, 4))
@@ -609,10 +621,21 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
             Sm[a, a] += r2[a]
         K = np.linalg.solve(Sm, PH.T.copy())  # (m, 6)
         P -= PH @ K
+        # A with the same gain G = Kᵀ (Joseph form): (I - G H) A (I - G H)ᵀ + G R Gᵀ
+        IGH = np.eye(6) - K.T.copy() @ Hm
+        GR = K.T.copy()
+        for a in range(m):
+            for j in range(6):
+                GR[j, a] *= r2[a]
+        A[:, :] = IGH @ A @ IGH.T.copy() + GR @ K
     for a in range(6):
         for b in range(a + 1, 6):
             v = 0.5 * (P[a, b] + P[b, a])
             P[a, b] = v
             P[b, a] = v
+            v = 0.5 * (A[a, b] + A[b, a])
+            A[a, b] = v
+            A[b, a] = v
         std_out[a] = math.sqrt(P[a, a]) if P[a, a] > 0.0 else 0.0
+        ratio_out[a] = min(1.0, math.sqrt(A[a, a] / P[a, a])) if P[a, a] > 0.0 and A[a, a] > 0.0 else 1.0
     return m

@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from posekit.geometry import invert_transform
 from posekit.robots import KinematicChain
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.seamline import SeamLine
@@ -155,11 +156,15 @@ class RobotMeasurement:
         Plateau radii ``d(f)``; the rotation plateau is the ellipsoid ``‖A_r Δr‖ <= d_r_rad``.
     A_r : ndarray, shape (3, 3) or None
         Shape of the rotation plateau (None: a ball of radius ``d_r_rad``).
+    T_deflection : ndarray, shape (4, 4) or None
+        The modelled deflection as a base-frame transform, ``Fk(q + Cj(τ)) Fk(q)⁻¹`` (mm); None
+        without a compliance model.
     """
 
-    __slots__ = ("A_r", "Sigma_r", "Sigma_t", "T_mean", "d_r_rad", "d_t_mm")
+    __slots__ = ("A_r", "Sigma_r", "Sigma_t", "T_deflection", "T_mean", "d_r_rad", "d_t_mm")
 
-    def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad, A_r=None):
+    def __init__(self, T_mean, Sigma_t, Sigma_r, d_t_mm, d_r_rad, A_r=None, T_deflection=None):
+        self.T_deflection = T_deflection
         self.T_mean = T_mean
         self.Sigma_t = Sigma_t
         self.Sigma_r = Sigma_r
@@ -209,9 +214,12 @@ def robot_measurement(chain: KinematicChain, q_meas: np.ndarray, force_n: np.nda
     RobotMeasurement
     """
     T, J = chain.forward_kinematics_and_jacobian(q_meas, check=False)
+    T_defl = None
     if compliance is not None:
         tau = J[:3].T @ force_n  # N·mm: J_v is mm/rad
+        T_rigid = T
         T, J = chain.forward_kinematics_and_jacobian(q_meas + compliance(q_meas, tau), check=False)
+        T_defl = T @ invert_transform(T_rigid, check=False)
     S = (joint_sigma_rad ** 2) * (J @ J.T)
     fn = float(np.linalg.norm(force_n))
     d_r = d0_rad + kd_rad_per_n * fn
@@ -227,6 +235,7 @@ def robot_measurement(chain: KinematicChain, q_meas: np.ndarray, force_n: np.nda
         d0_mm + kd_mm_per_n * fn,
         d_r,
         A_r,
+        T_defl,
     )
 
 

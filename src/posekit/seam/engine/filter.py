@@ -1,7 +1,8 @@
 """The particle filter on SE(3) for the tool pose relative to the seam (paper Algorithm 1).
 
-One step: propagate every particle with the nominal increment and force-dependent noise
-(eq. 3); weight with the robot measurement (eq. 5, 8) and each available laser (and angle)
+One step: propagate every particle with the nominal increment, moved by the change of the deflection
+the compliance model predicts from the measured force (``filter.compliance_rad_per_nm``:
+``D_k T+ D_{k-1}⁻¹``, ``D = Fk(q + Cj(τ)) Fk(q)⁻¹``), and force-dependent noise (eq. 3); weight with the robot measurement (eq. 5, 8) and each available laser (and angle)
 measurement (eq. 9); normalise the log-weights (recovering from vanishing weights); estimate
 the weighted mean on SE(3) and its spread; resample by name when the effective sample size
 falls below ``ess_threshold · N``.
@@ -41,7 +42,9 @@ default), and for ``bound_reacquire_steps`` after a ``lost`` step with the varia
 step: a cloud rebuilt from few survivors may be off in directions the lasers have not seen again, and the bound
 at the true σ contracted faster than that estimate follows when a seam corner brought the information (issue
 15: after a wrong start, the tails tracking 3-4σ off were such steps, 200-480 steps after the loss). A run that
-never lost the track keeps the bound at the true σ (its 2σ coverage within 0.9-0.99). The cloud itself is
+never lost the track keeps the bound at the true σ and reports ``max(cloud, bound)`` scaled per axis by the bound's
+``ratio`` (the error of a walk wider than the drift, ``bound_drift_share``; the bound also carries the particles' own
+noise, ``bound_particle_noise``: :mod:`posekit.seam.engine.spread_bound`). The cloud itself is
 kept at least ``cloud_floor`` times the bound's covariance (:func:`floor_factor`: Gaussian noise of
 covariance ``(c P - Σ_cloud)+`` in the tangent space at its mean, added in the resampling move,
 nothing where the cloud is wider): a cloud
@@ -70,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posekit.errors import ConfigError
-from posekit.geometry import matrix_from_rotation_vector, transform_from
+from posekit.geometry import invert_transform, matrix_from_rotation_vector, transform_from
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import (
     angle_loglik,
@@ -275,6 +278,7 @@ class SeamParticleFilter:
         self._load_axis_t = np.asarray(f.load_axis_scale_t, dtype=np.float64)
         self._load_axis_r = np.asarray(f.load_axis_scale_r, dtype=np.float64)
         self._prev_force = None
+        self._prev_deflection = None
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
@@ -322,6 +326,7 @@ class SeamParticleFilter:
         if self._bound is not None:
             self._bound.reset()
         self._prev_force = None
+        self._prev_deflection = None
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._walk_gain = 1.0  # the walk's adaptive factor (filter.walk_adapt_rate)
@@ -427,6 +432,22 @@ class SeamParticleFilter:
         if errors:
             return ll, used, ll_robot, (np.hstack(cols) if cols else np.empty((T.shape[0], 0)))
         return ll, used
+
+    def _deflected_increment(self, T_increment: np.ndarray, meas) -> np.ndarray:
+        """The step's increment with the change of the modelled deflection, ``D_k T+ D_{k-1}⁻¹`` (4, 4).
+
+        ``D = Fk(q + Cj(τ)) Fk(q)⁻¹`` (:class:`~posekit.seam.engine.densities.RobotMeasurement`'s
+        ``T_deflection``, base frame): the tool moves with the deflection the measured force predicts, so
+        the walk covers only what the compliance model does not explain. ``T+`` unchanged without a
+        compliance model, at the first step, or where a deflection is not finite (kept from the last
+        finite one)."""
+        D = meas.T_deflection
+        if D is None or not np.isfinite(D).all():
+            return T_increment
+        prev, self._prev_deflection = self._prev_deflection, D
+        if prev is None:
+            return T_increment
+        return D @ T_increment @ invert_transform(prev, check=False)
 
     def _temper(self, ll: np.ndarray, remaining: float, target: float) -> float:
         """Largest exponent ``β <= remaining`` with ``ESS(logw + β ll) >= target`` (bisection)."""
@@ -541,11 +562,13 @@ class SeamParticleFilter:
             sig_r = base_r * self._axis_r + load_r * self._load_axis_r
         sig_t = sig_t * self._walk_gain
         sig_r = sig_r * self._walk_gain
-        self.T = transition(self.T, inputs.T_increment, sig_t, sig_r, self.rng, noise_buffer=self._noise)
-        # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
         with np.errstate(invalid="ignore"):  # non-finite readings: every weight vanishes, recovered below
             meas = robot_measurement(self.chain, np.asarray(inputs.q_meas, dtype=np.float64), force,
                                      compliance=self.compliance, **self._robot_kw)
+        self.T = transition(self.T, self._deflected_increment(inputs.T_increment, meas), sig_t, sig_r, self.rng,
+                            noise_buffer=self._noise)
+        # 2. measurement update: robot (eq. 5, 8) + lasers (eq. 9) + angles
+        with np.errstate(invalid="ignore"):
             if self._init_pending and np.isfinite(meas.T_mean).all():
                 self.T = self._draw_from_robot(meas)  # the prior: where the robot can be
                 self._init_pending = False
@@ -598,9 +621,18 @@ class SeamParticleFilter:
             s2 = f.laser_sigma_mm ** 2
             infl = max(f.bound_inflation, f.bound_inflation_reacquire) if after_loss else f.bound_inflation
             sig2 = [s2 + infl * (self._sig_eff.get(i, s2) - s2) for i in self._reading_sensor]
+            # the particle approximation's own noise: the weighted mean of ESS effective particles moves by the
+            # cloud's covariance over ESS, which the lasers correct only where they see
+            Q_pf = None
+            if f.bound_particle_noise > 0.0 and cloud is not None and ess >= 1.0:
+                Q_pf = (f.bound_particle_noise / ess) * (cloud[4] @ cloud[4].T)
             bound = self._bound.update(T_mean, meas, q_t, self._bound.q_scale * sig_r, self._readings,
-                                       self.seam.points, sig2)
+                                       self.seam.points, sig2, drift_share=f.bound_drift_share, Q_pf=Q_pf)
             spread = np.maximum(spread, bound)
+            if not after_loss:
+                # the walk is wider than the pose drifts (it must re-acquire, absorb what the models miss): the
+                # error of the estimate it gives is smaller than the walk's posterior, by the bound's ratio
+                spread = spread * self._bound.ratio
             if floor:
                 extra = floor_factor(f.cloud_floor * self._bound.P, cloud[4])
         if np.isfinite(spread).all():
