@@ -3,9 +3,9 @@
 One step: propagate every particle with the nominal increment, moved by the change of the deflection
 the compliance model predicts from the measured force (``filter.compliance_rad_per_nm``:
 ``D_k T+ D_{k-1}⁻¹``, ``D = Fk(q + Cj(τ)) Fk(q)⁻¹``), and force-dependent noise (eq. 3); weight
-with the robot measurement (eq. 5, 8) and each available laser (and angle) measurement (eq. 9); normalise the log-weights (recovering from vanishing weights); estimate
-the weighted mean on SE(3) and its spread; resample by name when the effective sample size
-falls below ``ess_threshold · N``.
+with the robot measurement (eq. 5, 8) and each available laser (and angle) measurement (eq. 9);
+normalise the log-weights (recovering from vanishing weights); estimate the weighted mean on SE(3)
+and its spread; resample by name when the effective sample size falls below ``ess_threshold · N``.
 
 When one update would leave fewer than ``anneal_ess · N`` effective particles (the laser
 likelihood is far narrower than the cloud: at start-up, at a seam feature), the likelihood
