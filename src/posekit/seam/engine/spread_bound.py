@@ -68,8 +68,8 @@ __all__ = ["Q_SCALE", "InformationBound", "laser_jacobian", "plateau_covariance"
 Q_SCALE = 1.0
 
 _STEP_T = 1e-3  # mm, central-difference step of the Jacobian (translation)
-_ZERO6 = np.zeros((6, 6))  # no particle noise
 _STEP_R = 1e-5  # rad (rotation)
+_ZERO6 = np.zeros((6, 6))  # no particle noise
 
 
 def _perturbed(T: np.ndarray) -> np.ndarray:
