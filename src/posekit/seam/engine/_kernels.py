@@ -622,8 +622,9 @@ def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A
         K = np.linalg.solve(Sm, PH.T.copy())  # (m, 6)
         P -= PH @ K
         # A with the same gain G = Kᵀ (Joseph form): (I - G H) A (I - G H)ᵀ + G R Gᵀ
-        IGH = np.eye(6) - K.T.copy() @ Hm
-        GR = K.T.copy()
+        G = K.T.copy()
+        IGH = np.eye(6) - G @ Hm
+        GR = G.copy()
         for a in range(m):
             for j in range(6):
                 GR[j, a] *= r2[a]
