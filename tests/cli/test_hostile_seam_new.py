@@ -11,7 +11,7 @@ import shutil
 import pytest
 
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.log import write_episode_log
+from posekit.seam.frontend.logs import write_episode_log
 from posekit.seam.frontend.simulate import simulate_data
 from tests.cli_helpers import assert_one_line_error, run_cli
 

@@ -12,7 +12,7 @@ import yaml
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam.frontend.config import config_from_dict, load_config
-from posekit.seam.frontend.log import read_episode_log, write_episode_log
+from posekit.seam.frontend.logs import read_episode_log, write_episode_log
 from posekit.seam.frontend.simulate import simulate_data
 from posekit.seam.frontend.tracker import SeamTracker, track_log, track_metrics
 

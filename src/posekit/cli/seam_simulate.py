@@ -193,7 +193,7 @@ def run_simulate(args) -> int:
         paths = write_simulation(tmp, results, m, dump_config(cfg), comparison=comparison)
     if args.save_log:
         from ..io import staged_folder
-        from ..seam.frontend.log import write_episode_log
+        from ..seam.frontend.logs import write_episode_log
         from ..seam.frontend.simulate import simulate_data
 
         seed0 = results[0].seed

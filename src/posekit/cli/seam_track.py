@@ -26,7 +26,7 @@ def add_track_parser(verbs):
 
 
 def run_track(args) -> int:
-    from ..seam.frontend.log import read_episode_log
+    from ..seam.frontend.logs import read_episode_log
     from ..seam.frontend.tracker import step_record, track_log, write_track
 
     check_flags(args)

@@ -6,7 +6,7 @@ path (:mod:`.trend`), the laser-plane/seam intersection (:mod:`.seamline`), the 
 filter (:mod:`.filter`), seams and robot programs (:mod:`.trajectories`) and simulated
 episodes with their metrics (:mod:`.simulate`). Front end: figures (:mod:`.plots`),
 report files (:mod:`.report`), sensor-configuration comparisons (:mod:`.compare`) and the
-Monte-Carlo tuning study (:mod:`.study`), recorded episodes (:mod:`.log`), the online tracker
+Monte-Carlo tuning study (:mod:`.study`), recorded episodes (:mod:`.logs`), the online tracker
 (:mod:`.tracker`: :class:`SeamTracker`, ``posekit seam track``) and the sensor-placement design
 (:mod:`.design`, ``posekit seam design``).
 
@@ -152,7 +152,7 @@ from .frontend.design import (
     sensor_design,
     write_design,
 )
-from .frontend.log import EpisodeLog, LogSetup, log_columns, read_episode_log, write_episode_log
+from .frontend.logs import EpisodeLog, LogSetup, log_columns, read_episode_log, write_episode_log
 from .frontend.plots import (
     AXIS_LABELS,
     particle_histogram,

@@ -2,7 +2,7 @@
 
 Online use, one call per sample as the cell produces it::
 
-    from posekit.seam.frontend.log import LogSetup
+    from posekit.seam.frontend.logs import LogSetup
     from posekit.seam.frontend.tracker import SeamTracker
 
     tracker = SeamTracker(setup.seam_config(), seam_mm, seed=0)   # seam_mm (K, 3), base frame
@@ -90,7 +90,7 @@ class SeamTracker:
     ----------
     cfg : SeamConfig
         ``robot`` (model or URDF, ``tool``), ``sensors`` (``mounts`` or distances, ``angle``)
-        and ``filter`` are used (:meth:`posekit.seam.frontend.log.LogSetup.seam_config` builds
+        and ``filter`` are used (:meth:`posekit.seam.frontend.logs.LogSetup.seam_config` builds
         one from a recorded episode's setup).
     seam_mm : array_like, shape (K, 3)
         The nominal seam in the robot base frame, in travel order, mm. It is trend-filtered
@@ -241,7 +241,7 @@ class SeamTrackResult:
 
 
 def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
-    """Run the filter over a recorded episode (:func:`posekit.seam.frontend.log.read_episode_log`).
+    """Run the filter over a recorded episode (:func:`posekit.seam.frontend.logs.read_episode_log`).
 
     Each row of ``log.csv`` is one step; joints on laser-only rows are the interpolated ones.
     The filter's seed is ``setup.yaml``'s ``seed``; a log written by ``posekit seam simulate
