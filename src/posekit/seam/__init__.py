@@ -1,14 +1,17 @@
 """Particle-filter 6-DoF tool pose relative to a weld seam from 2D laser seam trackers.
 
-Engine: configuration (:mod:`.config`), particle-set primitives on SE(3) (:mod:`.particles`),
-the densities of the paper's §II-C (:mod:`.densities`), l1 trend filtering of the nominal
-path (:mod:`.trend`), the laser-plane/seam intersection (:mod:`.seamline`), the particle
-filter (:mod:`.filter`), seams and robot programs (:mod:`.trajectories`) and simulated
-episodes with their metrics (:mod:`.simulate`). Front end: figures (:mod:`.plots`),
-report files (:mod:`.report`), sensor-configuration comparisons (:mod:`.compare`) and the
-Monte-Carlo tuning study (:mod:`.study`), recorded episodes (:mod:`.logs`), the online tracker
-(:mod:`.tracker`: :class:`SeamTracker`, ``posekit seam track``) and the sensor-placement design
-(:mod:`.design`, ``posekit seam design``).
+Model (:mod:`.model`): the cell as the filter sees it — :class:`Cell` (robot with tool, sensors with
+their latency, compliance model) and :class:`Profile` (the fitted walk, jitter, plateau, noise, latency).
+Engine (:mod:`.engine`, imports no front end): particle-set primitives on SE(3) (``particles``), the
+densities of the paper's §II-C (``densities``), l1 trend filtering of the nominal path (``trend``), the
+laser-plane/seam intersection (``seamline``), the particle filter (``filter``), its integrity tests
+(``integrity``), the spread the data support (``spread_bound``) and the linearised filter whose
+likelihood the tuner maximises (``ekf``). Front end (:mod:`.frontend`): configuration (``config``), the
+profile file (``profile``), the tuner (``tune``, ``posekit seam tune``), seams and robot programs
+(``trajectories``), simulated episodes and their metrics (``simulate``), recorded episodes (``logs``),
+the online tracker (``tracker``: :class:`SeamTracker`, ``posekit seam track``), the sensor-placement
+design (``design``), comparisons (``compare``), the Monte-Carlo study (``study``), figures (``plots``)
+and report files (``report``).
 
 Frames and units: mm and rad inside; ``T_base_tool`` poses of the TCP in the robot base frame;
 the tool's y axis points along the travel, z along the tool axis; errors are reported in the
@@ -27,7 +30,7 @@ from .engine.densities import (
     robot_measurement,
     transition,
 )
-from .engine.filter import SeamParticleFilter, StepEstimate, StepInputs
+from .engine.filter import FilterSettings, SeamParticleFilter, StepEstimate, StepInputs
 from .engine.particles import (
     RESAMPLERS,
     effective_sample_size,
@@ -43,16 +46,27 @@ from .engine.trend import TrendResult, trend_filter
 from .frontend.config import (
     RESAMPLER_NAMES,
     TRAJECTORY_KINDS,
+    CellConfig,
     FilterConfig,
-    ProcessConfig,
+    LayoutNote,
     RobotConfig,
     SeamConfig,
     SensorsConfig,
+    SimulationConfig,
     TrajectoryConfig,
     apply_overrides,
+    cell_from_config,
     config_from_dict,
     dump_config,
     load_config,
+)
+from .frontend.profile import (
+    DEFAULT_PROFILE,
+    ProfileModel,
+    default_profile,
+    dump_profile,
+    load_profile,
+    write_profile,
 )
 from .frontend.simulate import (
     AXES,
@@ -73,6 +87,7 @@ from .frontend.trajectories import (
     seam_headings_T0,
     seam_points_T0,
 )
+from .model import Cell, Profile, Sensor
 
 __all__ = [
     "AXES",
@@ -82,10 +97,23 @@ __all__ = [
     "RESAMPLER_NAMES",
     "TRAJECTORY_KINDS",
     "EpisodeResult",
+    "Cell",
+    "CellConfig",
+    "DEFAULT_PROFILE",
     "FilterConfig",
+    "FilterSettings",
+    "LayoutNote",
+    "Profile",
+    "ProfileModel",
+    "Sensor",
+    "SimulationConfig",
+    "cell_from_config",
+    "default_profile",
+    "dump_profile",
+    "load_profile",
+    "write_profile",
     "Intersection",
     "NominalTrajectory",
-    "ProcessConfig",
     "RobotConfig",
     "RobotMeasurement",
     "SeamConfig",
