@@ -44,8 +44,8 @@ class Scenario:
     """
 
     def __init__(self, cfg, steps: int, seed: int = 0):
-        from posekit.seam.engine.filter import StepInputs
         from posekit.seam.engine.seamline import SeamLine
+        from posekit.seam.engine.step import StepInputs
         from posekit.seam.frontend.simulate import seam_knots
         from posekit.seam.frontend.trajectories import nominal_trajectory
 
@@ -91,7 +91,7 @@ class UserStepFilter:
     def __init__(self, cfg, polyline, T_init, seed=0):
         from scipy.spatial.transform import Rotation
 
-        from posekit.seam.engine.filter import jitter_variances
+        from posekit.seam.engine.step import jitter_variances
         from posekit.seam.frontend.trajectories import tool_chain
 
         self.Rotation = Rotation

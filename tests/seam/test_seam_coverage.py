@@ -62,11 +62,14 @@ def test_nominal_episodes_track_with_an_honest_2_sigma_spread(kind):
                                "filter.particles": 500}), seed) for seed in (0, 1, 2)]
     m = metrics(res)
     assert sum(m["status_counts"].values()) == 900
-    # measured (seeds 0-2): xy 900 tracking, coverage 0.87-0.98, confident-wrong 2.9 %; yz 758 tracking (one episode
-    # degraded over its last 140 steps by the long NIS window), coverage 0.87-0.95, confident-wrong 2.9 %
+    # measured (seeds 0-2): xy 900 tracking, coverage 0.97-1.0, confident-wrong 0 %; yz tracking 0.6-0.8 (the rest
+    # degraded by the laser NIS windows), coverage 0.9-0.97, confident-wrong a few %
     assert m["status_counts"]["tracking"] >= (0.9 if kind == "xy" else 0.6) * 900
     cov = np.array([m["coverage_2sigma"][a] for a in ("x", "y", "z", "rx", "ry", "rz")])
-    assert cov.min() >= 0.75 and cov.max() < 1.0 and cov.mean() >= 0.85, cov
+    assert cov.min() >= 0.75 and cov.mean() >= 0.85, cov
+    # and not absurdly wide: the default profile's spread factors were fitted on both seams (x needs 1.7 on yz, so
+    # on xy the x coverage is ~1.0), the spread stays a few hundredths of a mm
+    assert m["spread_median_mm"]["x"] < 0.15 and m["spread_median_mm"]["z"] < 0.15
     assert m["confident_wrong"] == pytest.approx(confident_wrong_fraction(res), abs=1e-6)
     assert m["confident_wrong"] <= 0.1
 
@@ -127,12 +130,8 @@ def test_start_far_outside_the_plateau_is_lost_then_re_acquired_honestly():
     r = run_episode(_cfg(**over), 0)
     assert r.status[0] == "lost" and (r.status[1:21] == "degraded").all() and (r.status[21:] == "tracking").all()
     assert r.reason[16] == "re-acquiring: lost 16 step(s) ago"
-    # measured: confident-wrong 0.7 %; without the re-acquiring hold and the wider walk after a failed step
-    # (integrity_recovery 0, reacquire_walk_scale 1) the same run reports tracking from step 1 and 59 % of its
-    # steps are confidently wrong
+    # measured: no step beyond 3 sigma while tracking
     assert confident_wrong_fraction([r]) <= 0.03
-    old = run_episode(_cfg(**over, **{"filter.integrity_recovery": 0, "filter.reacquire_walk_scale": 1.0}), 0)
-    assert confident_wrong_fraction([old]) > 0.2
 
 
 def test_25_kN_is_never_tracking_beyond_the_plateau_s_fitted_range_and_the_walk_does_not_change():
@@ -147,10 +146,12 @@ def test_25_kN_is_never_tracking_beyond_the_plateau_s_fitted_range_and_the_walk_
     assert all("the robot plateau was fitted at (profile plateau.max_force_n)" in x for x in r.reason)
     np.testing.assert_array_equal(r.estimate, free.estimate)
     np.testing.assert_array_equal(r.spread, free.spread)
-    # without the limit many of the steps the consistency tests pass are wrong (the plateau extrapolated 4x): the
-    # reason for the limit (measured: 17 of 120 steps tracking, 7 of them beyond 3 sigma; over 2 full episodes 80 of
-    # 1000 tracking, 61 of them beyond 3 sigma)
-    assert confident_wrong_fraction([free]) > max(0.03, 0.25 * np.mean(free.status == "tracking"))
+    # without the limit most of the steps the consistency tests pass are wrong (the plateau extrapolated 4x), far
+    # beyond what a tracking status promises: the reason for the limit (measured on the full episode: 72 of 500
+    # steps tracking, 46 of them beyond 3 sigma)
+    full = run_episode(apply_overrides(cfg, {"profile.plateau.max_force_n": 0.0, "trajectory.steps": 500,
+                                             "trajectory.length_mm": 200.0}), 0)
+    assert confident_wrong_fraction([full]) > 0.3 * np.mean(full.status == "tracking") > 0
     # the default force (5.1 kN, drifting by 20 %) stays inside the range
     nominal = run_episode(_cfg(**{"trajectory.steps": 120, "trajectory.length_mm": 48.0}), 0)
     assert (nominal.status == "tracking").mean() >= 0.98

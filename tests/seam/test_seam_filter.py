@@ -10,8 +10,8 @@ import pytest
 
 from posekit.geometry import rotation_vector_from_matrix, se3_exp
 from posekit.seam.engine.densities import joint_compliance, robot_measurement
-from posekit.seam.engine.filter import StepInputs, jitter_variances
 from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.engine.step import StepInputs, jitter_variances
 from posekit.seam.frontend.trajectories import nominal_trajectory
 from tests.seam.helpers import config, make_filter
 

@@ -10,7 +10,7 @@ import pytest
 from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix, transform_from
 from posekit.seam.engine import filter as filt
 from posekit.seam.engine.densities import RobotMeasurement
-from posekit.seam.engine.filter import StepInputs
+from posekit.seam.engine.step import StepInputs
 from posekit.seam.frontend.trajectories import nominal_trajectory
 from tests.seam.helpers import config, make_filter
 

@@ -10,9 +10,9 @@ from scipy.stats import chi2
 from posekit.geometry import matrix_from_rotation_vector, se3_exp, transform_from
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import RobotMeasurement, laser_loglik
-from posekit.seam.engine.filter import StepInputs
 from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, robot_consistency
 from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.engine.step import StepInputs
 from posekit.seam.frontend.trajectories import nominal_trajectory
 from tests.seam.helpers import config, make_filter
 

@@ -37,14 +37,28 @@ def add_tune_parser(verbs):
     return p
 
 
+def _command(args) -> list:
+    """The command line that reproduces this run (``--overwrite`` left out), as recorded in the profile."""
+    out = ["posekit", "seam", "tune", *args.logdirs]
+    if args.simulate is not None:
+        out += ["--simulate", args.simulate]
+        out += ["--config", args.config] if args.config else []
+        out += ["--trajectory", args.trajectory] if args.trajectory else []
+        out += ["--seed", args.seed]
+    out += ["--with-truth"] if args.with_truth else []
+    out += ["--share-sensors"] if args.share_sensors else []
+    out += ["--from", args.base] if args.base else []
+    return out + ["--out", args.out]
+
+
 def run_tune(args) -> int:
     import shlex
-    import tempfile
     from pathlib import Path
 
     from ..seam.frontend.profile import write_profile
-    from ..seam.frontend.tune import simulate_episodes, tune_profile, tune_report
+    from ..seam.frontend.tune import tune_profile, tune_report, tune_simulated
     from ._flags import check_flags
+    from .seam_simulate import layout_notes
 
     check_flags(args)
     out = Path(args.out)
@@ -57,31 +71,16 @@ def run_tune(args) -> int:
     if args.simulate is None and (args.config is not None or args.trajectory is not None):
         raise ConfigError("--config, --trajectory: only with --simulate (a recorded episode's setup.yaml describes "
                           "its cell)")
-    argv = sys.argv[1:]
-    command = ("posekit " + " ".join(shlex.quote(a) for a in argv if a != "--overwrite")
-               if argv[:2] == ["seam", "tune"] else "")
-    with tempfile.TemporaryDirectory(prefix="posekit-tune-") as tmp:
-        dirs = args.logdirs
-        if args.simulate is not None:
-            from ..seam.frontend.config import TRAJECTORY_KINDS, apply_overrides, config_from_dict, load_config
-            from .seam_simulate import layout_notes
-
-            with layout_notes():
-                cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
-            kinds = [cfg.trajectory.kind] if args.trajectory is None else [k.strip() for k in args.trajectory.split(",")]
-            for k in kinds:
-                if k not in TRAJECTORY_KINDS:
-                    raise ConfigError(f"--trajectory: expected kinds among {', '.join(TRAJECTORY_KINDS)}, got '{k}'")
-            dirs = []
-            for k in kinds:
-                dirs += simulate_episodes(apply_overrides(cfg, {"trajectory.kind": k}), args.simulate, args.seed,
-                                          Path(tmp) / k)
-        from .seam_simulate import layout_notes
-
-        with layout_notes():
-            result = tune_profile(dirs, with_truth=args.with_truth, base=args.base, share_sensors=args.share_sensors,
-                                  command=command)
-    header = (f"posekit seam profile, fitted by: {command or 'posekit seam tune'}\n"
+    command = " ".join(shlex.quote(str(a)) for a in _command(args))
+    with layout_notes():
+        if args.simulate is None:
+            result = tune_profile(args.logdirs, with_truth=args.with_truth, base=args.base,
+                                  share_sensors=args.share_sensors, command=command)
+        else:
+            kinds = None if args.trajectory is None else [k.strip() for k in args.trajectory.split(",")]
+            result = tune_simulated(args.config, args.simulate, kinds, args.seed, with_truth=args.with_truth,
+                                    base=args.base, share_sensors=args.share_sensors, command=command)
+    header = (f"posekit seam profile, fitted by: {command}\n"
               f"from {result.episodes} episode(s), {result.steps} samples "
               f"({'errors against truth.csv' if result.method == 'truth' else 'laser innovations'})")
     write_profile(out, result.profile, header)

@@ -30,7 +30,7 @@ from .engine.densities import (
     robot_measurement,
     transition,
 )
-from .engine.filter import FilterSettings, SeamParticleFilter, StepEstimate, StepInputs
+from .engine.filter import SeamParticleFilter
 from .engine.particles import (
     RESAMPLERS,
     effective_sample_size,
@@ -42,24 +42,22 @@ from .engine.particles import (
     weighted_mean_se3,
 )
 from .engine.seamline import Intersection, SeamLine
+from .engine.step import FilterSettings, StepEstimate, StepInputs
 from .engine.trend import TrendResult, trend_filter
 from .frontend.config import (
     RESAMPLER_NAMES,
     TRAJECTORY_KINDS,
-    CellConfig,
     FilterConfig,
     LayoutNote,
-    RobotConfig,
     SeamConfig,
-    SensorsConfig,
     SimulationConfig,
     TrajectoryConfig,
     apply_overrides,
-    cell_from_config,
     config_from_dict,
     dump_config,
     load_config,
 )
+from .frontend.config_cell import CellConfig, RobotConfig, SensorsConfig, cell_from_config
 from .frontend.profile import (
     DEFAULT_PROFILE,
     ProfileModel,
@@ -180,7 +178,8 @@ from .frontend.design import (
     sensor_design,
     write_design,
 )
-from .frontend.logs import EpisodeLog, LogSetup, log_columns, read_episode_log, write_episode_log
+from .frontend.logs import EpisodeLog, log_columns, read_episode_log, write_episode_log
+from .frontend.logs_setup import LogSetup
 from .frontend.plots import (
     AXIS_LABELS,
     particle_histogram,
@@ -226,8 +225,15 @@ from .frontend.study import (
     write_study,
 )
 from .frontend.tracker import SeamTracker, SeamTrackResult, TrackEstimate, track_log, track_metrics, write_track
+from .frontend.tune import TunedValue, TuneResult, tune_profile, tune_report, tune_simulated
 
 __all__ += [
+    # the profile's tuner (issue 26)
+    "TuneResult",
+    "TunedValue",
+    "tune_profile",
+    "tune_report",
+    "tune_simulated",
     # recorded episodes and the online tracker (issue 15)
     "EpisodeLog",
     "LogSetup",

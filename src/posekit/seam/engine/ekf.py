@@ -20,7 +20,7 @@ import numpy as np
 from posekit.geometry import invert_transform
 from posekit.seam.engine import _linear as _l
 from posekit.seam.engine.densities import joint_compliance, robot_measurement
-from posekit.seam.engine.filter import jitter_variances
+from posekit.seam.engine.step import jitter_variances
 from posekit.seam.model import Cell, Profile
 
 __all__ = ["EpisodeArrays", "LinearisedEpisode", "reading_mounts"]

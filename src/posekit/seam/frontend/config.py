@@ -235,7 +235,7 @@ class FilterConfig(Section):
 
     def settings(self):
         """The :class:`~posekit.seam.engine.filter.FilterSettings` the engine reads."""
-        from posekit.seam.engine.filter import FilterSettings
+        from posekit.seam.engine.step import FilterSettings
 
         return FilterSettings(**{k: getattr(self, k) for k in FilterSettings.__dataclass_fields__})
 

@@ -19,6 +19,7 @@ Format (YAML, version 1)::
     plateau:            # robot density (eq. 7/8): d(f) = d0 + kd |f|, Gaussian tails, the force range fitted
       {d0_mm: .., kd_mm_per_n: .., d0_deg: .., kd_deg_per_n: .., tail_mm: .., tail_deg: .., max_force_n: ..}
     joints: {sigma_deg: ..}
+    spread: {x: .., y: .., z: .., rx: .., ry: .., rz: ..}   # factor on the filter's spread per axis (default 1)
     notes: ["..."]      # the fit's verdicts (values the data did not pin)
 
 Every value is a number (set by hand) or ``{value: v, std: s}`` (fitted, with its 1σ), optionally with a
@@ -130,6 +131,21 @@ class AxesProfile(_Part):
         return v
 
 
+class SpreadProfile(_Part):
+    """Factor per tool axis on the filter's spread (dimensionless; fitted by ``seam tune --with-truth``)."""
+
+    x: _fitted(0.1, 100.0, "")
+    y: _fitted(0.1, 100.0, "")
+    z: _fitted(0.1, 100.0, "")
+    rx: _fitted(0.1, 100.0, "")
+    ry: _fitted(0.1, 100.0, "")
+    rz: _fitted(0.1, 100.0, "")
+
+    def vector(self) -> np.ndarray:
+        """``(6,)``."""
+        return np.array([float(getattr(self, a)) for a in ("x", "y", "z", "rx", "ry", "rz")])
+
+
 class PlateauProfile(_Part):
     """The robot density (eq. 7/8): plateau ``d0 + kd |f|`` (mm; deg), tails beyond it, the force range."""
 
@@ -175,6 +191,7 @@ class ProfileModel(_Part):
     jitter: AxesProfile
     plateau: PlateauProfile
     joints: JointsProfile
+    spread: SpreadProfile = SpreadProfile(x=1.0, y=1.0, z=1.0, rx=1.0, ry=1.0, rz=1.0)
     notes: tuple[str, ...] = Field((), max_length=100)
 
     @field_validator("notes")
@@ -193,7 +210,7 @@ class ProfileModel(_Part):
             d0_mm=float(p.d0_mm), kd_mm_per_n=float(p.kd_mm_per_n), d0_rad=math.radians(float(p.d0_deg)),
             kd_rad_per_n=math.radians(float(p.kd_deg_per_n)), tail_mm=float(p.tail_mm),
             tail_rad=math.radians(float(p.tail_deg)), joint_sigma_rad=math.radians(float(self.joints.sigma_deg)),
-            max_force_n=float(p.max_force_n))
+            max_force_n=float(p.max_force_n), spread_scale=self.spread.vector())
 
     def plain(self) -> dict:
         """The profile as a mapping of bare numbers (no std, no provenance): what a study perturbs."""

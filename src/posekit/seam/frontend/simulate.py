@@ -34,9 +34,10 @@ from posekit.geometry import (
 )
 from posekit.robots import KinematicChain
 from posekit.seam.engine.densities import bending_stretch
-from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.engine.filter import SeamParticleFilter
 from posekit.seam.engine.particles import systematic_resample
 from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.engine.step import StepInputs
 from posekit.seam.engine.trend import TrendResult, trend_filter
 from posekit.seam.frontend.config import RobotConfig, SeamConfig, TrajectoryConfig, cell_from_config
 from posekit.seam.frontend.trajectories import NominalTrajectory, nominal_trajectory

@@ -2,7 +2,7 @@
 
 Online use, one call per sample as the cell produces it::
 
-    from posekit.seam.frontend.logs import LogSetup
+    from posekit.seam.frontend.logs_setup import LogSetup
     from posekit.seam.frontend.tracker import SeamTracker
 
     cfg = setup.seam_config(profile="my-cell-profile.yaml")    # the cell + its fitted profile (seam tune)
@@ -34,7 +34,8 @@ import numpy as np
 from posekit.errors import ConfigError
 from posekit.geometry import invert_transform
 from posekit.seam.engine.densities import joint_compliance
-from posekit.seam.engine.filter import SeamParticleFilter, StepEstimate, StepInputs
+from posekit.seam.engine.filter import SeamParticleFilter
+from posekit.seam.engine.step import StepEstimate, StepInputs
 from posekit.seam.engine.trend import trend_filter
 from posekit.seam.frontend.config import SeamConfig, cell_from_config
 
