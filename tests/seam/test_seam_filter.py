@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from posekit.geometry import rotation_vector_from_matrix, se3_exp
+from posekit.geometry import matrix_from_rotation_vector, rotation_vector_from_matrix, se3_exp
 from posekit.seam.engine.densities import joint_compliance, robot_measurement
 from posekit.seam.engine.seamline import SeamLine
 from posekit.seam.engine.step import StepInputs, jitter_variances
@@ -249,6 +249,15 @@ def test_laser_variance_is_sigma_jitter_and_the_kernels_share_of_the_cloud():
     v = jitter_variances(M[None], j)[0]
     # x: t_x + (r x p)_x = t_x + r_y p_z - r_z p_y = t_x - 40 r_z; z: t_z + r_x p_y = t_z + 40 r_x
     np.testing.assert_allclose(v, [0.01 ** 2 + (40 * 3e-4) ** 2, 0.03 ** 2 + (40 * 1e-4) ** 2], rtol=1e-12)
+    # any mount: the variance of the sensor's x and z components of t + r x p under independent per-axis jitter,
+    # by a million samples
+    R = matrix_from_rotation_vector(np.array([0.1, -0.2, 0.5]))
+    M2 = np.eye(4)
+    M2[:3, :3], M2[:3, 3] = R, [5.0, 40.0, 2.0]
+    xi = np.random.default_rng(1).standard_normal((1_000_000, 6)) * j
+    d = xi[:, :3] + np.cross(xi[:, 3:], M2[:3, 3])
+    np.testing.assert_allclose(jitter_variances(np.stack([M, M2]), j)[1], [np.var(d @ R[:, 0]), np.var(d @ R[:, 2])],
+                               rtol=5e-3)
     # the particles weigh a reading with sigma^2 + jitter + h^2 x the cloud's mean in-plane variance
     cfg, nt, pf = _still_filter(0.0, **{"profile.sensors": [{"latency_s": 0.0, "sigma_mm": 0.05,
                                                              "angle_sigma_deg": 0.2}],

@@ -123,12 +123,7 @@ def build_config(args):
 
     with layout_notes():
         cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
-    if getattr(args, "profile", None) is not None:
-        from ..seam.frontend.profile import load_profile
-
-        data = _config_data(cfg)
-        data["profile"] = load_profile(args.profile).model_dump(mode="python", exclude_none=True)
-        cfg = config_from_dict(data, "--profile")
+    cfg = with_profile(cfg, getattr(args, "profile", None))
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
                              ("--seed", args.seed, 0)):
         if value is not None and value < low:
@@ -139,6 +134,18 @@ def build_config(args):
     if args.sensors is not None:
         cfg = with_sensors(cfg, args.sensors)
     return cfg
+
+
+def with_profile(cfg, path):
+    """``cfg`` with the profile file ``path`` (``--profile``) in place of its own; unchanged for None."""
+    if path is None:
+        return cfg
+    from ..seam.frontend.config import config_from_dict
+    from ..seam.frontend.profile import load_profile
+
+    data = _config_data(cfg)
+    data["profile"] = load_profile(path).model_dump(mode="python", exclude_none=True)
+    return config_from_dict(data, "--profile")
 
 
 class layout_notes:

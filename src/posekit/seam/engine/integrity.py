@@ -53,6 +53,7 @@ the spread itself (a filter whose spread is exact has up to ~1.6 % such steps wi
 import math
 from collections import deque
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.stats import chi2
@@ -72,6 +73,12 @@ __all__ = [
 #: The three statuses, best first.
 STATUSES = ("tracking", "degraded", "lost")
 
+
+
+@lru_cache(maxsize=16384)
+def _chi2_isf(alpha: float, dof: int) -> float:
+    """The upper ``alpha`` quantile of a χ² with ``dof`` degrees of freedom (shared by every monitor)."""
+    return float(chi2.isf(alpha, dof))
 
 def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var) -> tuple[float, int]:
     """Normalised innovation squared of one step's laser readings under the predictive cloud.
@@ -230,7 +237,7 @@ class IntegrityMonitor:
     def _quantiles(self, dof: int) -> tuple[float, float]:
         q = self._q_cache.get(dof)
         if q is None:
-            q = (float(chi2.isf(self.alpha_degraded, dof)), float(chi2.isf(self.alpha_lost, dof)))
+            q = (_chi2_isf(self.alpha_degraded, dof), _chi2_isf(self.alpha_lost, dof))
             self._q_cache[dof] = q
         return q
 

@@ -152,13 +152,9 @@ def jitter_variances(mounts: np.ndarray, jitter: np.ndarray) -> np.ndarray:
     A tool-frame offset ``δ = [t, r]`` moves the sensor's seam point ``p`` (its origin; mm, tool frame) by
     ``t + r × p``; its components along the sensor's x and z axes are what the reading sees.
     """
-    out = np.empty((mounts.shape[0], 2))
+    M = np.asarray(mounts, dtype=np.float64).reshape(-1, 4, 4)
     j2 = np.asarray(jitter, dtype=np.float64) ** 2
-    for i, M in enumerate(mounts):
-        p = M[:3, 3]
-        # d(t + r x p)/d[t, r] = [I, -[p]x]
-        G = np.hstack([np.eye(3), np.array([[0.0, p[2], -p[1]], [-p[2], 0.0, p[0]], [p[1], -p[0], 0.0]])])
-        for c, axis in enumerate((M[:3, 0], M[:3, 2])):
-            row = axis @ G
-            out[i, c] = float(row ** 2 @ j2)
+    axes = np.stack([M[:, :3, 0], M[:, :3, 2]], axis=1)          # (S, 2, 3): the sensor's x and z axes
+    lever = np.cross(M[:, None, :3, 3], axes)                    # d(r x p)/dr along each axis: p x axis
+    out = (axes * axes) @ j2[:3] + (lever * lever) @ j2[3:]
     return out

@@ -39,7 +39,6 @@ def _offsets(log, cell):
     n = len(log.time_s)
     X = np.empty((n, 4, 4))
     K = np.empty((n, 4, 4))
-    eye = np.eye(3)
     for k in range(n):
         meas = robot_measurement(chain, log.q[k], arr.force_base_n[k], joint_sigma_rad=0.0, floor_t_mm=1.0,
                                  floor_r_rad=1.0, d0_mm=0.0, kd_mm_per_n=0.0, d0_rad=0.0, kd_rad_per_n=0.0,
@@ -51,7 +50,6 @@ def _offsets(log, cell):
     delta = np.hstack([rel[:, :3, 3], rotation_vector_from_matrix(rel[:, :3, :3], check=False)])
     dt_base = truth[:, :3, 3] - K[:, :3, 3]
     dr_base = rotation_vector_from_matrix(truth[:, :3, :3] @ np.swapaxes(K[:, :3, :3], 1, 2), check=False)
-    del eye
     return delta, dt_base, dr_base, arr.force_base_n, truth, Tn
 
 
