@@ -75,8 +75,9 @@ def run_loop(args) -> int:
     out_folder(args)
     camera = not args.no_camera
     if camera and importlib.util.find_spec("cv2") is None:
+        from .._extras import install_hint
         print("posekit: note: Table III without the OpenCV camera pipeline, which needs the 'vision' extra: "
-              'pip install "posekit[vision]"', file=sys.stderr)
+              f"{install_hint('vision')}", file=sys.stderr)
         camera = False
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "

@@ -10,7 +10,7 @@ cluster), ranks them by the tool-pose RMSE on the configured seam and writes
 import sys
 
 from ..errors import ConfigError
-from ._common import add_dask_args, add_overwrite, check_dask_args, out_folder, staged
+from ._common import add_dask_args, add_overwrite, check_dask_args, local_scheduler, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_design_parser", "parse_counts"]
@@ -89,7 +89,7 @@ def run_design(args) -> int:
                           f"{MAX_DESIGN_EPISODES:,}")
     out_folder(args)
     design = sensor_design(cfg, counts=counts, distances_mm=grid, angle=args.angle, runs=args.runs, seed=args.seed,
-                           lever_mm=args.lever_mm, scheduler=args.scheduler, n_workers=args.workers)
+                           lever_mm=args.lever_mm, scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
         paths = write_design(design, tmp)
     rows = design.rows()
