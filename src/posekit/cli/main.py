@@ -37,21 +37,30 @@ class _Parser(argparse.ArgumentParser):
 
 def _suggestion(parser: argparse.ArgumentParser, message: str) -> str:
     """``"; did you mean 'X'?"`` for an invalid choice or an unknown ``--flag``, or ``""``."""
-    import difflib
-
     m = _CHOICE.search(message)
     if m:
         choices = [c.strip().strip("'") for c in m.group(2).split(",")]
-        close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.6)
-        return f"; did you mean '{close[0]}'?" if close else ""
+        close = _close(m.group(1), choices)
+        return f"; did you mean '{close}'?" if close else ""
     if message.startswith("unrecognized arguments: "):
         flags = _flags_of_command(parser, getattr(parser, "_argv", []))
         unknown = [a.split("=", 1)[0] for a in message.split(": ", 1)[1].split() if a.startswith("--")]
-        hints = [(a, close[0]) for a in unknown if (close := difflib.get_close_matches(a, flags, n=1, cutoff=0.6))]
+        hints = [(a, close) for a in unknown if (close := _close(a, flags))]
         if len(hints) == 1:
             return f"; did you mean {hints[0][1]}?"
         return ("; did you mean " + ", ".join(f"{good} (for {bad})" for bad, good in hints) + "?") if hints else ""
     return ""
+
+
+def _close(word: str, candidates: list[str]) -> str | None:
+    """The candidate closest to ``word`` (difflib ratio >= 0.6) that starts with the same letter
+    (a typo rarely changes the first one: 'icp' is not 'cpd'), or None."""
+    import difflib
+
+    first = word.lstrip("-")[:1]
+    same = [c for c in candidates if c.lstrip("-")[:1] == first]
+    close = difflib.get_close_matches(word, same, n=1, cutoff=0.6)
+    return close[0] if close else None
 
 
 def _flags_of_command(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
