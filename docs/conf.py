@@ -27,7 +27,7 @@ myst_enable_extensions = ["colon_fence", "dollarmath"]
 myst_heading_anchors = 3
 
 # The API reference: what each package's __all__ lists, in source order, from its real home.
-autodoc_default_options = {"members": True, "member-order": "bysource", "show-inheritance": False}
+autodoc_default_options = {"members": True, "member-order": "bysource"}
 autodoc_typehints = "none"              # the numpydoc sections give types, shapes and units
 autodoc_mock_imports = []
 numpydoc_show_class_members = False     # autodoc's :members: lists them once
@@ -38,3 +38,6 @@ numpydoc_validation_checks = set()
 html_theme = "furo"
 html_title = f"posekit {release}"
 html_static_path = []
+
+# argparse help text is shown as typed: "--out" must not become an en dash
+smartquotes = False
