@@ -1,8 +1,8 @@
 """``posekit seam design``: which sensor configuration to buy for a seam (the paper's purpose).
 
 ``posekit seam design --config CFG --sensors 1,2,3 --distances-mm A:B:STEP --runs R --out DIR``
-simulates every configuration on Dask (a local cluster by default, ``--scheduler`` for a
-cluster), ranks them by the tool-pose RMSE on the configured seam and writes
+simulates every configuration (on a local Dask cluster by default, in this process without Dask,
+``--scheduler`` for a cluster), ranks them by the tool-pose RMSE on the configured seam and writes
 ``DIR/ranking.csv`` (``sensors,distances_mm,rmse_x_mm,…,score``), ``ranking.png`` and
 ``report.html``.
 """
