@@ -7,7 +7,11 @@ from pathlib import Path
 from ..errors import ConfigError
 
 __all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
-           "add_dask_args", "check_dask_args"]
+           "add_dask_args", "check_dask_args", "local_scheduler", "SCHEDULER_HELP"]
+
+#: Help of ``--scheduler`` on the verbs that run their episodes through :func:`posekit.sweep.run_tasks`.
+SCHEDULER_HELP = ("where to run: a Dask scheduler address tcp://HOST:PORT, or 'serial' (this process); default "
+                  "local: a Dask cluster on this machine's cores, or this process without Dask")
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
 OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
@@ -96,8 +100,7 @@ def add_dask_args(parser) -> None:
     (processes of that local cluster) to a verb that runs its episodes on Dask."""
     from ._flags import workers
 
-    parser.add_argument("--scheduler", default=None,
-                        help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    parser.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     parser.add_argument("--workers", type=workers, default=None,
                         help="worker processes of the local cluster, 1..256 (default: one per core)")
 
@@ -106,3 +109,19 @@ def check_dask_args(args) -> None:
     """One-line :class:`ConfigError` when ``--workers`` (the local cluster's size) comes with ``--scheduler``."""
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+
+
+def local_scheduler(args):
+    """The scheduler for :func:`posekit.sweep.run_tasks`: ``--scheduler`` when given; by default a
+    local Dask cluster, or this process (``'serial'``, with a one-line note) when Dask (the
+    'studies' extra) is not installed, so the default invocation needs no Dask."""
+    if args.scheduler is not None or getattr(args, "workers", None) is not None:
+        return args.scheduler
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        from .._extras import install_hint
+        print(f"posekit: note: running in this process; Dask would use every core ({install_hint('studies')})",
+              file=sys.stderr)
+        return "serial"
+    return None

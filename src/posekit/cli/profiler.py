@@ -97,6 +97,7 @@ def add_parser(sub):
 
 
 def run_estimate(args) -> int:
+    from ..profiler.estimate.gauge_check import MIN_CHECK_PROFILES
     from ..profiler.estimate.io import RecordWriter
     from ..profiler.estimate.pipeline import estimate_profiles
     from ..profiler.stream.sources import read_profile_file
@@ -122,7 +123,7 @@ def run_estimate(args) -> int:
     check = res.gauge_check
     if check.passed is False:
         print(f"posekit: {check.message}; every pose of the batch is marked suspect", file=sys.stderr)
-    else:
+    elif check.passed or len(profiles) >= MIN_CHECK_PROFILES:   # a batch too small to check it is no news
         print(f"posekit: note: {check.message}", file=sys.stderr)
     if reversed_count:
         print(f"posekit: note: {reversed_count} of {len(profiles)} profiles had their corners in reverse "

@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_deprecated, add_overwrite, out_folder, parse_triplet, staged
+from ._common import SCHEDULER_HELP, add_deprecated, add_overwrite, local_scheduler, out_folder, parse_triplet, staged
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed, workers
 
 __all__ = ["add_study_parser", "parse_numbers"]
@@ -68,8 +68,7 @@ def _common(p, out_default):
     p.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same numbers; default 0)")
     p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run)")
     add_overwrite(p, out_default)
-    p.add_argument("--scheduler", default=None,
-                   help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    p.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     p.add_argument("--workers", type=workers, default=None,
                    help="worker processes of the local cluster, 1..256 (default: one per core)")
 
@@ -210,7 +209,7 @@ def run_study(args) -> int:
     fn, cfg = _build(args)
     _check_size(args, cfg)
     out_folder(args)
-    study = fn(cfg, scheduler=args.scheduler, n_workers=args.workers)
+    study = fn(cfg, scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
         write_report(study, tmp)
     report = Path(args.out) / "report.html"

@@ -415,7 +415,7 @@ def render_markers(
     frame is the background with the same grey-level noise (for the default wall, one of a
     few cached noisy frames); blurring the smooth background there would change nothing.
     The grey-level noise is a cached unit Gaussian field, shifted by a random offset and
-    sign per frame, so every pixel's noise is N(0, ``noise_gray``²), independent between
+    sign per frame, so every pixel's noise is normal with std ``noise_gray``, independent between
     neighbouring pixels.
 
     Parameters

@@ -395,8 +395,65 @@ def _fmt_x(values):
     return "[" + ", ".join(f"{v:.1f}" for v in values) + "]"
 
 
-def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge"):
-    """Turn a failed kernel status into a :class:`ProfileError` that says what went wrong."""
+#: Largest relative misfit of the distances between found corners and a run of the gauge's ridges
+#: for the corners to be part of that gauge. Measured on the bundled gauges (6 poses each, one or two
+#: corners cut away): the right gauge fits within 0.17, demo-5/demo-7 profiles against demo-10 miss by 0.30-0.56.
+WRONG_GAUGE_MISFIT = 0.25
+#: Returns (mm, along x) beyond a missing ridge that still count as "not in view" (its rounded edge, noise).
+WRONG_GAUGE_MARGIN_MM = 2.0
+
+
+def wrong_gauge_reason(corners_xz, span_x, gauge: Gauge) -> str | None:
+    """Why the corners found cannot belong to ``gauge`` with some of its corners out of view, or None.
+
+    The corners found must be pierce points of a run of consecutive ridges: their distances match
+    the ridges' (at some y, stretched by at most 10 % for a turned laser line) within
+    :data:`WRONG_GAUGE_MISFIT`, and each ridge outside the run lies beyond the returns (else it
+    would have been seen).
+
+    Parameters
+    ----------
+    corners_xz : ndarray, shape (F, 2)
+        Corners found, in scan order, (x, z) in F, mm; F < gauge.n_corners.
+    span_x : tuple of float
+        x of the first and the last return of the profile, mm.
+    gauge : Gauge
+
+    Returns
+    -------
+    str or None
+        The reason, naming the gauge, when no run of its ridges explains the corners.
+    """
+    c = np.asarray(corners_xz, dtype=float)
+    found, n = len(c), gauge.n_corners
+    if found < 3 or found >= n:
+        return None
+    d = np.linalg.norm(np.diff(c, axis=0), axis=1)
+    ext = (abs(c[0, 0] - span_x[0]), abs(span_x[1] - c[-1, 0]))      # returns beyond the outer corners
+    ys = np.linspace(gauge.y_range[0], gauge.y_range[1], 41)
+    P = gauge.ridge_q[None] + ys[:, None, None] * gauge.ridge_s[None]  # ridge points at each y, (Y, n, 3)
+    D = np.linalg.norm(np.diff(P, axis=1), axis=2)                     # ridge-to-ridge distances, (Y, n-1)
+    Dx = np.abs(np.diff(P[..., 0], axis=1))
+    for k in range(n - found + 1):
+        W = D[:, k:k + found - 1]
+        for rev, dd in ((False, d), (True, d[::-1])):
+            scale = np.clip((W * dd).sum(1) / (W * W).sum(1), 1.0, 1.1)
+            fits = (np.abs(dd - scale[:, None] * W) / W).max(1) <= WRONG_GAUGE_MISFIT
+            before = Dx[:, k - 1] * scale if k > 0 else np.full(len(ys), np.inf)
+            after = Dx[:, k + found - 1] * scale if k + found - 1 < n - 1 else np.full(len(ys), np.inf)
+            left, right = (after, before) if rev else (before, after)
+            hidden = (left > ext[0] - WRONG_GAUGE_MARGIN_MM) & (right > ext[1] - WRONG_GAUGE_MARGIN_MM)
+            if np.any(fits & hidden):
+                return None
+    return (f"the {found} corners found fit no {found} consecutive ridges of gauge '{gauge.name}' with the rest out "
+            f"of view (the returns span x = {span_x[0]:.1f}..{span_x[1]:.1f} mm): wrong gauge file?")
+
+
+def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge", gauge: Gauge | None = None):
+    """Turn a failed kernel status into a :class:`ProfileError` that says what went wrong.
+
+    With ``gauge``, missing corners that no run of its ridges explains are called a wrong gauge
+    (:func:`wrong_gauge_reason`) instead of corners out of view."""
     what = f"expected {n_corners} corners for gauge '{gauge_name}'"
     if status == NO_POINTS:
         if info[1] == 0:
@@ -408,6 +465,9 @@ def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge"):
     if status == MISSING:
         found = int(info[0])
         where = _fmt_x(cand[:found, 0]) if found else "none"
+        wrong = None if gauge is None else wrong_gauge_reason(cand[:found, :2], cand[n_corners, :2], gauge)
+        if wrong is not None:
+            raise ProfileError(f"{what}, found {found} (at x = {where} mm); {wrong}")
         raise ProfileError(
             f"{what}, found {found} (at x = {where} mm); missing corner(s): the returns span "
             f"x = {cand[n_corners, 0]:.1f}..{cand[n_corners, 1]:.1f} mm, so part of the gauge is "
@@ -508,5 +568,5 @@ def detect_corners(profile, n_corners, params=CornerParams(), gauge_name="gauge"
     status, info, corners, cov, lines, sig, npts, cand = detect_corners_unchecked(
         arr, int(n_corners), params, turns)
     if status != OK:
-        raise_for_status(status, info, npts, cand, n_corners, gauge_name)
+        raise_for_status(status, info, npts, cand, n_corners, gauge_name, gauge)
     return Corners(points=corners, cov=cov, lines=lines, sigma=sig, n_points=npts)

@@ -133,7 +133,7 @@ def estimate_profile_unchecked(points, gauge, params: CornerParams, turns, metho
     n_valid = int(info[1])
     if status != 0:
         try:
-            raise_for_status(status, info, npts, cand, n, gauge.name)
+            raise_for_status(status, info, npts, cand, n, gauge.name, gauge)
         except ProfileError as exc:
             return ProfileResult("error", error=str(exc), n_valid=n_valid, detect_ns=detect_ns)
     corners = Corners(points=pts, cov=ccov, lines=lines, sigma=sig, n_points=npts)

@@ -176,6 +176,19 @@ class Gauge:
         return np.where(inside, z, np.nan)
 
 
+def _refuse_metres(where: str, offsets, ridge_q, extent) -> None:
+    """A GaugeError when the gauge's sizes fit metres, not mm: every face within 2 of the origin,
+    the ridges within 1 of each other and the extent (if any) within ±2. No usable gauge in mm
+    is that small (its ridges are at least MIN_RIDGE_GAP_MM apart)."""
+    sizes = [np.abs(offsets).max(), np.abs(ridge_q[:, [0, 2]]).max()]
+    if extent is not None:
+        sizes.append(np.abs(np.asarray(extent, dtype=np.float64)).max())
+    span = np.ptp(ridge_q[:, 0])
+    if max(sizes) < 2.0 and span < 1.0:
+        raise GaugeError(f"{where}: looks like metres (every offset and ridge within 2 of the origin, the ridges span "
+                         f"{span:.3g} in x); posekit expects mm (multiply offset and extent by 1000)")
+
+
 def _build(name: str, normals, offsets, extent, source: str, tolerance_um: float = 0.0) -> Gauge:
     normals = np.asarray(normals, dtype=np.float64)
     offsets = np.asarray(offsets, dtype=np.float64)
@@ -224,6 +237,7 @@ def _build(name: str, normals, offsets, extent, source: str, tolerance_um: float
     rhs = np.stack([offsets[:-1], offsets[1:]], axis=1)
     xz = np.linalg.solve(mats, rhs[..., None])[..., 0]
     q = np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1)
+    _refuse_metres(where, offsets, q, extent)
 
     if extent is None:
         span = q[-1, 0] - q[0, 0]
