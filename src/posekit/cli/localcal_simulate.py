@@ -59,7 +59,7 @@ def add_simulate_parser(verbs):
                         "URDF file of your own arm")
     s.add_argument("--base-link", default=None, help="URDF robot: the chain's base link (default: the root)")
     s.add_argument("--tip-link", default=None,
-                   help="URDF robot: the TCP link the camera is mounted on (default: the deepest leaf)")
+                   help="URDF robot: the TCP link the camera is mounted on (default: the arm's tip, fingers left out)")
     s.add_argument("--start-q-deg", default=None,
                    help="start joint values, comma-separated, deg (mm for prismatic joints); required "
                         "for any robot but hiab033")
@@ -148,7 +148,10 @@ def _robot_options(args) -> dict:
         options["start_q"] = tuple(rad)
     elif args.robot != "hiab033":
         raise ConfigError(f"--start-q-deg: required for --robot {args.robot} (the crane's start pose fits only "
-                          "the crane); give the arm's start joint values in deg")
+                          f"the crane); give its {model.n_joints} start joint values in deg (chain "
+                          f"{getattr(model, 'base_link', 'base')} → {getattr(model, 'tip_link', 'flange')})")
+    if args.robot != "hiab033":
+        print(f"robot {model.summary}" + "".join(f"; {note}" for note in getattr(model, "notes", ())))
     return options
 
 
