@@ -389,12 +389,22 @@ def _with_uncertainty(reg, src, dst, offset_estimated=False, with_scale=False):
         pd, tangents = smooth[i_d], tg[i_d]
     cov, _ = registration_covariance(src.positions[i_s], pd, reg.R, reg.t_mm, reg.scale, tangents=tangents,
                                      velocities=vel, fit_scale=with_scale)
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     extra = {}
+    if with_scale and reg.mode == "timestamps":
+        drift = scale_drift(src.positions[i_s], dst.positions[i_d], reg.R)
+        extra["scale_drift"] = drift
+        if drift is not None:
+            # one scale holds only on average along a drifting path: the scale at either end differs
+            # from it by half the drift. Its (log) variance, drift measured or not, widens the scale's
+            # and, through t = mean_dst - s R mean_src, the translation's covariance
+            v = (drift.relative ** 2 + drift.std ** 2) / 4.0
+            g = reg.scale * reg.R @ src.positions[i_s].mean(0)
+            cov = cov.copy()
+            cov[3:6, 3:6] += v * np.outer(g, g)
+            cov[6, 6] += v
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     if with_scale:
         extra["std_scale"] = float(reg.scale * sd[6])
-        if reg.mode == "timestamps":
-            extra["scale_drift"] = scale_drift(src.positions[i_s], dst.positions[i_d], reg.R)
     return replace(reg, std_rot_deg=np.rad2deg(sd[:3]), std_t_mm=sd[3:6], **extra)
 
 

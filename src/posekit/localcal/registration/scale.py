@@ -100,9 +100,11 @@ def scale_drift(p_src, p_dst, R, *, alpha: float = SCALE_ALPHA) -> ScaleDrift | 
         return None
     u = arc / arc[-1]
     # equal path length per segment, each with at least MIN_SEGMENT_PAIRS pairs
-    cuts = np.searchsorted(u, np.linspace(0.0, 1.0, k + 1)[1:-1])
-    cuts = np.clip(cuts, MIN_SEGMENT_PAIRS * np.arange(1, k), n - MIN_SEGMENT_PAIRS * np.arange(k - 1, 0, -1))
-    bounds = np.r_[0, cuts, n]
+    bounds = np.r_[0, np.searchsorted(u, np.linspace(0.0, 1.0, k + 1)[1:-1]), n]
+    for i in range(1, k):                                   # each segment at least MIN_SEGMENT_PAIRS long
+        bounds[i] = max(bounds[i], bounds[i - 1] + MIN_SEGMENT_PAIRS)
+    for i in range(k - 1, 0, -1):
+        bounds[i] = min(bounds[i], bounds[i + 1] - MIN_SEGMENT_PAIRS)
     scales, variances, centres = [], [], []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         a = p_src[lo:hi] @ R.T
