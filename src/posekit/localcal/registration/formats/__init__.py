@@ -69,7 +69,8 @@ def detect_format(path) -> str:
 
 
 def read_trajectory(path, fmt: str | None = None, topic: str | None = None,
-                    rate_hz: float | None = None) -> Trajectory:
+                    rate_hz: float | None = None, tf_parent: str | None = None,
+                    tf_child: str | None = None) -> Trajectory:
     """Read a trajectory file in any supported format.
 
     Parameters
@@ -83,6 +84,8 @@ def read_trajectory(path, fmt: str | None = None, topic: str | None = None,
         the other formats.
     rate_hz : float, optional
         Frame rate of a KITTI file, Hz (required for KITTI; ignored by the formats with time).
+    tf_parent, tf_child : str, optional
+        A bag's transform ``T_parent_child`` from ``/tf`` + ``/tf_static`` instead of a pose topic.
 
     Returns
     -------
@@ -105,5 +108,7 @@ def read_trajectory(path, fmt: str | None = None, topic: str | None = None,
     if fmt == "euroc":
         return read_euroc(path)
     if fmt == "rosbag":
-        return read_rosbag(path, topic)
+        return read_rosbag(path, topic, tf_parent, tf_child)
+    if tf_parent is not None or tf_child is not None:
+        raise TrajectoryError(f"{path}: --tf-parent/--tf-child read a ROS bag; this is a {fmt} file")
     raise TrajectoryError(f"unknown trajectory format {fmt!r}; expected one of {', '.join(FORMATS)}")
