@@ -80,7 +80,8 @@ def read_trajectory_args(args, path, role: str | None = None):
     Returns
     -------
     posekit.localcal.registration.tum.Trajectory
-        Timestamps in s, poses in mm.
+        Timestamps in s, poses in mm. What the reader decided for the user (a format the rows
+        chose against the suffix) is appended to ``args._input_notes``.
     """
     from ..localcal.registration.formats import read_trajectory
 
@@ -91,8 +92,10 @@ def read_trajectory_args(args, path, role: str | None = None):
         own = getattr(args, f"{role}_{name}", None) if role else None
         return own if own is not None else getattr(args, name, None)
 
+    notes = []
     traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"),
-                           tf_parent=pick("tf_parent"), tf_child=pick("tf_child"))
+                           tf_parent=pick("tf_parent"), tf_child=pick("tf_child"), notes=notes)
+    args._input_notes = getattr(args, "_input_notes", []) + notes
     if role is not None:
         args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
     return traj
@@ -151,12 +154,13 @@ def finish_result(out, result, summary: list[str], what: str) -> int:
     import sys
 
     from ..io import write_text_atomic
+    from ..verdict import batch_exit_code
 
     path = write_text_atomic(out, json.dumps(result.to_json(), indent=2) + "\n")
     for line in summary:
         print(line)
     print(f"wrote {path}")
-    if result.status != "ok":
+    code = batch_exit_code([result.status])
+    if code:
         print(f"posekit: suspect {what}: {'; '.join(result.reasons)}", file=sys.stderr)
-        return 1
-    return 0
+    return code
