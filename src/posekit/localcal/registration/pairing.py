@@ -99,14 +99,13 @@ def without_duplicates(traj: Trajectory, name: str):
     return Trajectory(traj.t_s[keep], traj.T[keep]), keep, note
 
 
-def _interpolated(dst: Trajectory, t_query: np.ndarray):
-    """dst poses at ``t_query`` where dst has data (no gap beyond :func:`typical_gap`): (poses, valid)."""
-    if len(dst) < 2:
-        return np.zeros((0, 4, 4)), np.zeros(t_query.size, dtype=bool)
-    interp = PoseInterpolator(dst.t_s, dst.T)
-    k, _, outside = interp.segment(t_query)
-    valid = (outside == 0) & (np.diff(dst.t_s)[k] <= typical_gap(dst.t_s))
-    return interp(t_query[valid]), valid
+def _inside(t_dst: np.ndarray, t_query: np.ndarray) -> np.ndarray:
+    """Where dst has data around each query time: inside its span, between two samples no further
+    apart than :func:`.association.typical_gap`, shape (M,) bool."""
+    if t_dst.size < 2:
+        return np.zeros(t_query.size, dtype=bool)
+    k = np.clip(np.searchsorted(t_dst, t_query, side="right") - 1, 0, t_dst.size - 2)
+    return (t_query >= t_dst[0]) & (t_query <= t_dst[-1]) & (t_dst[k + 1] - t_dst[k] <= typical_gap(t_dst))
 
 
 def pair_by_time(src: Trajectory, dst: Trajectory, *, max_dt_s: float, time_offset_s: float | None,
@@ -165,13 +164,14 @@ def pair_by_time(src: Trajectory, dst: Trajectory, *, max_dt_s: float, time_offs
         offset = float(time_offset_s)
     i_s, i_d = associate(src.t_s, dst.t_s, max_dt_s=max_dt_s, offset_s=offset)
     mode = "nearest"
-    T_interp, inside = _interpolated(dst, src.t_s + offset)
+    inside = _inside(dst.t_s, src.t_s + offset)
     if i_s.size < max(MIN_POSES, INTERPOLATE_BELOW * int(inside.sum())):
         if inside.sum() >= MIN_POSES:
             notes.append(f"only {i_s.size} of the {int(inside.sum())} {names[0]} poses inside {names[1]}'s recording "
                          f"have a {names[1]} pose within {max_dt_s:g} s at a clock offset of {offset:+.3f} s: "
                          f"{names[1]} poses interpolated at the {names[0]} stamps instead")
             i_s = np.flatnonzero(inside)
+            T_interp = PoseInterpolator(dst.t_s, dst.T)(src.t_s[i_s] + offset)
             dst = Trajectory(src.t_s[i_s] + offset, T_interp)
             i_d, keep_d, mode = np.arange(i_s.size), np.full(i_s.size, -1), "interpolated"
         else:
