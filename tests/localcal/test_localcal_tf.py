@@ -207,3 +207,15 @@ def test_real_ros1_and_ros2_tf_bags_give_the_same_trajectory():
     assert len(a) == 517
     np.testing.assert_array_equal(a.t_s, b.t_s)
     np.testing.assert_allclose(a.T, b.T, atol=1e-9)
+
+
+def test_handeye_takes_the_same_tf_flags(tree, tmp_path):
+    """handeye reads its inputs through the same flags: the camera from /tf, the tool from a TUM file."""
+    from posekit.cli.localcal_inputs import read_trajectory_args
+    from posekit.cli.main import build_parser
+
+    bag = write_tf_bag(tmp_path / "cell.bag", tree, ros=1)
+    args = build_parser().parse_args(["localcal", "handeye", str(bag), "kin.tum", "--camera-tf-parent", "world",
+                                      "--camera-tf-child", "camera", "--out", "h.json"])
+    cam = read_trajectory_args(args, args.camera, role="camera")
+    np.testing.assert_allclose(cam.T, read_trajectory(bag, tf_parent="world", tf_child="camera").T)
