@@ -46,6 +46,19 @@ _MAX_LISTED = 10
 _MOVING = ("revolute", "continuous", "prismatic")
 
 
+def _names(names, quote: bool = False, limit: int = 120) -> str:
+    """Names joined by ', ' up to about ``limit`` characters, then 'and N more'."""
+    names = list(names)
+    out, used = [], 0
+    for k, n in enumerate(names):
+        item = f"'{n}'" if quote else str(n)
+        if out and used + len(item) > limit:
+            return ", ".join(out) + f" and {len(names) - k} more"
+        out.append(item)
+        used += len(item) + 2
+    return ", ".join(out)
+
+
 def _independent(j) -> bool:
     """A moving joint that mimics no other joint and is not a gripper's (by its name)."""
     return j.type in _MOVING and j.mimic is None and not _GRIPPER.search(j.name)
@@ -100,9 +113,8 @@ class JointTree:
         for j in joints:
             for role, link in (("parent", j.parent), ("child", j.child)):
                 if link not in names:
-                    shown = ", ".join(sorted(names)[:_MAX_LISTED])
                     raise ConfigError(f"{path}: joint '{j.name}': {role} link '{link}' is not defined; "
-                                      f"expected one of {shown}")
+                                      f"expected one of {_names(sorted(names))}")
             if j.child in self.parent_of:
                 raise ConfigError(f"{path}: unsupported URDF: closed loop (link '{j.child}' is the child of "
                                   f"joints '{self.parent_of[j.child].name}' and '{j.name}'); expected a tree")
@@ -172,11 +184,9 @@ class JointTree:
                 stack.extend(reversed(tie[2]))
         if ties:
             at, top, branches = ties[0]
-            names = ", ".join(f"'{t.tip}'" for t in found[:_MAX_LISTED])
-            more = f" and {len(found) - _MAX_LISTED} more" if len(found) > _MAX_LISTED else ""
             raise ConfigError(f"{self.path}: the default tip is ambiguous: the tree branches at '{at}' into "
-                              f"{len(branches)} chains of {top} moving joints; candidate tips {names}{more}; "
-                              "pass tip_link (--tip-link)")
+                              f"{len(branches)} chains of {top} moving joints; candidate tips "
+                              f"{_names((t.tip for t in found), quote=True)}; pass tip_link (--tip-link)")
         return found[0]
 
     def _walk(self, link: str, arm: int, weight: dict, moves: dict):

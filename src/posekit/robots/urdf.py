@@ -31,7 +31,7 @@ import numpy as np
 
 from posekit.errors import ConfigError
 
-from ._urdf_tree import JointTree
+from ._urdf_tree import JointTree, _names
 from .chain import PRISMATIC, REVOLUTE, SerialChain
 
 __all__ = ["MAX_ORIGIN_M", "MAX_URDF_BYTES", "load_urdf"]
@@ -224,7 +224,7 @@ def load_urdf(path, base_link: str | None = None, tip_link: str | None = None, *
     links = tree.links
     for role, link in (("base_link", base_link), ("tip_link", tip_link)):
         if link is not None and link not in tree.children:
-            raise ConfigError(f"{path}: unknown {role} '{link}'; the file's links are {', '.join(links[:40])}")
+            raise ConfigError(f"{path}: unknown {role} '{link}'; the file's links are {_names(links)}")
     base = base_link if base_link is not None else tree.root()
     notes = []
     if tip_link is None:

@@ -38,10 +38,16 @@ def _frame(name: str) -> str:
     return str(name).lstrip("/")
 
 
-def _listing(frames) -> str:
+def _listing(frames, limit: int = 120) -> str:
+    """Sorted names joined by ', ' up to about ``limit`` characters (and at most ``_LISTED``), then 'and N more'."""
     frames = sorted(frames)
-    more = f" and {len(frames) - _LISTED} more" if len(frames) > _LISTED else ""
-    return ", ".join(frames[:_LISTED]) + more
+    out, used = [], 0
+    for k, f in enumerate(frames):
+        if out and (used + len(f) > limit or k >= _LISTED):
+            return ", ".join(out) + f" and {len(frames) - k} more"
+        out.append(f)
+        used += len(f) + 2
+    return ", ".join(out)
 
 
 def _collect(reader, path, connections, limit):
