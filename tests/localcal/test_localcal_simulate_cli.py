@@ -192,7 +192,8 @@ def test_a_small_arm_that_loses_the_markers_gets_a_hint(tmp_path, capsys):
     from pathlib import Path
 
     urdf = Path(__file__).resolve().parents[1] / "data" / "urdf" / "kuka_iiwa14_r820.urdf"
-    rc = main(["localcal", "simulate", "--method", "line", "--runs", "1", "--plot-hz", "0", "--robot", str(urdf),
+    rc = main(["localcal", "simulate", "--method", "line", "--runs", "1", "--plot-hz", "0", "--camera-hz", "2",
+               "--robot", str(urdf),
                "--start-q-deg", "0,30,0,-60,0,60,0", "--out", str(tmp_path / "o")])
     captured = capsys.readouterr()
     assert rc == 1
