@@ -92,7 +92,7 @@ def _time_server(gauge, count=1000, passes=3):
     """The pose server's per-frame pose computation (PC: pose, covariance, verdict, record; the
     ``timing_ms.PC`` of a streamed record) on a smooth closed trajectory, as at 1 kHz."""
     from posekit.profiler import NoiseModel, render_profiles
-    from posekit.profiler.estimate.sensor import loop_poses
+    from posekit.profiler.sim.render import loop_poses
     from posekit.profiler.stream.protocol import Frame
     from posekit.profiler.stream.server import PoseServer
 
@@ -142,7 +142,7 @@ def _stats(a):
 def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-    from posekit.profiler.estimate.realism import RealismModel
+    from posekit.profiler.sim.realism import RealismModel
 
     count = 2000 if count is None else max(int(count), 100)
     gauge = bundled_gauge("demo-5")

@@ -14,8 +14,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from posekit import __version__
 from posekit.cli.main import main
-from posekit.profiler.estimate.gauge import load_gauge
-from posekit.profiler.estimate.io import read_truth_csv
+from posekit.profiler.gauge.model import load_gauge
+from posekit.profiler.stream.records import read_truth_csv
 
 GAUGE_DIR = Path(__file__).resolve().parents[2] / "examples" / "gauges"
 GAUGES = sorted(GAUGE_DIR.glob("*.yaml"))
@@ -392,8 +392,8 @@ def test_noisier_than_assumed_is_suspect_and_exit_1(capsys, tmp_path):
 
 
 def test_wrong_gauge_file_is_suspect_in_csv(capsys, tmp_path):
-    from posekit.profiler.estimate.design import random_gauge
-    from posekit.profiler.estimate.gauge import gauge_to_yaml
+    from posekit.profiler.gauge.design import random_gauge
+    from posekit.profiler.gauge.model import gauge_to_yaml
 
     npz, _ = simulate(capsys, DEMO5, tmp_path / "sim", noise_um=1)
     other = tmp_path / "other.yaml"
@@ -455,7 +455,7 @@ def test_gauge_tolerance_from_the_file(capsys, tmp_path):
 
 def test_symmetric_gauge_needs_the_mounting(capsys, tmp_path):
     from posekit.profiler import NoiseModel, gauge_from_design, render_profiles, sample_poses
-    from posekit.profiler.estimate.gauge import gauge_to_yaml
+    from posekit.profiler.gauge.model import gauge_to_yaml
 
     a = [0.5, -0.45, 0.4, -0.4, 0.45, -0.5]
     u = [0.25, -0.1, 0.15, -0.1, 0.25]

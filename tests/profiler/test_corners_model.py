@@ -19,8 +19,8 @@ from posekit.profiler import (
     solve_pose,
 )
 from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
-from posekit.profiler.estimate.realism import RealismModel, true_corners
 from posekit.profiler.estimate.segments import expected_turns
+from posekit.profiler.sim.realism import RealismModel, true_corners
 
 NOISELESS = NoiseModel(0.0, 0.0)
 

@@ -28,9 +28,8 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.estimate.gauge import bundled_gauge_path
-from posekit.profiler.estimate.gauge_bundle import bundle_residuals, plane_params
-from posekit.profiler.estimate.gauge_calibration import (
+from posekit.profiler.gauge.bundle import bundle_residuals, plane_params
+from posekit.profiler.gauge.calibration import (
     NEEDED,
     as_built_yaml,
     calibrate_gauge,
@@ -39,6 +38,7 @@ from posekit.profiler.estimate.gauge_calibration import (
     face_deviation_um,
     hinge_constraints,
 )
+from posekit.profiler.gauge.model import bundled_gauge_path
 
 TOO_FEW = ("profiles: 30 of 30 profiles show all 5 corners of gauge 'demo-5'; take >= 50 profiles with the laser "
            "line turned about the line of sight by up to ±10-15° (yaw) and tilted by a few degrees, crossing the "

@@ -17,8 +17,8 @@ from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_quaternion, rotation_vector_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, nominal_pose, render_profiles
-from posekit.profiler.estimate.io import read_truth_csv
 from posekit.profiler.stream.pose_filter import ConstantVelocityFilter
+from posekit.profiler.stream.records import read_truth_csv
 from posekit.profiler.stream.server import PoseServer
 from posekit.profiler.stream.server_records import SERVE_CSV_COLUMNS
 

@@ -1,4 +1,4 @@
-"""The realistic simulator (posekit.profiler.estimate.realism): each defect does what it says, and only that."""
+"""The realistic simulator (posekit.profiler.sim.realism): each defect does what it says, and only that."""
 
 from dataclasses import replace
 
@@ -8,7 +8,7 @@ import pytest
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.profiler import LJ_X8400, NoiseModel, nominal_pose, render_profiles, sample_poses
-from posekit.profiler.estimate.realism import (
+from posekit.profiler.sim.realism import (
     EDGE,
     FIXTURE,
     PLATE,

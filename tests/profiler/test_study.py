@@ -15,7 +15,7 @@ import pytest
 from posekit.cli.profiler_study import add_study_parser, parse_numbers
 from posekit.errors import ConfigError, PosekitError
 from posekit.geometry import matrix_from_rotation_vector
-from posekit.profiler.estimate.gauge import bundled_gauge
+from posekit.profiler.gauge.model import bundled_gauge
 from posekit.profiler.studies.study import (
     GAP_COLUMNS,
     PAPER_TABLE1,

@@ -25,10 +25,10 @@ import yaml
 
 from posekit.errors import PosekitError
 from posekit.profiler import NoiseModel, bundled_gauge, load_gauge, render_profiles, sample_poses
-from posekit.profiler.estimate.design import random_gauge
-from posekit.profiler.estimate.gauge import gauge_to_yaml
 from posekit.profiler.estimate.pipeline import estimate_pose
 from posekit.profiler.estimate.solve import DEFAULT_SIGNIFICANCE
+from posekit.profiler.gauge.design import random_gauge
+from posekit.profiler.gauge.model import gauge_to_yaml
 
 GAUGES = ["demo-4", "demo-5", "demo-7", "demo-10"]
 #: Faces of demo-5 whose 20 µm offset a single profile can see; an offset of faces 1, 3 or 5

@@ -23,7 +23,7 @@ def add_overwrite(parser, out_default: str | None = None) -> None:
 
 def resolve_gauge(arg: str):
     """Load a gauge from a path, or a bundled one by name (``demo-5``)."""
-    from ..profiler.estimate.gauge import BUNDLED_GAUGES, bundled_gauge, load_gauge
+    from ..profiler.gauge.model import BUNDLED_GAUGES, bundled_gauge, load_gauge
     path = Path(arg)
     if not path.exists() and arg in BUNDLED_GAUGES:
         return bundled_gauge(arg)

@@ -25,8 +25,8 @@ def add_accuracy_arguments(p):
 
 def run_accuracy(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.estimate.evaluate import accuracy_table, evaluate
-    from ..profiler.estimate.sensor import NoiseModel
+    from ..profiler.sim.render import NoiseModel
+    from ..profiler.studies.evaluate import accuracy_table, evaluate
     from ._common import resolve_gauge
 
     if args.count < 1:

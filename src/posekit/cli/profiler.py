@@ -97,8 +97,8 @@ def add_parser(sub):
 
 
 def run_estimate(args) -> int:
-    from ..profiler.estimate.io import RecordWriter
     from ..profiler.estimate.pipeline import estimate_profiles
+    from ..profiler.stream.records import RecordWriter
     from ..profiler.stream.sources import read_profile_file
     from .profiler_replay import read_options
 
@@ -138,8 +138,8 @@ def run_estimate(args) -> int:
 
 def _estimator_noise(args):
     """The noise model and significance the estimate assumes (``--noise-um``, ``--noise-x-um``, ``--significance``)."""
-    from ..profiler.estimate.sensor import NoiseModel
     from ..profiler.estimate.solve import DEFAULT_SIGNIFICANCE
+    from ..profiler.sim.render import NoiseModel
 
     noise_x = 2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um
     if noise_x + args.noise_um <= 0:
@@ -153,7 +153,7 @@ def _estimator_noise(args):
 
 def _estimate_gauge(args):
     """The gauge of ``--gauge`` (a path or a bundled name) loaded for ``--mounting``."""
-    from ..profiler.estimate.gauge import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
+    from ..profiler.gauge.model import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
 
     path = Path(args.gauge)
     if not path.exists() and args.gauge in BUNDLED_GAUGES:
@@ -174,8 +174,8 @@ def run_simulate(args) -> int:
 
     from ..errors import ConfigError
     from ..geometry import quaternion_from_matrix
-    from ..profiler.estimate.io import write_truth_csv
-    from ..profiler.estimate.sensor import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
+    from ..profiler.sim.render import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
+    from ..profiler.stream.records import write_truth_csv
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
@@ -209,8 +209,8 @@ def run_simulate(args) -> int:
 
 def run_calibrate_gauge(args) -> int:
     from ..io import write_text_atomic
-    from ..profiler.estimate.gauge_calibration import as_built_yaml, calibrate_gauge
-    from ..profiler.estimate.io import read_profiles
+    from ..profiler.gauge.calibration import as_built_yaml, calibrate_gauge
+    from ..profiler.stream.records import read_profiles
 
     out = Path(args.out)
     if out.suffix.lower() not in (".yaml", ".yml"):

@@ -47,9 +47,9 @@ def run_loop(args) -> int:
     import numpy as np
 
     from ..errors import ConfigError
-    from ..profiler.estimate.sensor import NoiseModel
     from ..profiler.loop.loop import run_loop_experiment
     from ..profiler.loop.loop_report import format_table3, format_table4, write_loop_report
+    from ..profiler.sim.render import NoiseModel
 
     try:
         steps = tuple(float(v) for v in args.steps_mm.split(","))

@@ -125,8 +125,8 @@ def _controller(args, gauge):
 
     from ..errors import ConfigError
     from ..geometry import matrix_from_quaternion
-    from ..profiler.estimate.sensor import LJ_X8400, nominal_pose
     from ..profiler.loop.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController, TargetCompensator
+    from ..profiler.sim.render import LJ_X8400, nominal_pose
 
     given = [f for f in _CONTROL_FLAGS if getattr(args, f) is not None]
     if given and args.controller != "pd":

@@ -3,7 +3,7 @@
 Pipeline: :func:`detect_corners` (paper §II-D; model-based when given the gauge) →
 :func:`solve_pose` (closed form eq. 9–14 and maximum-likelihood refinement, with the pose
 covariance and a χ² verdict). :func:`estimate_pose` does both.
-:mod:`~posekit.profiler.estimate.sensor` simulates an LJ-X8400-like sensor, ideal or with
+:mod:`~posekit.profiler.sim.render` simulates an LJ-X8400-like sensor, ideal or with
 :class:`RealismModel`'s defects; :func:`calibrate_gauge` recovers the as-built gauge and :func:`estimate_profiles` tests the gauge file
 against a whole batch (:func:`check_gauge_file`);
 :class:`ProfileSource` is the interface a sensor (or a vendor SDK) plugs into.
@@ -13,13 +13,13 @@ filter), ``loop/`` (the closed loop of §IV-C), ``studies/`` (Table I, Fig. 3, F
 """
 
 from .estimate.corners import CornerParams, Corners, detect_corners
-from .estimate.evaluate import Evaluation, evaluate, pose_errors
-from .estimate.gauge import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
-from .estimate.gauge_calibration import GaugeCalibration, calibrate_gauge
-from .estimate.gauge_check import GaugeCheck, check_gauge_file
 from .estimate.pipeline import BatchResult, estimate_batch, estimate_pose, estimate_profiles
-from .estimate.realism import RealismModel
-from .estimate.sensor import (
+from .estimate.solve import PoseEstimate, closed_form, solve_pose
+from .gauge.calibration import GaugeCalibration, calibrate_gauge
+from .gauge.check import GaugeCheck, check_gauge_file
+from .gauge.model import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
+from .sim.realism import RealismModel
+from .sim.render import (
     LJ_X8400,
     NoiseModel,
     ProfilerModel,
@@ -28,9 +28,9 @@ from .estimate.sensor import (
     render_profiles,
     sample_poses,
 )
-from .estimate.solve import PoseEstimate, closed_form, solve_pose
 from .stream.pose_filter import ConstantVelocityFilter, WindowFusion
 from .stream.sources import ProfileSource, read_profile_file
+from .studies.evaluate import Evaluation, evaluate, pose_errors
 
 __all__ = [
     "Gauge", "load_gauge", "bundled_gauge", "gauge_from_design", "BUNDLED_GAUGES",

@@ -37,7 +37,7 @@ the corner covariance comes from the line fits' own residuals (the noise is esti
 so the test sees the geometry but not the noise level) — the behaviour of the studies.
 
 A batch adds one more test, of the gauge file against all its profiles together
-(:mod:`~posekit.profiler.estimate.gauge_check`): what one profile cannot see.
+(:mod:`~posekit.profiler.gauge.check`): what one profile cannot see.
 """
 
 import functools
@@ -49,10 +49,10 @@ from scipy.stats import chi2 as _chi2
 
 from ...errors import EstimationError
 from ...geometry import matrix_from_rotation_vector, quaternion_from_matrix, rotation_vector_from_matrix
+from ..gauge.model import SEEN_FROM_BEHIND_COS, _piercing_points
+from ..gauge.raycast import seen_from_behind
 from .closed_form import cf_kernel
 from .corners import Corners
-from .gauge import SEEN_FROM_BEHIND_COS, _piercing_points
-from .raycast import seen_from_behind
 
 __all__ = ["PoseEstimate", "DEFAULT_SIGNIFICANCE", "corner_covariance", "face_tolerance_covariance", "scale_covariance",
            "chi2_critical", "check_noise"]
@@ -259,7 +259,7 @@ def face_tolerance_covariance(gauge, T_G_F, reversed_order: bool = False) -> np.
 
 
 #: Depth about which the sensor's z scale error acts, mm: the middle of the LJ-X8400's measuring
-#: range (:attr:`ProfilerModel.z_mid <posekit.profiler.estimate.sensor.ProfilerModel.z_mid>`), as in the
+#: range (:attr:`ProfilerModel.z_mid <posekit.profiler.sim.render.ProfilerModel.z_mid>`), as in the
 #: realistic simulator.
 SCALE_Z_CENTER_MM = 442.5
 

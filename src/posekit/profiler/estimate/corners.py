@@ -42,8 +42,8 @@ from numba import njit
 
 from ...errors import ConfigError, ProfileError
 from ...geometry import robust_line_kernel
-from ..estimate import faces
-from .gauge import Gauge
+from ..gauge.model import Gauge
+from . import faces
 from .segments import _median5, chord_deviation, expected_turns
 
 __all__ = ["CornerParams", "Corners", "detect_corners", "detect_corners_unchecked", "check_profile",

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ProfileError
+from ..sim.render import NoiseModel
 from .corners import CornerParams, Corners, detect_corners_unchecked, raise_for_status
 from .pipeline import DEFAULT_NOISE
-from .sensor import NoiseModel
 from .solve import DEFAULT_SIGNIFICANCE, METHODS, PoseEstimate, chi2_critical, estimate_from_corners, status_message
 
 __all__ = ["ProfileResult", "estimate_profile_unchecked", "warm_gate"]

@@ -1,13 +1,13 @@
 """Profile → pose, for one profile or a batch that never drops an item.
 
-Records (JSON lines and CSV through :class:`~posekit.profiler.estimate.io.RecordWriter`) carry the
+Records (JSON lines and CSV through :class:`~posekit.profiler.stream.records.RecordWriter`) carry the
 verdict of :func:`~posekit.profiler.estimate.solve.solve_pose`: ``status`` 'ok' (the data agree
 with the gauge and the assumed noise), 'suspect' (an estimate exists but the consistency
 test failed; ``reason`` says why) or 'error' (no estimate; ``error`` says why), with
 ``chi2`` and ``dof`` of the test. One profile cannot see every gauge that differs from its
 file (a face off its drawing can look like a pose shifted along y); a batch
 (:func:`estimate_profiles`, :func:`estimate_batch`) also tests the gauge file against all its
-profiles together (:mod:`~posekit.profiler.estimate.gauge_check`).
+profiles together (:mod:`~posekit.profiler.gauge.check`).
 
 Rotation output for robot controllers (:data:`ROTATIONS`; ``q_wxyz`` is always written):
 
@@ -47,10 +47,10 @@ import numpy as np
 
 from ...errors import EstimationError, PosekitError
 from ...geometry import euler_zyx_from_matrix
+from ..gauge.check import GaugeCheck, check_gauge_file
+from ..gauge.model import Gauge
+from ..sim.render import NoiseModel
 from .corners import CornerParams, Corners, detect_corners
-from .gauge import Gauge
-from .gauge_check import GaugeCheck, check_gauge_file
-from .sensor import NoiseModel
 from .solve import DEFAULT_SIGNIFICANCE, PoseEstimate, solve_pose
 
 __all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record", "rotation_fields",
@@ -201,9 +201,9 @@ def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str
 
     Each profile gets its own verdict (:func:`estimate_pose`). One profile cannot tell a face
     machined off its drawing from a pose shifted along the weakly observable y (see
-    :mod:`~posekit.profiler.estimate.gauge_check`): such a pose reads 'ok' while it is off by
+    :mod:`~posekit.profiler.gauge.check`): such a pose reads 'ok' while it is off by
     several times its std. A batch can: with ``check_gauge`` and enough profiles at varied
-    poses (:data:`~posekit.profiler.estimate.gauge_check.MIN_CHECK_PROFILES`, the laser line
+    poses (:data:`~posekit.profiler.gauge.check.MIN_CHECK_PROFILES`, the laser line
     turned about its line of sight between them), a bundle adjustment of every face and every
     pose tests the file's planes within their declared ``tolerance_um`` at ``significance``;
     when the file fails, every estimate of the batch becomes 'suspect' and its reason names

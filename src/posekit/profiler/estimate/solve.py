@@ -31,7 +31,7 @@ other way round sees the ridges in reverse scan order. The order solved first is
 normal one (in a stream, the previous frame's); the other one is left unsolved when the
 first is clearly best: it passes the fit test at a possible pose, and the gauge's reversed
 reading misses the ridges by at least :data:`SKIP_OTHER_ORDER_MISS_UM` RMS at every probe
-pose of the load-time ambiguity check (:attr:`~posekit.profiler.estimate.gauge.Gauge.reversed_miss_um`;
+pose of the load-time ambiguity check (:attr:`~posekit.profiler.gauge.model.Gauge.reversed_miss_um`;
 demo-5 320 µm, demo-7 183 µm, demo-4 and demo-10 over 4 mm). The other order then cannot fit
 the corners (on 7,790 wrong-order solves of 9 gauges, ideal and realistic profiles, its χ²
 was never below 100 for 4-24 dof), so the verdict is the one both orders give; a gauge
@@ -39,7 +39,7 @@ not analysed at load (NaN) or with a smaller margin gets both orders solved.
 
 Verdict (DESIGN.md "Trust"): every estimate carries ``status`` 'ok' or 'suspect' with a
 ``reason``; the error model (corner covariances under the assumed noise and the gauge's
-tolerance) and the tests are in :mod:`~posekit.profiler.estimate.verdict`.
+tolerance) and the tests are in :mod:`~posekit.profiler.estimate.consistency`.
 """
 
 from typing import NamedTuple
@@ -49,9 +49,7 @@ from numba import njit
 
 from ...errors import EstimationError
 from .closed_form import cf4_start, cf_kernel, closed_form
-from .corners import Corners
-from .refine import normal_equations, pose_covariance_and_reprojection, refine_kernel, spd_inverse
-from .verdict import (
+from .consistency import (
     DEFAULT_SIGNIFICANCE,
     PoseEstimate,
     _Candidate,
@@ -63,6 +61,8 @@ from .verdict import (
     face_tolerance_covariance,
     plus_scale_covariance,
 )
+from .corners import Corners
+from .refine import normal_equations, pose_covariance_and_reprojection, refine_kernel, spd_inverse
 
 __all__ = ["PoseEstimate", "solve_pose", "status_message", "corner_covariance", "face_tolerance_covariance",
            "closed_form", "METHODS", "MOUNTINGS", "DEFAULT_SIGNIFICANCE", "estimate_from_corners", "chi2_critical"]

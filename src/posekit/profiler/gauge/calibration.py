@@ -67,10 +67,10 @@ from scipy.stats import chi2 as _chi2
 
 from ...errors import CalibrationError, PosekitError
 from ...geometry import matrix_from_rotation_vector
-from .corners import CornerParams, detect_corners
-from .gauge import Gauge, _build
-from .gauge_bundle import adjust, normal_blocks, plane_params, reduced_system, tangent_bases
-from .solve import solve_pose
+from ..estimate.corners import CornerParams, detect_corners
+from ..estimate.solve import solve_pose
+from .bundle import adjust, normal_blocks, plane_params, reduced_system, tangent_bases
+from .model import Gauge, _build
 
 __all__ = ["GaugeCalibration", "calibrate_gauge", "as_built_yaml", "datum_constraints", "hinge_constraints",
            "datum_transform", "face_samples", "observed_samples", "face_deviation_um", "pose_variety",

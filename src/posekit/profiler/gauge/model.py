@@ -340,8 +340,8 @@ def pose_is_possible(gauge: Gauge, T_G_F, corners_F, margin_mm: float = 1.0, ext
 
 def _reversed_miss_mm(gauge: Gauge, T_G_F) -> float:
     """Smallest RMS miss (mm) of the reversed reading at a physically possible pose."""
-    from .closed_form import cf4_start, cf_kernel
-    from .refine import refine_kernel
+    from ..estimate.closed_form import cf4_start, cf_kernel
+    from ..estimate.refine import refine_kernel
 
     c = _piercing_points(gauge, T_G_F[:3, :3], T_G_F[:3, 3])
     if c is None:

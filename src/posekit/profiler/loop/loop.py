@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import ConfigError
-from ..estimate.gauge import Gauge
-from ..estimate.sensor import LJ_X8400, NoiseModel, nominal_pose, render_profiles
+from ..gauge.model import Gauge
+from ..sim.render import LJ_X8400, NoiseModel, nominal_pose, render_profiles
 from ..stream.server import PoseServer
 from ..stream.stream_client import RobotInterfaceStub, SensorClient
 from .control import OpenLoop, PDController

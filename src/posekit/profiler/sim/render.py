@@ -12,7 +12,7 @@ or a hit outside the measuring range.
 ``render_profiles(..., realism=RealismModel.realistic())`` adds what a real cell shows
 (rounded and chamfered ridges, the mounting plate and a fixture beside the gauge,
 multipath near valleys, machining error, scale error, dropouts on steep faces): see
-:mod:`~posekit.profiler.estimate.realism`.
+:mod:`~posekit.profiler.sim.realism`.
 """
 
 from dataclasses import dataclass
@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import ConfigError
 from ...geometry import transform_from
-from .gauge import Gauge
-from .raycast import first_face_hit, ray_in_gauge
+from ..gauge.model import Gauge
+from ..gauge.raycast import first_face_hit, ray_in_gauge
 from .realism import AsBuiltGauge, RealismModel, build_as_built, render_as_built, true_corners
 
 __all__ = ["ProfilerModel", "Workspace", "NoiseModel", "DEFAULT_SCALE_SIGMA_PPM", "LJ_X8400", "nominal_pose",
@@ -100,8 +100,8 @@ class NoiseModel:
         1σ of the sensor's unknown x and z scale errors that the *estimator* allows for, ppm
         (default :data:`DEFAULT_SCALE_SIGMA_PPM`, an uncalibrated sensor; a sensor whose
         scale was calibrated against a reference declares what is left, 0 none). It enters
-        every pose's covariance and consistency test (:func:`~posekit.profiler.estimate.verdict.scale_covariance`)
-        and the batch test of the gauge file (:mod:`~posekit.profiler.estimate.gauge_check`).
+        every pose's covariance and consistency test (:func:`~posekit.profiler.estimate.consistency.scale_covariance`)
+        and the batch test of the gauge file (:mod:`~posekit.profiler.gauge.check`).
         The simulators do not read it: their scale error is ``RealismModel.scale_x_ppm``,
         ``scale_z_ppm``.
     """
@@ -340,12 +340,12 @@ def render_profiles(gauge: Gauge, Ts_G_F, noise: NoiseModel = NoiseModel(), rng=
     model : ProfilerModel
     realism : RealismModel or AsBuiltGauge, optional
         None (default): the ideal gauge of the drawing, nothing else in view. A
-        :class:`~posekit.profiler.estimate.realism.RealismModel` draws one as-built gauge with its
+        :class:`~posekit.profiler.sim.realism.RealismModel` draws one as-built gauge with its
         surroundings from ``rng`` first (``RealismModel.realistic()`` for every defect of a
         real cell; the options and their defaults are listed in
-        :mod:`~posekit.profiler.estimate.realism`), then renders it at every pose. An
-        :class:`~posekit.profiler.estimate.realism.AsBuiltGauge` (from
-        :func:`~posekit.profiler.estimate.realism.build_as_built`) renders that gauge again;
+        :mod:`~posekit.profiler.sim.realism`), then renders it at every pose. An
+        :class:`~posekit.profiler.sim.realism.AsBuiltGauge` (from
+        :func:`~posekit.profiler.sim.realism.build_as_built`) renders that gauge again;
         ``gauge`` must then be its drawing.
 
     Returns

@@ -2,7 +2,7 @@
 delimiter, a region of interest, and a check that the profile is in mm, not metres.
 
 :func:`read_profile_file` is the one reader behind ``posekit profiler estimate`` and
-``posekit profiler replay``; :func:`posekit.profiler.estimate.io.read_profiles` reads a CSV
+``posekit profiler replay``; :func:`posekit.profiler.stream.records.read_profiles` reads a CSV
 through :func:`read_csv` with the default options. File safety (size, encoding, array headers)
 is :mod:`posekit.io`'s.
 """
@@ -274,7 +274,7 @@ def read_profile_file(path, options: ReadOptions = ReadOptions()) -> np.ndarray:
         If the file is missing, malformed, of the wrong shape, or in metres; one line naming
         the file (and the line of a CSV).
     """
-    from .io import read_profiles
+    from .records import read_profiles
 
     path = Path(path)
     if path.suffix.lower() == ".csv":

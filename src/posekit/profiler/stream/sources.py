@@ -58,8 +58,10 @@ import numpy as np
 
 from ...errors import ConfigError, InputFileError, ProfileError
 from ...io import load_npz_member
-from ..estimate.gauge import Gauge
-from ..estimate.reading import (
+from ..gauge.model import Gauge
+from ..loop.robotsim import PERIOD_S
+from ..sim.render import LJ_X8400, NoiseModel, ProfilerModel, render_profiles
+from .reading import (
     METRES_LIMIT,
     METRES_SPAN,
     ReadOptions,
@@ -71,8 +73,6 @@ from ..estimate.reading import (
     read_profile_file,
     units_hint,
 )
-from ..estimate.sensor import LJ_X8400, NoiseModel, ProfilerModel, render_profiles
-from ..loop.robotsim import PERIOD_S
 from .socket_source import SocketSource
 
 __all__ = ["ProfileSource", "ReadOptions", "read_profile_file", "check_units", "units_hint", "apply_roi",
@@ -158,7 +158,7 @@ class FileSource(ArraySource):
 
 
 class SimulatedSource:
-    """Simulated profiles of a gauge at given sensor poses (:func:`~posekit.profiler.estimate.sensor.render_profiles`).
+    """Simulated profiles of a gauge at given sensor poses (:func:`~posekit.profiler.sim.render.render_profiles`).
 
     Parameters
     ----------

@@ -7,9 +7,10 @@ import numpy as np
 
 from ...errors import PosekitError
 from ...geometry import rotation_vector_from_matrix
-from .corners import CornerParams, detect_corners
-from .gauge import Gauge
-from .sensor import (
+from ..estimate.corners import CornerParams, detect_corners
+from ..estimate.solve import DEFAULT_SIGNIFICANCE, solve_pose
+from ..gauge.model import Gauge
+from ..sim.render import (
     LJ_X8400,
     NoiseModel,
     ProfilerModel,
@@ -17,7 +18,6 @@ from .sensor import (
     render_profiles,
     sample_poses,
 )
-from .solve import DEFAULT_SIGNIFICANCE, solve_pose
 
 __all__ = ["accuracy_table", "Evaluation", "pose_errors", "evaluate"]
 

@@ -47,10 +47,10 @@ from ...errors import ConfigError, EstimationError, ProfileError
 from ...sweep import run_tasks, task_seed
 from ..estimate.closed_form import closed_form
 from ..estimate.corners import detect_corners
-from ..estimate.design import random_gauge
-from ..estimate.evaluate import pose_errors
-from ..estimate.sensor import LJ_X8400, NoiseModel, Workspace, render_profiles, sample_poses
 from ..estimate.solve import MOUNTINGS, solve_pose
+from ..gauge.design import random_gauge
+from ..sim.render import LJ_X8400, NoiseModel, Workspace, render_profiles, sample_poses
+from .evaluate import pose_errors
 
 __all__ = ["CornersConfig", "CornersStudy", "NoiseConfig", "NoiseStudy", "corners_study", "noise_study",
            "study_gauge", "estimate_profiles", "ridge_direction_error", "FAIL_UM", "METHODS", "TABLE1_COLUMNS",
