@@ -92,7 +92,7 @@ def _time_server(gauge, count=1000, passes=3):
     """The pose server's per-frame pose computation (PC: pose, covariance, verdict, record; the
     ``timing_ms.PC`` of a streamed record) on a smooth closed trajectory, as at 1 kHz."""
     from posekit.profiler import NoiseModel, render_profiles
-    from posekit.profiler.sim.render import loop_poses
+    from posekit.profiler.sim.poses import loop_poses
     from posekit.profiler.stream.protocol import Frame
     from posekit.profiler.stream.server import PoseServer
 

@@ -20,7 +20,8 @@ from posekit.profiler import (
 )
 from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
 from posekit.profiler.estimate.segments import expected_turns
-from posekit.profiler.sim.realism import RealismModel, true_corners
+from posekit.profiler.sim.realism import RealismModel
+from posekit.profiler.sim.realism_render import true_corners
 
 NOISELESS = NoiseModel(0.0, 0.0)
 

@@ -195,7 +195,7 @@ def test_tilted_faces_are_outside_the_tolerance_model():
     only): a nominal file declaring a generous 20 µm fails the batch, rightly — without the batch test
     the poses left 'ok' are off by more than their std says (p95 |err|/std > 3 on some component;
     ``gauge_check_rates tilts``: 69-91 % within 2σ) — and the reason names tilts among the causes."""
-    from posekit.profiler.sim.render import NoiseModel
+    from posekit.profiler.sensor import NoiseModel
     from posekit.profiler.studies.gauge_check_rates import batch as sim_batch
 
     d5 = bundled_gauge("demo-5")

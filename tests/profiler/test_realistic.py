@@ -17,7 +17,8 @@ import pytest
 from posekit.errors import PosekitError
 from posekit.profiler import NoiseModel, render_profiles, sample_poses, solve_pose
 from posekit.profiler.estimate.corners import CornerParams, detect_corners
-from posekit.profiler.sim.realism import DEFECTS, RealismModel, build_as_built, true_corners
+from posekit.profiler.sim.realism import DEFECTS, RealismModel, build_as_built
+from posekit.profiler.sim.realism_render import true_corners
 from posekit.profiler.studies.evaluate import pose_errors
 from tests.profiler.test_realistic_generator import measurement_gauges
 

@@ -210,7 +210,7 @@ def measurement_gauges():
 
 def test_section_corners_agree_with_the_simulators_truth(gauge5):
     """Analytic corners here == where the simulator's ridges pierce the laser plane."""
-    from posekit.profiler.sim.realism import true_corners
+    from posekit.profiler.sim.realism_render import true_corners
 
     rng = np.random.default_rng(1)
     for _ in range(5):

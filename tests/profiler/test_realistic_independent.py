@@ -103,7 +103,7 @@ def test_verdict_on_the_independent_generator():
     from posekit.geometry import rotation_vector_from_matrix
     from posekit.profiler import estimate_pose
     from posekit.profiler.gauge.design import random_gauge
-    from posekit.profiler.sim.render import NoiseModel
+    from posekit.profiler.sensor import NoiseModel
     from tests.profiler.test_realistic_generator import Defects, as_built, generate, measurement_gauges, random_pose
 
     rng = np.random.default_rng(7)

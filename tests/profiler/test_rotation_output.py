@@ -15,7 +15,7 @@ from posekit.errors import EstimationError
 from posekit.geometry import quaternion_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
 from posekit.profiler.estimate.pipeline import ROTATIONS, estimate_batch, euler_zyx_from_matrix, rotation_fields
-from posekit.profiler.sim.render import Workspace
+from posekit.profiler.sim.poses import Workspace
 from posekit.profiler.stream.records import RECORD_CSV_COLUMNS
 
 #: A sensor looking straight down at the gauge: 180° about x.

@@ -8,15 +8,8 @@ import pytest
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.profiler import LJ_X8400, NoiseModel, nominal_pose, render_profiles, sample_poses
-from posekit.profiler.sim.realism import (
-    EDGE,
-    FIXTURE,
-    PLATE,
-    RealismModel,
-    build_as_built,
-    cast_as_built,
-    true_corners,
-)
+from posekit.profiler.sim.realism import RealismModel, build_as_built
+from posekit.profiler.sim.realism_render import EDGE, FIXTURE, PLATE, cast_as_built, true_corners
 
 NOISELESS = NoiseModel(0.0, 0.0)
 REALISTIC = RealismModel.realistic()

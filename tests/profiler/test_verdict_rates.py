@@ -25,8 +25,8 @@ import yaml
 
 from posekit.errors import PosekitError
 from posekit.profiler import NoiseModel, bundled_gauge, load_gauge, render_profiles, sample_poses
+from posekit.profiler.estimate.consistency import DEFAULT_SIGNIFICANCE
 from posekit.profiler.estimate.pipeline import estimate_pose
-from posekit.profiler.estimate.solve import DEFAULT_SIGNIFICANCE
 from posekit.profiler.gauge.design import random_gauge
 from posekit.profiler.gauge.model import gauge_to_yaml
 

@@ -25,7 +25,7 @@ def add_accuracy_arguments(p):
 
 def run_accuracy(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.sim.render import NoiseModel
+    from ..profiler.sensor import NoiseModel
     from ..profiler.studies.evaluate import accuracy_table, evaluate
     from ._common import resolve_gauge
 

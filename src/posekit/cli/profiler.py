@@ -98,8 +98,8 @@ def add_parser(sub):
 
 def run_estimate(args) -> int:
     from ..profiler.estimate.pipeline import estimate_profiles
+    from ..profiler.stream.reading import read_profile_file
     from ..profiler.stream.records import RecordWriter
-    from ..profiler.stream.sources import read_profile_file
     from .profiler_replay import read_options
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
@@ -138,8 +138,8 @@ def run_estimate(args) -> int:
 
 def _estimator_noise(args):
     """The noise model and significance the estimate assumes (``--noise-um``, ``--noise-x-um``, ``--significance``)."""
-    from ..profiler.estimate.solve import DEFAULT_SIGNIFICANCE
-    from ..profiler.sim.render import NoiseModel
+    from ..profiler.estimate.consistency import DEFAULT_SIGNIFICANCE
+    from ..profiler.sensor import NoiseModel
 
     noise_x = 2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um
     if noise_x + args.noise_um <= 0:
@@ -174,7 +174,10 @@ def run_simulate(args) -> int:
 
     from ..errors import ConfigError
     from ..geometry import quaternion_from_matrix
-    from ..profiler.sim.render import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
+    from ..profiler.sensor import NoiseModel
+    from ..profiler.sim.poses import Workspace, sample_poses
+    from ..profiler.sim.realism import RealismModel
+    from ..profiler.sim.render import render_profiles
     from ..profiler.stream.records import write_truth_csv
 
     if args.count < 1:
@@ -210,7 +213,7 @@ def run_simulate(args) -> int:
 def run_calibrate_gauge(args) -> int:
     from ..io import write_text_atomic
     from ..profiler.gauge.calibration import as_built_yaml, calibrate_gauge
-    from ..profiler.stream.records import read_profiles
+    from ..profiler.stream.reading import read_profiles
 
     out = Path(args.out)
     if out.suffix.lower() not in (".yaml", ".yml"):

@@ -49,7 +49,7 @@ def run_loop(args) -> int:
     from ..errors import ConfigError
     from ..profiler.loop.loop import run_loop_experiment
     from ..profiler.loop.loop_report import format_table3, format_table4, write_loop_report
-    from ..profiler.sim.render import NoiseModel
+    from ..profiler.sensor import NoiseModel
 
     try:
         steps = tuple(float(v) for v in args.steps_mm.split(","))

@@ -31,7 +31,7 @@ def add_read_arguments(p) -> None:
 
 def read_options(args):
     """The :class:`~posekit.profiler.stream.sources.ReadOptions` of the reading flags (one-line errors)."""
-    from ..profiler.stream.sources import ReadOptions, parse_columns, parse_delimiter, parse_roi
+    from ..profiler.stream.reading import ReadOptions, parse_columns, parse_delimiter, parse_roi
 
     return ReadOptions(columns=parse_columns(args.columns), delimiter=parse_delimiter(args.delimiter),
                        roi_x_mm=parse_roi(args.roi_x, "--roi-x"), roi_z_mm=parse_roi(args.roi_z, "--roi-z"))

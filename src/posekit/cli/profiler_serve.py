@@ -126,7 +126,8 @@ def _controller(args, gauge):
     from ..errors import ConfigError
     from ..geometry import matrix_from_quaternion
     from ..profiler.loop.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController, TargetCompensator
-    from ..profiler.sim.render import LJ_X8400, nominal_pose
+    from ..profiler.sensor import LJ_X8400
+    from ..profiler.sim.poses import nominal_pose
 
     given = [f for f in _CONTROL_FLAGS if getattr(args, f) is not None]
     if given and args.controller != "pd":

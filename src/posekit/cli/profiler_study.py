@@ -134,7 +134,7 @@ def add_study_parser(verbs):
 
 
 def _noise_model(z_um, x_um):
-    from ..profiler.sim.render import NoiseModel
+    from ..profiler.sensor import NoiseModel
     for flag, v in (("--noise-um", z_um), ("--noise-x-um", x_um)):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise ConfigError(f"{flag} must be a finite number >= 0, got {v:g}")
@@ -143,7 +143,7 @@ def _noise_model(z_um, x_um):
 
 def _build(args):
     """The study function and its configuration from the parsed flags."""
-    from ..profiler.sim.render import Workspace
+    from ..profiler.sim.poses import Workspace
     if args.study == "limits":
         from ..profiler.studies.study_limits import LimitsConfig, limits_study
         cfg = LimitsConfig(n_corners=args.corners, gauges=args.gauges,

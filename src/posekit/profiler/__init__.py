@@ -12,24 +12,21 @@ Sub-packages: ``estimate/`` (the estimator), ``stream/`` (server, clients, sourc
 filter), ``loop/`` (the closed loop of §IV-C), ``studies/`` (Table I, Fig. 3, Fig. 4).
 """
 
+from .estimate.closed_form import closed_form
 from .estimate.corners import CornerParams, Corners, detect_corners
 from .estimate.pipeline import BatchResult, estimate_batch, estimate_pose, estimate_profiles
-from .estimate.solve import PoseEstimate, closed_form, solve_pose
+from .estimate.result import PoseEstimate
+from .estimate.solve import solve_pose
 from .gauge.calibration import GaugeCalibration, calibrate_gauge
 from .gauge.check import GaugeCheck, check_gauge_file
 from .gauge.model import BUNDLED_GAUGES, Gauge, bundled_gauge, gauge_from_design, load_gauge
+from .sensor import LJ_X8400, NoiseModel, ProfilerModel
+from .sim.poses import Workspace, nominal_pose, sample_poses
 from .sim.realism import RealismModel
-from .sim.render import (
-    LJ_X8400,
-    NoiseModel,
-    ProfilerModel,
-    Workspace,
-    nominal_pose,
-    render_profiles,
-    sample_poses,
-)
+from .sim.render import render_profiles
 from .stream.pose_filter import ConstantVelocityFilter, WindowFusion
-from .stream.sources import ProfileSource, read_profile_file
+from .stream.reading import read_profile_file
+from .stream.sources import ProfileSource
 from .studies.evaluate import Evaluation, evaluate, pose_errors
 
 __all__ = [

@@ -49,9 +49,11 @@ from ...errors import EstimationError, PosekitError
 from ...geometry import euler_zyx_from_matrix
 from ..gauge.check import GaugeCheck, check_gauge_file
 from ..gauge.model import Gauge
-from ..sim.render import NoiseModel
+from ..sensor import NoiseModel
+from .consistency import DEFAULT_SIGNIFICANCE
 from .corners import CornerParams, Corners, detect_corners
-from .solve import DEFAULT_SIGNIFICANCE, PoseEstimate, solve_pose
+from .result import PoseEstimate
+from .solve import solve_pose
 
 __all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record", "rotation_fields",
            "euler_zyx_from_matrix", "ROTATIONS", "DEFAULT_NOISE"]
@@ -245,9 +247,8 @@ def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str
     if check_gauge:
         check = check_gauge_file(corners_all, ests, gauge, noise=noise, significance=significance)
         if check.passed is False:
-            ests = [None if e is None else replace(e, status="suspect",
-                                                   reason=check.message if e.reason is None
-                                                   else f"{e.reason}; {check.message}") for e in ests]
+            ests = [None if e is None else replace(e, status="suspect", reasons=(*e.reasons, check.message))
+                    for e in ests]
     records = []
     err = dict(errors)
     q_prev = None

@@ -75,8 +75,8 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from ...errors import PosekitError
-from ..estimate.consistency import corner_covariance
-from ..sim.render import DEFAULT_SCALE_SIGMA_PPM
+from ..estimate.covariance import corner_covariance
+from ..sensor import DEFAULT_SCALE_SIGMA_PPM
 from .bundle import adjust, normal_blocks, reduced_system
 from .calibration import (
     MAX_CONDITION,
@@ -94,7 +94,7 @@ __all__ = ["GaugeCheck", "check_gauge_file", "MIN_CHECK_PROFILES", "SCALE_ALLOWA
 MIN_CHECK_PROFILES = 50
 #: 1σ of the sensor's x and z scale errors the test allows (ppm) without a noise model (``noise=None``):
 #: a scale error within it is not taken for a gauge that differs from its file. With a noise model the
-#: allowance is its ``scale_sigma_ppm`` (default :data:`~posekit.profiler.sim.render.DEFAULT_SCALE_SIGMA_PPM`).
+#: allowance is its ``scale_sigma_ppm`` (default :data:`~posekit.profiler.sensor.DEFAULT_SCALE_SIGMA_PPM`).
 SCALE_ALLOWANCE_PPM = DEFAULT_SCALE_SIGMA_PPM
 
 

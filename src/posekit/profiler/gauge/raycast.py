@@ -66,7 +66,7 @@ def first_face_hit(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, o
 
 @njit(cache=True, nogil=True)
 def seen_from_behind(normals, T_G_F, corners_F, cos_max) -> bool:
-    """Whether a face meeting at a corner is seen from behind at the pose (:func:`~posekit.profiler.gauge.model.pose_is_possible`).
+    """Whether a face meeting at a corner is seen from behind at the pose (:func:`~posekit.profiler.gauge.ambiguity.pose_is_possible`).
 
     ``normals`` (n + 1, 3) in G; ``T_G_F`` (4, 4); ``corners_F`` (n, 2) (x, z) in F, ridge
     order, mm: the line of sight to corner i (``R_G_F (x, 0, z)``, unit) makes

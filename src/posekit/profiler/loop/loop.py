@@ -25,7 +25,9 @@ import numpy as np
 
 from ...errors import ConfigError
 from ..gauge.model import Gauge
-from ..sim.render import LJ_X8400, NoiseModel, nominal_pose, render_profiles
+from ..sensor import LJ_X8400, NoiseModel
+from ..sim.poses import nominal_pose
+from ..sim.render import render_profiles
 from ..stream.server import PoseServer
 from ..stream.stream_client import RobotInterfaceStub, SensorClient
 from .control import OpenLoop, PDController

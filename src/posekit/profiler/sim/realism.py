@@ -50,10 +50,8 @@ import numpy as np
 
 from ...errors import ConfigError
 from ..gauge.model import Gauge
-from .realism_render import EDGE, FIXTURE, NONE, PLATE, cast_as_built, render_as_built, true_corners
 
-__all__ = ["RealismModel", "AsBuiltGauge", "build_as_built", "true_corners", "render_as_built", "cast_as_built",
-           "DEFECTS", "EDGE", "PLATE", "FIXTURE", "NONE"]
+__all__ = ["RealismModel", "AsBuiltGauge", "build_as_built", "DEFECTS"]
 
 #: The defects of :class:`RealismModel`, each with the fields that switch it on.
 DEFECTS = {
@@ -183,7 +181,7 @@ class AsBuiltGauge:
     ----------
     gauge : Gauge
         The as-built faces (machining error applied) and their sharp ridges: the truth the
-        corners of a profile should be compared with (:func:`true_corners`).
+        corners of a profile should be compared with (:func:`~posekit.profiler.sim.realism_render.true_corners`).
     nominal : Gauge
         The drawing.
     edge_kind : ndarray of int, shape (n,)

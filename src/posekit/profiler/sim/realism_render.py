@@ -287,7 +287,7 @@ def _steep_dropouts(out, cosinc, rm, rng):
 def render_as_built(scene, Ts_G_F: np.ndarray, model, rng) -> np.ndarray:
     """Noise-free profiles of the as-built scene with multipath, scale error and steep dropouts.
 
-    The sensor noise of :class:`~posekit.profiler.sim.render.NoiseModel` is added by the caller.
+    The sensor noise of :class:`~posekit.profiler.sensor.NoiseModel` is added by the caller.
 
     Parameters
     ----------

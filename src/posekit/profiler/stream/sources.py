@@ -60,24 +60,11 @@ from ...errors import ConfigError, InputFileError, ProfileError
 from ...io import load_npz_member
 from ..gauge.model import Gauge
 from ..loop.robotsim import PERIOD_S
-from ..sim.render import LJ_X8400, NoiseModel, ProfilerModel, render_profiles
-from .reading import (
-    METRES_LIMIT,
-    METRES_SPAN,
-    ReadOptions,
-    apply_roi,
-    check_units,
-    parse_columns,
-    parse_delimiter,
-    parse_roi,
-    read_profile_file,
-    units_hint,
-)
-from .socket_source import SocketSource
+from ..sensor import LJ_X8400, NoiseModel, ProfilerModel
+from ..sim.render import render_profiles
+from .reading import ReadOptions, read_profile_file
 
-__all__ = ["ProfileSource", "ReadOptions", "read_profile_file", "check_units", "units_hint", "apply_roi",
-           "parse_columns", "parse_delimiter", "parse_roi", "ArraySource", "FileSource", "SimulatedSource",
-           "SocketSource", "METRES_LIMIT", "METRES_SPAN"]
+__all__ = ["ProfileSource", "ArraySource", "FileSource", "SimulatedSource"]
 
 _DEFAULT_RATE_HZ = 1.0 / PERIOD_S          # the paper's 12 ms control cycle
 

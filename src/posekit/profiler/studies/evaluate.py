@@ -7,17 +7,13 @@ import numpy as np
 
 from ...errors import PosekitError
 from ...geometry import rotation_vector_from_matrix
+from ..estimate.consistency import DEFAULT_SIGNIFICANCE
 from ..estimate.corners import CornerParams, detect_corners
-from ..estimate.solve import DEFAULT_SIGNIFICANCE, solve_pose
+from ..estimate.solve import solve_pose
 from ..gauge.model import Gauge
-from ..sim.render import (
-    LJ_X8400,
-    NoiseModel,
-    ProfilerModel,
-    Workspace,
-    render_profiles,
-    sample_poses,
-)
+from ..sensor import LJ_X8400, NoiseModel, ProfilerModel
+from ..sim.poses import Workspace, sample_poses
+from ..sim.render import render_profiles
 
 __all__ = ["accuracy_table", "Evaluation", "pose_errors", "evaluate"]
 

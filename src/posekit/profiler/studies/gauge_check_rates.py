@@ -10,7 +10,7 @@
     the nominal demo-5 file with a declared tolerance on a realistically machined gauge.
 
 Generators: ``sim`` posekit's realistic simulator (:class:`~posekit.profiler.sim.realism.RealismModel`,
-its defaults but machining, at :func:`~posekit.profiler.sim.render.sample_poses`), ``simcal``
+its defaults but machining, at :func:`~posekit.profiler.sim.poses.sample_poses`), ``simcal``
 the same with the sensor's scale error 15 ppm instead of 100, ``ind`` the tests' independent
 generator (tests/profiler/test_gauge_check.py; run from the repository root). Seeded: the
 numbers in the README come from these commands.
@@ -23,8 +23,10 @@ import numpy as np
 
 from ..estimate.pipeline import estimate_profiles
 from ..gauge.model import bundled_gauge
+from ..sensor import NoiseModel
+from ..sim.poses import sample_poses
 from ..sim.realism import RealismModel, build_as_built
-from ..sim.render import NoiseModel, render_profiles, sample_poses
+from ..sim.render import render_profiles
 from .evaluate import pose_errors
 
 __all__ = ["face_off", "batch", "face_rates", "good_rates", "tilt_rates"]

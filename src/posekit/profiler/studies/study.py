@@ -47,9 +47,12 @@ from ...errors import ConfigError, EstimationError, ProfileError
 from ...sweep import run_tasks, task_seed
 from ..estimate.closed_form import closed_form
 from ..estimate.corners import detect_corners
-from ..estimate.solve import MOUNTINGS, solve_pose
+from ..estimate.solve import solve_pose
 from ..gauge.design import random_gauge
-from ..sim.render import LJ_X8400, NoiseModel, Workspace, render_profiles, sample_poses
+from ..gauge.model import MOUNTINGS
+from ..sensor import LJ_X8400, NoiseModel
+from ..sim.poses import Workspace, sample_poses
+from ..sim.render import render_profiles
 from .evaluate import pose_errors
 
 __all__ = ["CornersConfig", "CornersStudy", "NoiseConfig", "NoiseStudy", "corners_study", "noise_study",

@@ -13,7 +13,7 @@ from pathlib import Path
 from ...errors import ConfigError
 from ...report import html_figure as _figure
 from ...report import html_table, pyplot, save_figure, write_csv, write_html
-from ..sim.render import LJ_X8400
+from ..sensor import LJ_X8400
 from .study import (
     GAP_COLUMNS,
     METHODS,
@@ -310,7 +310,7 @@ def _limits(study: LimitsStudy, out: Path) -> Path:
     intro = ("<p>Paper Fig. 4 by simulation. (a) From the nominal pose, the sensor is moved along F's x and z "
              "(gauges scaled in x–z to each width) or y (gauges cut to each length) until the pose is lost: "
              "<em>tracked</em> = all corners detected on a noisy rendered profile and a CF-Opt estimate that "
-             "fits them; <em>visible</em> = posekit.profiler.sim.render.visible_mask (3 mm margins). "
+             "fits them; <em>visible</em> = posekit.profiler.sim.poses.visible_mask (3 mm margins). "
              f"{cfg.gauges} random gauges with {cfg.n_corners} corners per size (band: min–max). "
              f"(b) Gauges whose steepest faces make exactly β with the vertical, tilted by α about F's y "
              f"through the gauge, {cfg.tilt_poses} jittered poses per gauge and tilt.</p>"
