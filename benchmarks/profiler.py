@@ -36,7 +36,8 @@ SENSOR_PERIOD_MS = 1.0       # LJ-X8400 at its maximum rate, 1 kHz
 
 
 def _time_ours(profiles, gauge):
-    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked
+    from posekit.profiler.estimate.corner_params import CornerParams
+    from posekit.profiler.estimate.corners import detect_corners_unchecked
     from posekit.profiler.estimate.solve import _solve_raw  # the raw kernels, as the paper times them
 
     params = CornerParams()
@@ -62,7 +63,8 @@ def _time_ours(profiles, gauge):
 
 def _time_cd(profiles, gauge, model: bool):
     """Corner detection alone (unchecked path), per profile; ``(ms, failures)``."""
-    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
+    from posekit.profiler.estimate.corner_params import CornerParams
+    from posekit.profiler.estimate.corners import detect_corners_unchecked, gauge_turns
 
     params = CornerParams()
     turns = gauge_turns(gauge) if model else None

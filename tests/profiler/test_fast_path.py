@@ -7,7 +7,8 @@ import pytest
 import yaml
 
 from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-from posekit.profiler.estimate.corners import CornerParams, gauge_turns
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import gauge_turns
 from posekit.profiler.estimate.fast import estimate_profile_unchecked, warm_gate
 from posekit.profiler.estimate.pipeline import estimate_pose
 from posekit.profiler.estimate.solve import METHODS

@@ -34,10 +34,9 @@ from posekit.profiler.gauge.calibration import (
     as_built_yaml,
     calibrate_gauge,
     datum_constraints,
-    datum_transform,
-    face_deviation_um,
     hinge_constraints,
 )
+from posekit.profiler.gauge.datum import datum_transform, face_deviation_um
 from posekit.profiler.gauge.model import bundled_gauge_path
 
 TOO_FEW = ("profiles: 30 of 30 profiles show all 5 corners of gauge 'demo-5'; take >= 50 profiles with the laser "

@@ -16,7 +16,8 @@ import pytest
 
 from posekit.errors import PosekitError
 from posekit.profiler import NoiseModel, render_profiles, sample_poses, solve_pose
-from posekit.profiler.estimate.corners import CornerParams, detect_corners
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners
 from posekit.profiler.sim.realism import DEFECTS, RealismModel, build_as_built
 from posekit.profiler.sim.realism_render import true_corners
 from posekit.profiler.studies.evaluate import pose_errors

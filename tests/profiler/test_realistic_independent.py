@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from posekit.errors import PosekitError
-from posekit.profiler.estimate.corners import CornerParams, detect_corners
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners
 from tests.profiler.test_realistic import Measured, estimate_one, in_scan_order
 from tests.profiler.test_realistic_generator import (
     ONE_EACH,

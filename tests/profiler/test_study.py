@@ -21,9 +21,7 @@ from posekit.profiler.studies.study import (
     PAPER_TABLE1,
     TABLE1_COLUMNS,
     CornersConfig,
-    NoiseConfig,
     corners_study,
-    noise_study,
     ridge_direction_error,
 )
 from posekit.profiler.studies.study_limits import (
@@ -32,6 +30,7 @@ from posekit.profiler.studies.study_limits import (
     range_summary,
     tilt_summary,
 )
+from posekit.profiler.studies.study_noise import NoiseConfig, noise_study
 from posekit.profiler.studies.study_report import write_report
 
 SERIAL = "serial"

@@ -7,7 +7,7 @@ from pathlib import Path
 from ..errors import ConfigError
 
 __all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
-           "add_dask_args", "check_dask_args"]
+           "add_dask_args", "check_dask_args", "check_workspace"]
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
 OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
@@ -106,3 +106,13 @@ def check_dask_args(args) -> None:
     """One-line :class:`ConfigError` when ``--workers`` (the local cluster's size) comes with ``--scheduler``."""
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+
+
+def check_workspace(ws, args) -> None:
+    """The workspace half-ranges within 0..1000 mm and 0..180 deg (``Workspace`` checks >= 0)."""
+    from ._flags import check_range
+
+    for flag, text, values, hi, unit in (("--translation-mm", args.translation_mm, ws.translation_mm, 1e3, "mm"),
+                                         ("--rotation-deg", args.rotation_deg, ws.rotation_deg, 180.0, "deg")):
+        for v in values:
+            check_range(flag, v, 0.0, hi, unit, what="three numbers", shown=repr(text))

@@ -4,8 +4,8 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_overwrite, out_folder, parse_triplet, progress, resolve_gauge, staged
-from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed
+from ._common import add_overwrite, check_workspace, out_folder, parse_triplet, progress, resolve_gauge, staged
+from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_parser"]
 
@@ -159,14 +159,6 @@ def _estimate_gauge(args):
     if not path.exists() and args.gauge in BUNDLED_GAUGES:
         path = bundled_gauge_path(args.gauge)
     return load_gauge(path, mounting=args.mounting)
-
-
-def check_workspace(ws, args) -> None:
-    """The workspace half-ranges within 0..1000 mm and 0..180 deg (``Workspace`` checks >= 0)."""
-    for flag, text, values, hi, unit in (("--translation-mm", args.translation_mm, ws.translation_mm, 1e3, "mm"),
-                                         ("--rotation-deg", args.rotation_deg, ws.rotation_deg, 180.0, "deg")):
-        for v in values:
-            check_range(flag, v, 0.0, hi, unit, what="three numbers", shown=repr(text))
 
 
 def run_simulate(args) -> int:

@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_deprecated, add_overwrite, out_folder, parse_triplet, staged
+from ._common import add_deprecated, add_overwrite, check_workspace, out_folder, parse_triplet, staged
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed, workers
 
 __all__ = ["add_study_parser", "parse_numbers"]
@@ -153,8 +153,8 @@ def _build(args):
                            tilts_deg=parse_numbers(args.tilts_deg, "tilts-deg", lo=-89.0, hi=89.0, unit="deg"),
                            tilt_poses=args.tilt_poses, noise=_noise_model(args.noise_um, None), seed=args.seed)
         return limits_study, cfg
-    from ..profiler.studies.study import CornersConfig, NoiseConfig, corners_study, noise_study
-    from .profiler import check_workspace
+    from ..profiler.studies.study import CornersConfig, corners_study
+    from ..profiler.studies.study_noise import NoiseConfig, noise_study
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"))
     check_workspace(ws, args)
@@ -187,7 +187,8 @@ def _check_size(args, cfg) -> None:
 
 
 def _print_summary(study, out):
-    from ..profiler.studies.study import CornersStudy, NoiseStudy
+    from ..profiler.studies.study import CornersStudy
+    from ..profiler.studies.study_noise import NoiseStudy
     if isinstance(study, CornersStudy):
         print("method    n     m  reproj mean/std (µm)   eq.17 ×10³ mean/std   t_err (µm)  rot_err (deg)  failures")
         for r in study.table:

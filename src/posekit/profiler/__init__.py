@@ -13,7 +13,8 @@ filter), ``loop/`` (the closed loop of §IV-C), ``studies/`` (Table I, Fig. 3, F
 """
 
 from .estimate.closed_form import closed_form
-from .estimate.corners import CornerParams, Corners, detect_corners
+from .estimate.corner_params import CornerParams
+from .estimate.corners import Corners, detect_corners
 from .estimate.pipeline import BatchResult, estimate_batch, estimate_pose, estimate_profiles
 from .estimate.result import PoseEstimate
 from .estimate.solve import solve_pose

@@ -20,7 +20,8 @@ from ...errors import ProfileError
 from ...verdict import Verdict
 from ..sensor import NoiseModel
 from .consistency import DEFAULT_SIGNIFICANCE, chi2_critical
-from .corners import CornerParams, Corners, detect_corners_unchecked, raise_for_status
+from .corner_params import CornerParams
+from .corners import Corners, detect_corners_unchecked, raise_for_status
 from .pipeline import DEFAULT_NOISE
 from .result import PoseEstimate, failed_verdict, pose_std
 from .solve import METHODS, estimate_from_corners, status_message

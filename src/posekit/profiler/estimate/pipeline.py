@@ -51,7 +51,8 @@ from ..gauge.check import GaugeCheck, check_gauge_file
 from ..gauge.model import Gauge
 from ..sensor import NoiseModel
 from .consistency import DEFAULT_SIGNIFICANCE
-from .corners import CornerParams, Corners, detect_corners
+from .corner_params import CornerParams
+from .corners import Corners, detect_corners
 from .result import PoseEstimate
 from .solve import solve_pose
 

@@ -331,7 +331,8 @@ def run_loop_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(
                   stage_stats("proposed", "PC", tim["PC"]),
                   stage_stats("proposed", "DT 12.8 KB payload", transfer_times(n_profile_bytes))]
     if camera:
-        from .camera_peer import IMAGE_SIZE, time_camera_pipeline
+        from .camera_peer import time_camera_pipeline
+        from .chessboard import IMAGE_SIZE
         cam = time_camera_pipeline(n_images=10, repeats=3, seed=seed)
         exp.table3 = [stage_stats("camera", "DT", transfer_times(IMAGE_SIZE[0] * IMAGE_SIZE[1])),
                       stage_stats("camera", "CD", cam["cd_ms"]), stage_stats("camera", "PC", cam["pc_ms"]),

@@ -81,7 +81,8 @@ import numpy as np
 from ...errors import ConfigError, PosekitError, ProfileError
 from ...geometry import quaternion_from_matrix
 from ..estimate.consistency import DEFAULT_SIGNIFICANCE, check_noise
-from ..estimate.corners import CornerParams, gauge_turns
+from ..estimate.corner_params import CornerParams
+from ..estimate.corners import gauge_turns
 from ..estimate.fast import warm_gate
 from ..estimate.pipeline import DEFAULT_NOISE
 from ..estimate.solve import METHODS

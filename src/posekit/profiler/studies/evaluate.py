@@ -8,7 +8,8 @@ import numpy as np
 from ...errors import PosekitError
 from ...geometry import rotation_vector_from_matrix
 from ..estimate.consistency import DEFAULT_SIGNIFICANCE
-from ..estimate.corners import CornerParams, detect_corners
+from ..estimate.corner_params import CornerParams
+from ..estimate.corners import detect_corners
 from ..estimate.solve import solve_pose
 from ..gauge.model import Gauge
 from ..sensor import LJ_X8400, NoiseModel, ProfilerModel

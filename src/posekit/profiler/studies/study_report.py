@@ -14,17 +14,9 @@ from ...errors import ConfigError
 from ...report import html_figure as _figure
 from ...report import html_table, pyplot, save_figure, write_csv, write_html
 from ..sensor import LJ_X8400
-from .study import (
-    GAP_COLUMNS,
-    METHODS,
-    PAPER_TABLE1,
-    PAPER_TABLE1_M,
-    STATUS_NAMES,
-    TABLE1_COLUMNS,
-    CornersStudy,
-    NoiseStudy,
-)
+from .study import GAP_COLUMNS, METHODS, PAPER_TABLE1, PAPER_TABLE1_M, STATUS_NAMES, TABLE1_COLUMNS, CornersStudy
 from .study_limits import LimitsStudy, range_summary, tilt_summary
+from .study_noise import NoiseStudy
 
 __all__ = ["write_report", "write_csv"]
 
