@@ -45,6 +45,7 @@ from ...geometry import robust_line_kernel
 from ..gauge.model import Gauge
 from . import faces
 from .corner_params import CornerParams, param_vector
+from .face_fit import corner_jacobian_rows
 from .segments import _median5, chord_deviation, expected_turns
 
 __all__ = ["Corners", "detect_corners", "detect_corners_unchecked", "check_profile",
@@ -238,7 +239,7 @@ def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_
         pz = (ax * bc - bx * ac) / det
         corners[k, 0] = px
         corners[k, 1] = pz
-        faces.corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
+        corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
     var = np.empty(2 * (n + 1))
     for j in range(n + 1):
         var[2 * j] = sig[j] ** 2 / npts[j]

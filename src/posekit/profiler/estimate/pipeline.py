@@ -47,17 +47,18 @@ import numpy as np
 
 from ...errors import EstimationError, PosekitError
 from ...geometry import euler_zyx_from_matrix
+from ...verdict import Verdict, batch_exit_code, status_counts
 from ..gauge.check import GaugeCheck, check_gauge_file
 from ..gauge.model import Gauge
 from ..sensor import NoiseModel
 from .consistency import DEFAULT_SIGNIFICANCE
 from .corner_params import CornerParams
 from .corners import Corners, detect_corners
-from .result import PoseEstimate
+from .result import STD_KEYS, PoseEstimate, failed_verdict
 from .solve import solve_pose
 
-__all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record", "rotation_fields",
-           "euler_zyx_from_matrix", "ROTATIONS", "DEFAULT_NOISE"]
+__all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record",
+           "rotation_fields", "ROTATIONS", "STATUSES", "DEFAULT_NOISE"]
 
 #: Rotation formats of the records (module docstring).
 ROTATIONS = ("quat", "matrix", "euler-zyx", "euler-xyz")
@@ -148,19 +149,20 @@ def ok_record(index: int, corners: Corners, est: PoseEstimate, rotation: str = "
     q = est.q_wxyz
     if q_prev is not None and float(np.dot(q, q_prev)) < 0:
         q = -q
+    v = est.verdict
     return {
         "index": int(index),
-        "status": est.status,
-        "t_mm": [float(v) for v in est.t_mm],
-        "q_wxyz": [float(v) + 0.0 for v in q],
+        "status": v.status,
+        "t_mm": [float(x) for x in est.t_mm],
+        "q_wxyz": [float(x) + 0.0 for x in q],
         **rotation_fields(est.T_G_F[:3, :3], rotation),
         "reprojection_um": float(est.reprojection_um),
         "corners_mm": [[float(x), float(z)] for x, z in pts],
-        "std_t_um": [float(v) for v in est.std_t_um],
-        "std_rot_deg": [float(v) for v in est.std_rot_deg],
+        "std_t_um": [v.std[k] for k in STD_KEYS[:3]],
+        "std_rot_deg": [v.std[k] for k in STD_KEYS[3:]],
         "chi2": float(est.chi2),
         "dof": int(est.dof),
-        "reason": est.reason,
+        "reason": v.reason or None,
         "error": None,
     }
 
@@ -170,10 +172,16 @@ _ROTATION_NULLS = {"quat": {}, "matrix": {"R": None}, "euler-zyx": {"euler_zyx_d
 
 
 def error_record(index: int, message: str, rotation: str = "quat") -> dict:
-    """The record of a profile without an estimate (status 'error', the reason in ``error``)."""
-    return {"index": int(index), "status": "error", "t_mm": None, "q_wxyz": None,
+    """The record of a profile without an estimate (its verdict ``Verdict.failed(message)``: status
+    'error', the message in ``error``; ``reason`` stays null, as DESIGN.md's records have it)."""
+    v = failed_verdict(message)
+    return {"index": int(index), "status": v.status, "t_mm": None, "q_wxyz": None,
             **_ROTATION_NULLS.get(rotation, {}), "reprojection_um": None, "corners_mm": None, "std_t_um": None,
-            "std_rot_deg": None, "chi2": None, "dof": None, "reason": None, "error": message}
+            "std_rot_deg": None, "chi2": None, "dof": None, "reason": None, "error": v.reasons[0]}
+
+
+#: The status words of a profile's verdict, in the order a batch counts them.
+STATUSES = ("ok", "suspect", "error")
 
 
 @dataclass(frozen=True)
@@ -194,6 +202,23 @@ class BatchResult:
     records: list
     estimates: list
     gauge_check: GaugeCheck | None
+
+    @property
+    def verdicts(self) -> list[Verdict]:
+        """The :class:`posekit.verdict.Verdict` of each profile, in order: the estimate's, or
+        ``Verdict.failed(error)`` for a profile without one."""
+        return [est.verdict if est is not None else failed_verdict(rec["error"])
+                for rec, est in zip(self.records, self.estimates)]
+
+    def status_counts(self) -> dict[str, int]:
+        """How many profiles are 'ok', 'suspect' and 'error' (:func:`posekit.verdict.status_counts`)."""
+        return status_counts((rec["status"] for rec in self.records), STATUSES)
+
+    @property
+    def exit_code(self) -> int:
+        """The batch command's exit code (:func:`posekit.verdict.batch_exit_code`): 0 only if every
+        profile is 'ok'."""
+        return batch_exit_code(rec["status"] for rec in self.records)
 
 
 def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str = "auto",
