@@ -96,3 +96,28 @@ def test_a_cycle_without_an_ok_pose_leaves_a_gap_the_metrics_fill(experiment):
     assert got.keys() == expect.keys()
     for key in expect:
         assert got[key] == pytest.approx(expect[key], rel=1e-12, nan_ok=True), key
+
+
+def test_the_report_draws_a_response_with_a_gap(experiment, tmp_path):
+    """A cycle without an ok pose in the open-loop run of the figure left the spectrum a
+    non-uniform grid: ``posekit demo --runs 1 --axes x,z --steps-mm 1 --no-camera --seed 4``
+    stopped with "amplitude_spectrum: t_s must be uniformly sampled". The gap is filled for the
+    spectrum, as for the metrics, and the figure is written."""
+    import dataclasses
+
+    runs = []
+    for r in experiment.runs:
+        if r.mode == "open":
+            meas = r.measured_mm.copy()
+            meas[len(meas) // 2] = np.nan
+            r = dataclasses.replace(r, measured_mm=meas, missed=1)
+        runs.append(r)
+    imp = experiment.impulse
+    meas = imp.measured_mm.copy()
+    meas[len(meas) // 2] = np.nan
+    gapped = dataclasses.replace(experiment, runs=runs, impulse=dataclasses.replace(imp, measured_mm=meas))
+    paths = write_loop_report(gapped, tmp_path)
+    assert paths["fig5"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    t, y = runs[0].filled_signal()
+    k = len(t) // 2
+    assert y[k] == pytest.approx(0.5 * (y[k - 1] + y[k + 1]))      # uniform grid: the midpoint

@@ -115,12 +115,18 @@ class LoopRun:
         magnitude is a spectrum), so such gaps are filled linearly from their neighbours;
         ``missed`` counts them.
         """
+        t, y = self.filled_signal(source)
+        ok = np.isfinite(y)
+        return step_metrics(t[ok], y[ok], self.step_mm, t_step_s=self.t_step_s)
+
+    def filled_signal(self, source: str = "measured"):
+        """:meth:`signal` on the uniform grid: cycles without a measurement filled linearly from
+        their neighbours (left NaN when fewer than two cycles have one), as a spectrum needs."""
         t, y = self.signal(source)
         ok = np.isfinite(y)
         if not ok.all() and ok.sum() >= 2:
             y = np.interp(t, t[ok], y[ok])
-            ok = np.ones_like(ok)
-        return step_metrics(t[ok], y[ok], self.step_mm, t_step_s=self.t_step_s)
+        return t, y
 
 
 def run_loop_step(server_io, compensator, robot, gauge, axis, step_mm, controller, *, duration_s=1.5,
