@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from posekit import __version__
 from posekit.cli.main import main
 from posekit.profiler.gauge.model import load_gauge
-from posekit.profiler.stream.records import read_truth_csv
+from posekit.profiler.sim.simulate import read_truth_csv
 
 GAUGE_DIR = Path(__file__).resolve().parents[2] / "examples" / "gauges"
 GAUGES = sorted(GAUGE_DIR.glob("*.yaml"))

@@ -524,7 +524,7 @@ def test_cli_serve_runs_for_a_duration_and_prints_a_summary(gauge, loop_profiles
     args = _serve_parser().parse_args(
         ["serve", "--gauge", "demo-5", "--listen", f"127.0.0.1:{port}",
          "--robot", f"{stub.address[0]}:{stub.address[1]}", "--queue", "64", "--duration", "1.5",
-         "--status-every", "0.4"])
+         "--status-every-s", "0.4"])
 
     def sensor():
         deadline = time.monotonic() + 5.0

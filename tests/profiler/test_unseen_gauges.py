@@ -9,7 +9,7 @@ from posekit.cli.main import main
 from posekit.geometry import transform_from_quaternion
 from posekit.profiler.gauge.design import random_gauge
 from posekit.profiler.gauge.model import gauge_to_yaml, load_gauge
-from posekit.profiler.stream.records import read_truth_csv
+from posekit.profiler.sim.simulate import read_truth_csv
 from posekit.profiler.studies.evaluate import pose_errors
 
 

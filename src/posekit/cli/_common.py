@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
+__all__ = ["overwrite_flag", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
            "add_dask_args", "check_dask_args", "check_workspace"]
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
@@ -19,15 +19,6 @@ def add_overwrite(parser, out_default: str | None = None) -> None:
     folder (``out_default``) replaces that one on every run."""
     parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(out_default=out_default)
-
-
-def resolve_gauge(arg: str):
-    """Load a gauge from a path, or a bundled one by name (``demo-5``)."""
-    from ..profiler.gauge.model import BUNDLED_GAUGES, bundled_gauge, load_gauge
-    path = Path(arg)
-    if not path.exists() and arg in BUNDLED_GAUGES:
-        return bundled_gauge(arg)
-    return load_gauge(path)
 
 
 def progress(iterable, total=None, desc=None, unit: str = "profile"):
@@ -55,10 +46,10 @@ def out_folder(args) -> Path:
     :func:`posekit.io.staged_folder`, so the folder appears whole or not at all."""
     from ..io import check_out_folder
 
-    return check_out_folder(args.out, overwrite=_overwrite(args))
+    return check_out_folder(args.out, overwrite=overwrite_flag(args))
 
 
-def _overwrite(args) -> bool:
+def overwrite_flag(args) -> bool:
     """``--overwrite``, or the verb's own default folder (a demo's ``posekit-demo``), which each run
     replaces."""
     default = getattr(args, "out_default", None)
@@ -70,7 +61,7 @@ def staged(args):
     that becomes ``--out`` when the block succeeds."""
     from ..io import staged_folder
 
-    return staged_folder(args.out, overwrite=_overwrite(args))
+    return staged_folder(args.out, overwrite=overwrite_flag(args))
 
 
 class _Deprecated(argparse.Action):

@@ -51,7 +51,7 @@ from ...geometry import plane_intersection
 from ...io import load_yaml
 from .ambiguity import ambiguity_text, reversed_miss_um
 
-__all__ = ["Gauge", "load_gauge", "bundled_gauge", "bundled_gauge_path", "gauge_from_design",
+__all__ = ["Gauge", "load_gauge", "bundled_gauge", "bundled_gauge_path", "resolve_gauge", "gauge_from_design",
            "gauge_to_yaml", "BUNDLED_GAUGES", "MOUNTINGS"]
 
 #: Gauges shipped in ``examples/gauges`` (and inside the installed package).
@@ -393,3 +393,27 @@ def bundled_gauge_path(name: str) -> Path:
 def bundled_gauge(name: str = "demo-5", mounting: str = "auto") -> Gauge:
     """Load a gauge shipped with posekit, e.g. ``bundled_gauge("demo-5")`` (``mounting`` as :func:`load_gauge`)."""
     return load_gauge(bundled_gauge_path(name), mounting)
+
+
+def resolve_gauge(gauge, mounting: str = "auto") -> Gauge:
+    """The gauge a verb is given: a :class:`Gauge` as it is, else a file path, else a bundled name.
+
+    Parameters
+    ----------
+    gauge : Gauge or str or Path
+        A gauge, the path of a gauge YAML file, or the name of a bundled gauge
+        (:data:`BUNDLED_GAUGES`, used when no file of that name exists).
+    mounting : {'auto', 'normal', 'reversed'}
+        As :func:`load_gauge` (a :class:`Gauge` given as such is returned unchanged).
+
+    Raises
+    ------
+    GaugeError
+        As :func:`load_gauge`.
+    """
+    if isinstance(gauge, Gauge):
+        return gauge
+    path = Path(gauge)
+    if not path.exists() and str(gauge) in BUNDLED_GAUGES:
+        path = bundled_gauge_path(str(gauge))
+    return load_gauge(path, mounting)

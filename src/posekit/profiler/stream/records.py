@@ -1,21 +1,19 @@
-"""Writing pose records (the output of ``posekit profiler estimate``) and the truth of a simulation.
+"""Writing pose records: the output of ``posekit profiler estimate``.
 
 Records go out as JSON lines or CSV (:class:`RecordWriter`; the fields and columns are DESIGN.md's
-contract); ``truth.csv`` is what ``posekit profiler simulate`` writes beside its profiles. The
-profile files themselves are read by :mod:`~posekit.profiler.stream.reading`.
+contract). The profile files are read by :mod:`~posekit.profiler.stream.reading`; the truth of a
+simulation is written by :mod:`~posekit.profiler.sim.simulate`.
 """
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 
 from ...errors import InputFileError
 from ...io import atomic_file
 
-__all__ = ["RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json", "read_truth_csv",
-           "write_truth_csv", "TRUTH_COLUMNS"]
+__all__ = ["RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json"]
 
 RECORD_CSV_COLUMNS = ["index", "status", "tx", "ty", "tz", "qw", "qx", "qy", "qz", "reprojection_um", "error",
                       "std_tx_um", "std_ty_um", "std_tz_um", "std_rx_deg", "std_ry_deg", "std_rz_deg",
@@ -27,7 +25,6 @@ ROTATION_CSV_COLUMNS = {
     "euler-zyx": (["a_deg", "b_deg", "c_deg"], "euler_zyx_deg"),
     "euler-xyz": (["w_deg", "p_deg", "r_deg"], "euler_xyz_deg"),
 }
-TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
 
 
 def _num(v):
@@ -124,26 +121,3 @@ class RecordWriter:
 
     def __exit__(self, *exc):
         self.close(exc)
-
-
-def write_truth_csv(path, Ts_G_F, q_wxyz):
-    """Write ``index,tx,ty,tz,qw,qx,qy,qz`` for poses ``T_G_F`` (mm)."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(TRUTH_COLUMNS)
-        for i, (T, q) in enumerate(zip(Ts_G_F, q_wxyz)):
-            w.writerow([i, *(repr(float(v)) for v in T[:3, 3]), *(repr(float(v)) for v in q)])
-
-
-def read_truth_csv(path):
-    """Read a truth CSV; returns (index (K,), t (K, 3) mm, q_wxyz (K, 4))."""
-    path = Path(path)
-    try:
-        data = np.genfromtxt(path, delimiter=",", names=True)
-    except (OSError, ValueError) as exc:
-        raise InputFileError(f"{path}: cannot read truth CSV ({exc})") from None
-    if data.dtype.names is None or list(data.dtype.names) != TRUTH_COLUMNS:
-        raise InputFileError(f"{path}: expected columns {','.join(TRUTH_COLUMNS)}")
-    data = np.atleast_1d(data)
-    return (data["index"].astype(int), np.stack([data["tx"], data["ty"], data["tz"]], 1),
-            np.stack([data["qw"], data["qx"], data["qy"], data["qz"]], 1))
