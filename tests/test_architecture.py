@@ -150,7 +150,7 @@ def test_the_circle_finder_finds_a_circle_closed_inside_a_function(tmp_path):
     assert sorted(map(sorted, circles(graph))) == [["posekit.a", "posekit.b"], ["posekit.d", "posekit.e", "posekit.f"]]
     # and the graph sees both kinds of import (io.py <-> reading.py were both function-local)
     g = import_graph()
-    assert "posekit.profiler.stream.reading" in g["posekit.cli.profiler"]        # imported inside run_estimate
+    assert "posekit.profiler.stream.files" in g["posekit.cli.profiler"]          # imported inside run_estimate
     assert "posekit.verdict" in g["posekit.profiler.estimate.result"]            # module level
 
 
