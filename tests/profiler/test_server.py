@@ -93,6 +93,7 @@ print(json.dumps({"sent": rep.sent, "elapsed_s": rep.elapsed_s, "rate_hz": rep.r
 """
 
 
+@pytest.mark.slow
 def test_soak_1khz_for_10s(gauge, loop_profiles, stub, tmp_path):
     """The sensor is a separate process (as the real one is) pacing frames on a perf_counter
     schedule; the server must keep up: nothing dropped, nothing failed, every pose right.

@@ -60,6 +60,7 @@ def corners_small():
     return corners_study(CornersConfig(corners=(4, 5), gauges=(2, 3), poses=10, seed=3), scheduler=SERIAL)
 
 
+@pytest.mark.slow
 def test_corners_study_table1(corners_small, tmp_path):
     write_report(corners_small, tmp_path)
     header, rows = _read_csv(tmp_path / "table1.csv")
@@ -244,6 +245,7 @@ def _cli(argv):
     return args.func(args)
 
 
+@pytest.mark.slow
 def test_cli_study_corners_and_limits(tmp_path, capsys):
     out = tmp_path / "c"
     assert _cli(["study", "corners", "--corners", "4,5", "--gauges", "2", "--poses", "4", "--seed", "1",
