@@ -19,11 +19,11 @@ from scipy.spatial.transform import Rotation
 
 from posekit.errors import ConfigError
 from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, render_profiles
-from posekit.profiler.estimate.evaluate import pose_errors
-from posekit.profiler.estimate.sensor import loop_poses, sample_poses, visible_mask
+from posekit.profiler.sim.poses import loop_poses, sample_poses, visible_mask
 from posekit.profiler.stream.protocol import MAGIC, MAX_POINTS, encode_frame
 from posekit.profiler.stream.server import PoseServer, check_address, parse_address
 from posekit.profiler.stream.stream_client import SensorClient
+from posekit.profiler.studies.evaluate import pose_errors
 from tests.profiler.server_helpers import wait_until
 
 SOAK_RATE_HZ = 1000.0
@@ -93,6 +93,7 @@ print(json.dumps({"sent": rep.sent, "elapsed_s": rep.elapsed_s, "rate_hz": rep.r
 """
 
 
+@pytest.mark.slow
 def test_soak_1khz_for_10s(gauge, loop_profiles, stub, tmp_path):
     """The sensor is a separate process (as the real one is) pacing frames on a perf_counter
     schedule; the server must keep up: nothing dropped, nothing failed, every pose right.
@@ -524,7 +525,7 @@ def test_cli_serve_runs_for_a_duration_and_prints_a_summary(gauge, loop_profiles
     args = _serve_parser().parse_args(
         ["serve", "--gauge", "demo-5", "--listen", f"127.0.0.1:{port}",
          "--robot", f"{stub.address[0]}:{stub.address[1]}", "--queue", "64", "--duration", "1.5",
-         "--status-every", "0.4"])
+         "--status-every-s", "0.4"])
 
     def sensor():
         deadline = time.monotonic() + 5.0

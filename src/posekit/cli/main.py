@@ -205,10 +205,19 @@ def main(argv=None) -> int:
     debug = bool(found.get("debug"))
     argv = _join_negative_values(argv)
     parser = build_parser()
+    from ._config import apply_config, dump_config, wants_dump
+    try:
+        apply_config(parser, argv)     # a verb's --config FILE: its defaults (defaults < file < flags)
+    except PosekitError as exc:
+        print(f"posekit: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:          # argparse: usage errors exit 2, --help/--version exit 0
         return int(exc.code or 0)
+    if wants_dump(args):
+        sys.stdout.write(dump_config(parser, argv, args))
+        return 0
     args.debug = debug or args.debug
     previous = None
     try:

@@ -45,6 +45,7 @@ from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
 from posekit.errors import ConfigError
+from posekit.seam.engine.particles import RESAMPLERS
 
 __all__ = [
     "DEFAULT_SENSOR_DISTANCES_MM",
@@ -68,7 +69,7 @@ __all__ = [
 ]
 
 TRAJECTORY_KINDS = ("xy", "yz", "line", "bend")
-RESAMPLER_NAMES = ("systematic", "stratified", "residual")
+RESAMPLER_NAMES = tuple(RESAMPLERS)             # the one list: posekit.seam.engine.particles.RESAMPLERS
 #: The robot of the paper's setup, used when the config names none.
 DEFAULT_ROBOT = "puma560"
 #: Sensor distances used when ``sensors.distances_mm`` is not given: the first ``count``.
@@ -429,7 +430,7 @@ class FilterConfig(_Section):
     """
 
     particles: Integer = _num(500, 1, MAX_PARTICLES)  # N, 1 .. 1,000,000
-    resampler: Literal["systematic", "stratified", "residual"] = "systematic"
+    resampler: Literal[RESAMPLER_NAMES] = "systematic"
     ess_threshold: Number = _num(0.5, 0.0, 1.0, lo_open=True)  # fraction of the particle count, (0, 1]
     anneal_ess: Number = _num(0.05, 0.0, 1.0)  # temper an update leaving fewer (fraction of N), 0 .. 1
     anneal_stages: Integer = _num(20, 0, 100)  # 0 .. 100 tempering stages per update

@@ -1,16 +1,16 @@
-"""Rendering an as-built gauge (:mod:`~posekit.profiler.estimate.realism`) as the sensor sees it.
+"""Rendering an as-built gauge (:mod:`~posekit.profiler.sim.realism`) as the sensor sees it.
 
 First-hit ray casting of the LJ-X8400's fan at the as-built faces, their fillets (cylinders
 tangent to both faces, cast exactly) and chamfers (planes), the mounting plate and the
 fixture block; then what the sensor adds: multipath ghosts beside valleys, its scale error
 and dropouts on steep surfaces. The sensor noise is added by
-:func:`~posekit.profiler.estimate.sensor.render_profiles`.
+:func:`~posekit.profiler.sim.render.render_profiles`.
 """
 
 import numpy as np
 from numba import njit
 
-from .raycast import first_face_hit, ray_in_gauge
+from ..gauge.raycast import first_face_hit, ray_in_gauge
 
 __all__ = ["true_corners", "cast_as_built", "render_as_built", "EDGE", "PLATE", "FIXTURE", "NONE"]
 
@@ -287,7 +287,7 @@ def _steep_dropouts(out, cosinc, rm, rng):
 def render_as_built(scene, Ts_G_F: np.ndarray, model, rng) -> np.ndarray:
     """Noise-free profiles of the as-built scene with multipath, scale error and steep dropouts.
 
-    The sensor noise of :class:`~posekit.profiler.estimate.sensor.NoiseModel` is added by the caller.
+    The sensor noise of :class:`~posekit.profiler.sensor.NoiseModel` is added by the caller.
 
     Parameters
     ----------

@@ -2,8 +2,8 @@
 delimiter, a region of interest, and a check that the profile is in mm, not metres.
 
 :func:`read_profile_file` is the one reader behind ``posekit profiler estimate`` and
-``posekit profiler replay``; :func:`posekit.profiler.estimate.io.read_profiles` reads a CSV
-through :func:`read_csv` with the default options. File safety (size, encoding, array headers)
+``posekit profiler replay``; :func:`read_profiles` reads CSV (through :func:`read_csv` with the
+default options), ``.npy`` and ``.npz`` files as they are. File safety (size, encoding, array headers)
 is :mod:`posekit.io`'s.
 """
 
@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ConfigError, InputFileError
-from ...io import check_input_file, quote, read_text
+from ...io import check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
 
-__all__ = ["ReadOptions", "read_csv", "read_profile_file", "check_units", "units_hint", "apply_roi",
+__all__ = ["ReadOptions", "read_csv", "read_profiles", "read_profile_file", "check_units", "units_hint", "apply_roi",
            "parse_columns", "parse_delimiter", "parse_roi", "METRES_LIMIT", "METRES_SPAN"]
 
 #: A profile whose every |x|, |z| is below this (and that spans less than METRES_SPAN) is in metres.
@@ -253,6 +253,61 @@ def apply_roi(profiles, roi_x_mm=None, roi_z_mm=None) -> np.ndarray:
     return out
 
 
+def _check_array(arr, path: Path, what: str) -> np.ndarray:
+    if not np.issubdtype(arr.dtype, np.number):
+        raise InputFileError(f"{path}: {what} must hold numbers, got dtype {arr.dtype}")
+    arr = np.asarray(arr, dtype=np.float64)
+    if np.any(np.isinf(arr)):
+        raise InputFileError(f"{path}: {what} holds infinite values; use NaN for no return")
+    return arr
+
+
+def read_profiles(path) -> np.ndarray:
+    """Read one profile or a batch from a CSV, .npy or .npz file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    profiles : ndarray, shape (K, N, 2)
+        Points (x, z) in the profiler frame F, mm; NaN = no return. K = 1 for a CSV or
+        .npy file.
+
+    Raises
+    ------
+    InputFileError
+        If the file is missing, empty, malformed or has the wrong shape; the message
+        names the file (and line for a CSV).
+    """
+    path = Path(path)
+    expected = "a .csv (header 'x,z'), .npy or .npz profile file"
+    size = check_input_file(path, expected=expected)
+    suffix = path.suffix.lower()
+    if size == 0:
+        raise InputFileError(f"{path}: file is empty; expected {expected}")
+    if suffix == ".csv":
+        return read_csv(path, ReadOptions(check_units=False))
+    if suffix == ".npy":
+        arr = load_npy(path)
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise InputFileError(f"{path}: expected an array of shape (N, 2) of (x, z) in mm, got {arr.shape}")
+        return _check_array(arr, path, "profile")[None]
+    if suffix == ".npz":
+        arr = load_npz_member(path, "profiles")
+        if arr is None:
+            files = npz_members(path)
+            raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
+                                 f"found {', '.join(files) or 'no arrays'}")
+        if arr.ndim != 3 or arr.shape[2] != 2:
+            raise InputFileError(f"{path}: expected 'profiles' of shape (K, N, 2), got {arr.shape}")
+        if arr.shape[0] == 0:
+            raise InputFileError(f"{path}: 'profiles' holds no profile (K = 0)")
+        return _check_array(arr, path, "'profiles'")
+    raise InputFileError(f"{path}: unknown file type {quote(path.suffix, 20)}; expected .csv, .npy or .npz")
+
+
 def read_profile_file(path, options: ReadOptions = ReadOptions()) -> np.ndarray:
     """Read one profile or a batch from a CSV, ``.npy`` or ``.npz`` file, with reading options.
 
@@ -274,8 +329,6 @@ def read_profile_file(path, options: ReadOptions = ReadOptions()) -> np.ndarray:
         If the file is missing, malformed, of the wrong shape, or in metres; one line naming
         the file (and the line of a CSV).
     """
-    from .io import read_profiles
-
     path = Path(path)
     if path.suffix.lower() == ".csv":
         size = check_input_file(path, expected=_csv_expected(options))

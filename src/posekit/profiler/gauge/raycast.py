@@ -1,6 +1,6 @@
 """First-hit ray casting at a gauge's faces: the one kernel of the ideal simulator
-(:mod:`~posekit.profiler.estimate.sensor`) and the as-built renderer
-(:mod:`~posekit.profiler.estimate.realism_render`).
+(:mod:`~posekit.profiler.sim.render`) and the as-built renderer
+(:mod:`~posekit.profiler.sim.realism_render`).
 
 A ray of the fan leaves the emitter at ``(0, 0, z_apex)`` in F along ``(dx_F, 0, dz_F)``;
 :func:`ray_in_gauge` puts it in G for a pose ``T_G_F``, :func:`first_face_hit` finds the
@@ -66,7 +66,7 @@ def first_face_hit(normals, offsets, ridge_q, ridge_s, x_lo, x_hi, y_lo, y_hi, o
 
 @njit(cache=True, nogil=True)
 def seen_from_behind(normals, T_G_F, corners_F, cos_max) -> bool:
-    """Whether a face meeting at a corner is seen from behind at the pose (:func:`~posekit.profiler.estimate.gauge.pose_is_possible`).
+    """Whether a face meeting at a corner is seen from behind at the pose (:func:`~posekit.profiler.gauge.ambiguity.pose_is_possible`).
 
     ``normals`` (n + 1, 3) in G; ``T_G_F`` (4, 4); ``corners_F`` (n, 2) (x, z) in F, ridge
     order, mm: the line of sight to corner i (``R_G_F (x, 0, z)``, unit) makes

@@ -3,17 +3,17 @@
 One profile cannot tell. A face machined off its drawing moves the corners of a profile
 almost exactly as a shift of the pose along the ridges (G's y, seen only through the
 ridges' skew) would: on demo-5 a face 20 µm off is a pose 0.1–0.9 mm off along y, and the
-per-profile χ² test (:mod:`~posekit.profiler.estimate.verdict`) sees only what is left,
+per-profile χ² test (:mod:`~posekit.profiler.estimate.consistency`) sees only what is left,
 which for faces 1, 3 and 5 of demo-5 is within the noise. Such an estimate reads 'ok' while
 its error is several times its std: the single-profile limit, which no per-profile test
 removes. Across profiles at varied poses the same face error needs a different pose shift
 in every profile, so the profiles disagree with one another; a bundle adjustment of every
-face and every pose (:mod:`~posekit.profiler.estimate.gauge_bundle`, the solver of
+face and every pose (:mod:`~posekit.profiler.gauge.bundle`, the solver of
 ``calibrate-gauge``) sees it.
 
 Test. :func:`check_gauge_file` adjusts the ``n + 1`` face planes ``θ`` (tilts and offsets
 from the file's planes) and every pose, the gauge frame held to the file's by the datum and
-hinge conditions of :mod:`~posekit.profiler.estimate.gauge_calibration` (``C θ = 0``); the
+hinge conditions of :mod:`~posekit.profiler.gauge.calibration` (``C θ = 0``); the
 corners are weighted by the assumed sensor noise. On the constrained subspace (an
 orthonormal basis ``N`` of ``{θ : C θ = 0}``, ``θ = N φ``, ``m = 3(n + 1) - 8`` values) the
 estimate ``φ̂`` has, if the file is right, covariance
@@ -63,7 +63,7 @@ only 69-77 % of tx and ry within 2σ.
 
 When the batch cannot check the file. Fewer than :data:`MIN_CHECK_PROFILES` profiles with an
 estimate, or poses too alike to fix every face (the condition test of
-:func:`~posekit.profiler.estimate.gauge_calibration.calibrate_gauge`, :data:`MAX_CONDITION`):
+:func:`~posekit.profiler.gauge.calibration.calibrate_gauge`, :data:`MAX_CONDITION`):
 the result says so (``checked`` False) and nothing else changes. The power grows with the
 pose variety: turning the laser line about its line of sight (yaw) between profiles
 separates the faces best.
@@ -75,9 +75,10 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 
 from ...errors import PosekitError
-from .gauge import Gauge
-from .gauge_bundle import adjust, normal_blocks, reduced_system
-from .gauge_calibration import (
+from ..estimate.covariance import corner_covariance
+from ..sensor import DEFAULT_SCALE_SIGMA_PPM
+from .bundle import adjust, normal_blocks, reduced_system
+from .calibration import (
     MAX_CONDITION,
     NEEDED,
     _scaled_information,
@@ -85,8 +86,7 @@ from .gauge_calibration import (
     hinge_constraints,
     outlying_profiles,
 )
-from .sensor import DEFAULT_SCALE_SIGMA_PPM
-from .verdict import corner_covariance
+from .model import Gauge
 
 __all__ = ["GaugeCheck", "check_gauge_file", "MIN_CHECK_PROFILES", "SCALE_ALLOWANCE_PPM"]
 
@@ -94,7 +94,7 @@ __all__ = ["GaugeCheck", "check_gauge_file", "MIN_CHECK_PROFILES", "SCALE_ALLOWA
 MIN_CHECK_PROFILES = 50
 #: 1σ of the sensor's x and z scale errors the test allows (ppm) without a noise model (``noise=None``):
 #: a scale error within it is not taken for a gauge that differs from its file. With a noise model the
-#: allowance is its ``scale_sigma_ppm`` (default :data:`~posekit.profiler.estimate.sensor.DEFAULT_SCALE_SIGMA_PPM`).
+#: allowance is its ``scale_sigma_ppm`` (default :data:`~posekit.profiler.sensor.DEFAULT_SCALE_SIGMA_PPM`).
 SCALE_ALLOWANCE_PPM = DEFAULT_SCALE_SIGMA_PPM
 
 

@@ -23,11 +23,12 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.estimate.design import random_gauge
-from posekit.profiler.estimate.evaluate import evaluate, pose_errors
-from posekit.profiler.estimate.gauge import gauge_to_yaml
+from posekit.profiler.estimate.consistency import DEFAULT_SIGNIFICANCE
+from posekit.profiler.estimate.covariance import corner_covariance, face_tolerance_covariance
 from posekit.profiler.estimate.pipeline import DEFAULT_NOISE, estimate_batch, estimate_pose
-from posekit.profiler.estimate.solve import DEFAULT_SIGNIFICANCE, corner_covariance, face_tolerance_covariance
+from posekit.profiler.gauge.design import random_gauge
+from posekit.profiler.gauge.model import gauge_to_yaml
+from posekit.profiler.studies.evaluate import evaluate, pose_errors
 
 GAUGES = ["demo-4", "demo-5", "demo-7", "demo-10"]
 

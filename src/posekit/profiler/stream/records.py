@@ -1,20 +1,19 @@
-"""Reading laser profiles and writing pose records (the files of ``posekit profiler estimate``).
+"""Writing pose records: the output of ``posekit profiler estimate``.
 
-Inputs: CSV with header ``x,z`` (mm, scan order, an empty cell or ``nan`` = no return),
-``.npy`` of shape (N, 2), or ``.npz`` with ``profiles`` of shape (K, N, 2) for batches.
+Records go out as JSON lines or CSV (:class:`RecordWriter`; the fields and columns are DESIGN.md's
+contract). The profile files are read by :mod:`~posekit.profiler.stream.reading`; the truth of a
+simulation is written by :mod:`~posekit.profiler.sim.simulate`.
 """
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 
 from ...errors import InputFileError
-from ...io import atomic_file, check_input_file, load_npy, load_npz_member, npz_members, quote
+from ...io import atomic_file
 
-__all__ = ["read_profiles", "RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json", "read_truth_csv",
-           "write_truth_csv", "TRUTH_COLUMNS"]
+__all__ = ["RecordWriter", "RECORD_CSV_COLUMNS", "ROTATION_CSV_COLUMNS", "record_to_json"]
 
 RECORD_CSV_COLUMNS = ["index", "status", "tx", "ty", "tz", "qw", "qx", "qy", "qz", "reprojection_um", "error",
                       "std_tx_um", "std_ty_um", "std_tz_um", "std_rx_deg", "std_ry_deg", "std_rz_deg",
@@ -26,64 +25,6 @@ ROTATION_CSV_COLUMNS = {
     "euler-zyx": (["a_deg", "b_deg", "c_deg"], "euler_zyx_deg"),
     "euler-xyz": (["w_deg", "p_deg", "r_deg"], "euler_xyz_deg"),
 }
-TRUTH_COLUMNS = ["index", "tx", "ty", "tz", "qw", "qx", "qy", "qz"]
-
-
-def _check_array(arr, path: Path, what: str) -> np.ndarray:
-    if not np.issubdtype(arr.dtype, np.number):
-        raise InputFileError(f"{path}: {what} must hold numbers, got dtype {arr.dtype}")
-    arr = np.asarray(arr, dtype=np.float64)
-    if np.any(np.isinf(arr)):
-        raise InputFileError(f"{path}: {what} holds infinite values; use NaN for no return")
-    return arr
-
-
-def read_profiles(path) -> np.ndarray:
-    """Read one profile or a batch from a CSV, .npy or .npz file.
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Returns
-    -------
-    profiles : ndarray, shape (K, N, 2)
-        Points (x, z) in the profiler frame F, mm; NaN = no return. K = 1 for a CSV or
-        .npy file.
-
-    Raises
-    ------
-    InputFileError
-        If the file is missing, empty, malformed or has the wrong shape; the message
-        names the file (and line for a CSV).
-    """
-    path = Path(path)
-    expected = "a .csv (header 'x,z'), .npy or .npz profile file"
-    size = check_input_file(path, expected=expected)
-    suffix = path.suffix.lower()
-    if size == 0:
-        raise InputFileError(f"{path}: file is empty; expected {expected}")
-    if suffix == ".csv":
-        from .reading import ReadOptions, read_csv
-
-        return read_csv(path, ReadOptions(check_units=False))
-    if suffix == ".npy":
-        arr = load_npy(path)
-        if arr.ndim != 2 or arr.shape[1] != 2:
-            raise InputFileError(f"{path}: expected an array of shape (N, 2) of (x, z) in mm, got {arr.shape}")
-        return _check_array(arr, path, "profile")[None]
-    if suffix == ".npz":
-        arr = load_npz_member(path, "profiles")
-        if arr is None:
-            files = npz_members(path)
-            raise InputFileError(f"{path}: expected an array 'profiles' of shape (K, N, 2), "
-                                 f"found {', '.join(files) or 'no arrays'}")
-        if arr.ndim != 3 or arr.shape[2] != 2:
-            raise InputFileError(f"{path}: expected 'profiles' of shape (K, N, 2), got {arr.shape}")
-        if arr.shape[0] == 0:
-            raise InputFileError(f"{path}: 'profiles' holds no profile (K = 0)")
-        return _check_array(arr, path, "'profiles'")
-    raise InputFileError(f"{path}: unknown file type {quote(path.suffix, 20)}; expected .csv, .npy or .npz")
 
 
 def _num(v):
@@ -180,26 +121,3 @@ class RecordWriter:
 
     def __exit__(self, *exc):
         self.close(exc)
-
-
-def write_truth_csv(path, Ts_G_F, q_wxyz):
-    """Write ``index,tx,ty,tz,qw,qx,qy,qz`` for poses ``T_G_F`` (mm)."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(TRUTH_COLUMNS)
-        for i, (T, q) in enumerate(zip(Ts_G_F, q_wxyz)):
-            w.writerow([i, *(repr(float(v)) for v in T[:3, 3]), *(repr(float(v)) for v in q)])
-
-
-def read_truth_csv(path):
-    """Read a truth CSV; returns (index (K,), t (K, 3) mm, q_wxyz (K, 4))."""
-    path = Path(path)
-    try:
-        data = np.genfromtxt(path, delimiter=",", names=True)
-    except (OSError, ValueError) as exc:
-        raise InputFileError(f"{path}: cannot read truth CSV ({exc})") from None
-    if data.dtype.names is None or list(data.dtype.names) != TRUTH_COLUMNS:
-        raise InputFileError(f"{path}: expected columns {','.join(TRUTH_COLUMNS)}")
-    data = np.atleast_1d(data)
-    return (data["index"].astype(int), np.stack([data["tx"], data["ty"], data["tz"]], 1),
-            np.stack([data["qw"], data["qx"], data["qy"], data["qz"]], 1))

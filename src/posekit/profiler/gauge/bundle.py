@@ -1,5 +1,5 @@
 """Bundle adjustment of a gauge's face planes and the profiler's poses (the solver of
-:func:`~posekit.profiler.estimate.gauge_calibration.calibrate_gauge`).
+:func:`~posekit.profiler.gauge.calibration.calibrate_gauge`).
 
 Model. Face f is the plane ``{p : n_f · p = d_f}`` in G, parametrized about the drawing's
 ``(n0_f, d0_f)`` by ``θ_f = [α_f (2), δ_f]``: ``n_f = normalize(n0_f + B_f α_f)`` with
@@ -26,7 +26,7 @@ import numpy as np
 
 from ...errors import CalibrationError
 from ...geometry import matrix_from_rotation_vector
-from .gauge import Gauge
+from .model import Gauge
 
 __all__ = ["tangent_bases", "plane_params", "bundle_residuals", "adjust", "normal_blocks", "reduced_system"]
 

@@ -7,19 +7,17 @@ import numpy as np
 
 from ...errors import PosekitError
 from ...geometry import rotation_vector_from_matrix
-from .corners import CornerParams, detect_corners
-from .gauge import Gauge
-from .sensor import (
-    LJ_X8400,
-    NoiseModel,
-    ProfilerModel,
-    Workspace,
-    render_profiles,
-    sample_poses,
-)
-from .solve import DEFAULT_SIGNIFICANCE, solve_pose
+from ..estimate.closed_form import CF_NEEDS
+from ..estimate.consistency import DEFAULT_SIGNIFICANCE
+from ..estimate.corner_params import CornerParams
+from ..estimate.corners import detect_corners
+from ..estimate.solve import solve_pose
+from ..gauge.model import Gauge, resolve_gauge
+from ..sensor import LJ_X8400, NoiseModel, ProfilerModel
+from ..sim.poses import Workspace, sample_poses
+from ..sim.render import render_profiles
 
-__all__ = ["accuracy_table", "Evaluation", "pose_errors", "evaluate"]
+__all__ = ["accuracy", "accuracy_table", "Evaluation", "pose_errors", "evaluate"]
 
 
 def pose_errors(T_est, T_true):
@@ -171,3 +169,38 @@ def accuracy_table(rows, count: int) -> str:
         for k, why in ev.failures[:3]:
             out.append(f"{method}: profile {k} failed: {why}")
     return "\n".join(out)
+
+
+def accuracy(gauge="demo-5", count: int = 1000, *, noise_um: float = 5.0, seed: int = 0,
+             progress=None) -> list[tuple[str, Evaluation]]:
+    """The estimator's accuracy on simulated profiles of a gauge (``posekit profiler accuracy``).
+
+    Both estimators (the closed form only for a gauge with at least
+    :data:`~posekit.profiler.estimate.closed_form.CF_NEEDS` corners) on the same ``count``
+    profiles at random poses, noise ``noise_um`` in z and twice that in x
+    (:meth:`NoiseModel.from_z_um <posekit.profiler.sensor.NoiseModel.from_z_um>`).
+
+    Parameters
+    ----------
+    gauge : Gauge or str or Path
+    count : int
+    noise_um : float
+    seed : int
+    progress : callable, optional
+        ``progress(iterable, method)`` wraps each method's loop over the profiles.
+
+    Returns
+    -------
+    list of (str, Evaluation)
+        ``('cf', ...)`` (when it applies) and ``('mle', ...)``, for :func:`accuracy_table`.
+    """
+    gauge = resolve_gauge(gauge)
+    noise = NoiseModel.from_z_um(noise_um)
+    rows = []
+    for method in ("cf", "mle"):
+        if method == "cf" and gauge.n_corners < CF_NEEDS:
+            continue
+        ev = evaluate(gauge, count, noise, seed=seed, method=method,
+                      progress=None if progress is None else (lambda it, m=method: progress(it, m)))
+        rows.append((method, ev))
+    return rows

@@ -3,8 +3,8 @@
 import numpy as np
 
 from ...errors import ConfigError, GaugeError
-from .gauge import Gauge, gauge_from_design
-from .sensor import LJ_X8400, ProfilerModel
+from ..sensor import LJ_X8400, ProfilerModel
+from .model import Gauge, gauge_from_design
 
 __all__ = ["random_gauge"]
 
@@ -48,7 +48,7 @@ def random_gauge(n_corners: int, rng=None, *, beta_min_deg: float = 50.0, width_
     Returns
     -------
     Gauge
-        Never an ambiguous one (:func:`~posekit.profiler.estimate.gauge.gauge_ambiguity`): a draw
+        Never an ambiguous one (:func:`~posekit.profiler.gauge.ambiguity.gauge_ambiguity`): a draw
         whose reversed reading fits the ridges is drawn again.
 
     Raises

@@ -19,14 +19,14 @@ spread over each face (weighted by area) have no net rigid motion in the least-s
 sense, ``Σ_f Σ_p w_p e_f(p) [n0_f; p × n0_f] = 0``: the normal equations of the rigid motion
 that would best fit the as-built faces onto the drawing, a CMM's best-fit alignment. The
 as-built gauge is thereby in the nominal gauge's frame, as close to its drawing as any rigid
-placement would make it (:func:`datum_transform` puts any other measurement of the gauge in
+placement would make it (:func:`~posekit.profiler.gauge.datum.datum_transform` puts any other measurement of the gauge in
 the same frame). A rigid offset of the whole gauge is a mounting error, not a machining one:
 no calibration from profiles can see it.
 
 Outer faces. Face 0 meets only ridge 0, face n only ridge n - 1: turning an outer face about
 its one ridge moves no corner. Two more conditions (:func:`hinge_constraints`) keep that
 tilt at the drawing's, and the outer faces enter the datum and the statistics along their
-ridge only (:func:`observed_samples`), the part of them that profiles see. (Their full
+ridge only (:func:`~posekit.profiler.gauge.datum.observed_samples`), the part of them that profiles see. (Their full
 planes would need the outer face lines of each profile as observations, with their
 correlation to the corners.)
 
@@ -55,7 +55,7 @@ ridges, z towards the sensor), or transform each plane into G (``n_G = R n``,
 same gauge YAML: ``normal`` pointing out of the material (towards +z), ``offset = normal ·
 point`` in mm, and ``tolerance_um`` the CMM's stated 1σ uncertainty of a plane's position
 (e.g. its MPE / 2); then pass that file as ``--gauge``. To use the best-fit frame of this
-module instead of the CMM's datums, move the measured gauge by :func:`datum_transform`.
+module instead of the CMM's datums, move the measured gauge by :func:`~posekit.profiler.gauge.datum.datum_transform`.
 """
 
 import time
@@ -66,15 +66,15 @@ import yaml
 from scipy.stats import chi2 as _chi2
 
 from ...errors import CalibrationError, PosekitError
-from ...geometry import matrix_from_rotation_vector
-from .corners import CornerParams, detect_corners
-from .gauge import Gauge, _build
-from .gauge_bundle import adjust, normal_blocks, plane_params, reduced_system, tangent_bases
-from .solve import solve_pose
+from ..estimate.corner_params import CornerParams
+from ..estimate.corners import detect_corners
+from ..estimate.solve import solve_pose
+from .bundle import adjust, normal_blocks, plane_params, reduced_system, tangent_bases
+from .datum import GRID, face_deviation_um, observed_samples
+from .model import Gauge, _build
 
 __all__ = ["GaugeCalibration", "calibrate_gauge", "as_built_yaml", "datum_constraints", "hinge_constraints",
-           "datum_transform", "face_samples", "observed_samples", "face_deviation_um", "pose_variety",
-           "outlying_profiles", "MIN_PROFILES", "MAX_CONDITION", "NEEDED"]
+           "pose_variety", "outlying_profiles", "MIN_PROFILES", "MAX_CONDITION", "NEEDED"]
 
 #: Fewest usable profiles :func:`calibrate_gauge` accepts.
 MIN_PROFILES = 50
@@ -82,36 +82,9 @@ MIN_PROFILES = 50
 MAX_CONDITION = 1e5
 #: A profile whose χ² has a smaller upper-tail probability than this is dropped as an outlier.
 OUTLIER_P = 1e-6
-#: Footprint grid per face (points along x and y) for the datum and the face statistics.
-GRID = 8
 
 
 # --------------------------------------------------------------------------- faces
-
-
-def face_samples(gauge: Gauge, grid: int = GRID):
-    """Points spread uniformly over each face's footprint, on the face, and their weights.
-
-    Returns
-    -------
-    points : ndarray, shape (n + 1, grid², 3)
-        Points in G, mm (midpoint grid in y over the block, in x between the face's ridges).
-    weights : ndarray, shape (n + 1, grid²)
-        Footprint area of each point, mm².
-    """
-    y0, y1 = gauge.y_range
-    ys = y0 + (np.arange(grid) + 0.5) * (y1 - y0) / grid
-    rx = gauge.ridge_x(ys)                                            # (grid, n)
-    lo = np.concatenate([np.full((grid, 1), gauge.x_range[0]), rx], axis=1)
-    hi = np.concatenate([rx, np.full((grid, 1), gauge.x_range[1])], axis=1)
-    frac = (np.arange(grid) + 0.5) / grid
-    xs = lo.T[:, :, None] + (hi - lo).T[:, :, None] * frac            # (F, grid_y, grid_x)
-    Y = np.broadcast_to(ys[None, :, None], xs.shape)
-    n = gauge.normals
-    Z = (gauge.offsets[:, None, None] - n[:, 0, None, None] * xs - n[:, 1, None, None] * Y) / n[:, 2, None, None]
-    pts = np.stack([xs, Y, Z], axis=-1).reshape(len(n), grid * grid, 3)
-    w = np.repeat(((hi - lo).T * (y1 - y0) / grid**2)[:, :, None], grid, axis=2).reshape(len(n), -1)
-    return pts, w
 
 
 def datum_constraints(nominal: Gauge, grid: int = GRID) -> np.ndarray:
@@ -144,62 +117,6 @@ def hinge_constraints(nominal: Gauge) -> np.ndarray:
     for row, (face, ridge) in enumerate(((0, 0), (F - 1, F - 2))):
         H[row, face, :2] = np.cross(a[ridge], nominal.normals[face]) @ B[face]
     return H.reshape(2, -1)
-
-
-def observed_samples(gauge: Gauge, grid: int = GRID):
-    """:func:`face_samples`, with each outer face's points moved onto its ridge.
-
-    The profiles see an outer face only where it meets its one ridge (see
-    :func:`hinge_constraints`); its weight, the face's footprint area, is spread along the
-    ridge. Same shapes and units as :func:`face_samples`.
-    """
-    pts, w = face_samples(gauge, grid)
-    y0, y1 = gauge.y_range
-    m = pts.shape[1]
-    ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
-    for face, ridge in ((0, 0), (len(w) - 1, gauge.n_corners - 1)):
-        pts[face] = gauge.ridge_q[ridge] + ys[:, None] * gauge.ridge_s[ridge]
-        w[face] = w[face].sum() / m
-    return pts, w
-
-
-def face_deviation_um(gauge: Gauge, reference: Gauge, grid: int = GRID, observed: bool = False) -> np.ndarray:
-    """RMS over each face's footprint of ``gauge``'s face from ``reference``'s, µm, shape (n + 1,).
-
-    At points p on the reference face: the distance ``n · p - d`` from ``gauge``'s face.
-    ``observed``: the outer faces along their ridge only (:func:`observed_samples`).
-    """
-    pts, w = (observed_samples if observed else face_samples)(reference, grid)
-    e = np.einsum("fmi,fi->fm", pts, gauge.normals) - gauge.offsets[:, None]
-    return np.sqrt(np.sum(w * e**2, axis=1) / np.sum(w, axis=1)) * 1e3
-
-
-def datum_transform(gauge: Gauge, nominal: Gauge, grid: int = GRID, iters: int = 5) -> np.ndarray:
-    """The rigid motion ``T`` (4, 4) that best fits ``gauge``'s faces onto the drawing.
-
-    Minimises ``Σ w (n'_f · p - d'_f)²`` over the nominal :func:`observed_samples` p, for the faces
-    ``(n', d')`` of ``gauge`` moved by T (Gauss–Newton, small motions). Moving a gauge by T
-    (``p → R p + t``) puts it in the frame :func:`calibrate_gauge` uses; a pose ``T_G_F``
-    on it becomes ``T @ T_G_F``.
-    """
-    pts, w = observed_samples(nominal, grid)
-    T = np.eye(4)
-    for _ in range(iters):
-        n = gauge.normals @ T[:3, :3].T
-        d = gauge.offsets + n @ T[:3, 3]
-        e = np.einsum("fmi,fi->fm", pts, n) - d[:, None]
-        # motion ξ = [ρ, φ]: n' = n + φ × n, d' = d + n·ρ  ⇒  δe = -n·ρ + φ·(n × p)
-        J = np.concatenate([-np.broadcast_to(n[:, None, :], pts.shape), np.cross(n[:, None, :], pts)], axis=-1)
-        H = np.einsum("fm,fma,fmb->ab", w, J, J)
-        g = np.einsum("fm,fma,fm->a", w, J, e)
-        xi = -np.linalg.solve(H, g)
-        dT = np.eye(4)
-        dT[:3, :3] = matrix_from_rotation_vector(xi[3:])
-        dT[:3, 3] = xi[:3]
-        T = dT @ T
-        if np.linalg.norm(xi) < 1e-13:
-            break
-    return T
 
 
 # --------------------------------------------------------------------------- API

@@ -1,6 +1,6 @@
 """What a real installation adds to the ideal profile: the as-built gauge and its surroundings.
 
-The ideal simulator (:func:`~posekit.profiler.estimate.sensor.render_profiles` without ``realism``)
+The ideal simulator (:func:`~posekit.profiler.sim.render.render_profiles` without ``realism``)
 sees a drawing: sharp ridges, perfect planes, nothing else in the laser line. A real cell
 shows, and :class:`RealismModel` simulates (every option off by default; a realistic set in
 :meth:`RealismModel.realistic`):
@@ -49,11 +49,9 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ...errors import ConfigError
-from .gauge import Gauge
-from .realism_render import EDGE, FIXTURE, NONE, PLATE, cast_as_built, render_as_built, true_corners
+from ..gauge.model import Gauge
 
-__all__ = ["RealismModel", "AsBuiltGauge", "build_as_built", "true_corners", "render_as_built", "cast_as_built",
-           "DEFECTS", "EDGE", "PLATE", "FIXTURE", "NONE"]
+__all__ = ["RealismModel", "AsBuiltGauge", "build_as_built", "DEFECTS"]
 
 #: The defects of :class:`RealismModel`, each with the fields that switch it on.
 DEFECTS = {
@@ -183,7 +181,7 @@ class AsBuiltGauge:
     ----------
     gauge : Gauge
         The as-built faces (machining error applied) and their sharp ridges: the truth the
-        corners of a profile should be compared with (:func:`true_corners`).
+        corners of a profile should be compared with (:func:`~posekit.profiler.sim.realism_render.true_corners`).
     nominal : Gauge
         The drawing.
     edge_kind : ndarray of int, shape (n,)
