@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.camera import CameraModel, calibrate_camera, load_camera, save_camera
-from posekit.ceiling.render_chessboard import board_corners, chessboard_poses, render_board_view
+from posekit.ceiling.camera.lens import CameraModel, calibrate_camera, load_camera, save_camera
+from posekit.ceiling.sim.chessboard import board_corners, chessboard_poses, render_board_view
 from posekit.cli.ceiling_camera import add_camera_parser, parse_board
 from posekit.errors import CalibrationError, ConfigError
 from tests.ceiling.cli_harness import run_verb

@@ -1,11 +1,12 @@
-"""Laser dot detection (posekit.ceiling.detect) on rendered ceiling frames."""
+"""Laser dot detection (posekit.ceiling.detect.dots) on rendered ceiling frames."""
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.detect import LASER_COLORS, Dot, DotDetector, LineDetector
-from posekit.ceiling.render import CeilingScene, SceneConfig, robot_path
+from posekit.ceiling.detect.dots import LASER_COLORS, Dot, DotDetector
+from posekit.ceiling.detect.lines import LineDetector
+from posekit.ceiling.sim.render import CeilingScene, SceneConfig, robot_path
 from posekit.errors import ConfigError, InputFileError
 
 CLEAN = dict(noise_std=0.0, drift_gain=0.0, drift_offset=0.0, gradient=0.0)

@@ -18,10 +18,10 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.live import TrackOutputs, parse_udp_target
-from posekit.ceiling.pipeline import read_track_csv
-from posekit.ceiling.track import TrackRow
-from posekit.ceiling.video_io import is_live_source, open_live
+from posekit.ceiling.track.outputs import TrackOutputs, parse_udp_target
+from posekit.ceiling.track.pipeline import read_track_csv
+from posekit.ceiling.track.sources import is_live_source, open_live
+from posekit.ceiling.track.types import TrackRow
 from posekit.errors import ConfigError
 from tests.ceiling.test_track_scene import FPS, H_IMAGE_WORLD, H, Scene, W
 from tests.cli_helpers import assert_one_line_error, run_cli
@@ -99,7 +99,7 @@ def test_mjpeg_stream_over_http_from_a_local_server(clip):
     th = threading.Thread(target=srv.serve_forever, daemon=True)
     th.start()
     try:
-        from posekit.ceiling.pipeline import track_video
+        from posekit.ceiling.track.pipeline import track_video
         url = f"http://127.0.0.1:{srv.server_address[1]}/stream.mjpg"
         rows = []
         res = track_video(url, out / "cal.json", on_row=rows.append)

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.multitrack import MultiRobotTracker, track_robots_frames
-from posekit.ceiling.pipeline import read_track_csv
+from posekit.ceiling.track.multitrack import MultiRobotTracker, track_robots_frames
+from posekit.ceiling.track.pipeline import read_track_csv
 from posekit.errors import ConfigError
 from tests.ceiling.test_track_scene import FPS, H_IMAGE_WORLD, H, Scene, W
 from tests.cli_helpers import assert_one_line_error, run_cli

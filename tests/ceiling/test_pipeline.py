@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.accuracy import error_stats
-from posekit.ceiling.pipeline import (
+from posekit.ceiling.studies.accuracy import error_stats
+from posekit.ceiling.track.cameras import Camera
+from posekit.ceiling.track.pipeline import (
     TRACK_COLUMNS,
     parse_dots,
     read_track_csv,
@@ -17,8 +18,8 @@ from posekit.ceiling.pipeline import (
     track_video,
     write_track_csv,
 )
-from posekit.ceiling.track import Camera, TrackRow
-from posekit.ceiling.video_io import DEFAULT_FPS, open_frames
+from posekit.ceiling.track.sources import DEFAULT_FPS, open_frames
+from posekit.ceiling.track.types import TrackRow
 from posekit.errors import CalibrationError, ConfigError, InputFileError, PosekitError
 
 
@@ -162,12 +163,12 @@ def test_bad_dots_and_calibrations(tmp_path):
 
 def needs_renderer():
     """The renderer and the detector (helper B), or skip the test that needs them."""
-    pytest.importorskip("posekit.ceiling.detect", reason="the dot detector (posekit.ceiling.detect) is missing")
-    return pytest.importorskip("posekit.ceiling.render", reason="the renderer (posekit.ceiling.render) is missing")
+    pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
+    return pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
 
 
 def scene_and_camera(cfg):
-    from posekit.ceiling.calibration import calibrate
+    from posekit.ceiling.camera.homography import calibrate
     scene = needs_renderer().CeilingScene(cfg)
     pts = scene.calibration_points()
     cal = calibrate(pts[:, :2], pts[:, 2:])
@@ -267,7 +268,7 @@ def cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def short_render(tmp_path_factory):
-    from posekit.ceiling.calibration import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate, read_points_csv
     render = needs_renderer()
     out = tmp_path_factory.mktemp("render")
     cfg = render.SceneConfig(duration_s=3.0, dots=("red", "green"), path_phase_s=12.0)
@@ -279,7 +280,7 @@ def short_render(tmp_path_factory):
 
 def test_cli_track_video_and_image_folder(capsys, short_render):
     out, paths = short_render
-    from posekit.ceiling.demo import read_truth_csv
+    from posekit.ceiling.studies.demo import read_truth_csv
     truth = read_truth_csv(paths.truth)
     for source, extra in ((paths.video, []), (paths.frames_dir, ["--fps", "15"])):
         csv_path = out / f"track_{source.name}.csv"

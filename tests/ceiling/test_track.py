@@ -5,15 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from posekit.ceiling.track import (
-    CHI2_2DOF_999,
-    Camera,
-    MultiCameraTracker,
-    Tracker,
-    TrackerConfig,
-    border_distance,
-    homography_jacobian,
-)
+from posekit.ceiling.track.cameras import Camera, MultiCameraTracker, border_distance, homography_jacobian
+from posekit.ceiling.track.tracker import Tracker
+from posekit.ceiling.track.types import CHI2_2DOF_999, TrackerConfig
 from posekit.errors import ConfigError, GeometryError, TrajectoryError
 
 FPS = 15.0          # the paper's camera

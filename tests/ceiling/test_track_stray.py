@@ -6,8 +6,8 @@ never ``ok`` on anything but the laser dot, corners are re-acquired in the frame
 import numpy as np
 import pytest
 
-from posekit.ceiling.detect import DotDetector, DotSignature
-from posekit.ceiling.pipeline import track_frames
+from posekit.ceiling.detect.dots import DotDetector, DotSignature
+from posekit.ceiling.track.pipeline import track_frames
 from tests.ceiling.test_track_scene import Scene, ok_errors
 
 STRAY = dict(led_xy=(2000.0, 1000.0), blink_xy=(2500.0, 1200.0), lamp_xy=(1000.0, 1000.0), occluder=True,
@@ -100,7 +100,7 @@ def test_detector_learns_static_lights_not_the_tracked_dot():
 
 
 def test_signature_tells_a_dim_or_large_blob_from_the_laser():
-    from posekit.ceiling.detect import Dot
+    from posekit.ceiling.detect.dots import Dot
     sig = DotSignature()
     for k in range(10):
         sig.update(Dot("red", 0.0, 0.0, 30, 500.0))

@@ -118,7 +118,7 @@ def test_camera_file_encoding_and_size(capsys, scene):
 
 def test_four_coefficients_are_the_opencv_model_with_k3_zero(capsys, scene):
     """OpenCV's 4-coefficient model [k1, k2, p1, p2] is accepted as k3 = 0 (not an error)."""
-    from posekit.ceiling.camera import load_camera
+    from posekit.ceiling.camera.lens import load_camera
 
     tmp, frames, cal = scene
     cam = _camera(tmp, "d4.json", dist=[0.01, -0.002, 0.0, 0.0])

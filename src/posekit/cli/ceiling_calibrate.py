@@ -70,8 +70,8 @@ def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
     cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
     import numpy as np
 
-    from ..ceiling.calibration import write_points_csv
-    from ..ceiling.grid import CeilingGrid, find_grid_corners
+    from ..ceiling.camera.grid import CeilingGrid, find_grid_corners
+    from ..ceiling.camera.homography import write_points_csv
     from ..errors import CalibrationError
     from ..io import read_image
 
@@ -81,7 +81,7 @@ def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
     grid = CeilingGrid(grid_mm, origin_mm, args.bar_mm)
     seed_uv = seeds.image_uv
     if camera is not None:
-        from ..ceiling.calibration import undistort_calibration_points
+        from ..ceiling.camera.homography import undistort_calibration_points
         img = cv2.undistort(img, camera.K, camera.dist, None, camera.K)
         seed_uv = undistort_calibration_points(camera, seed_uv, seeds.lines)
     corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seed_uv,
@@ -100,7 +100,7 @@ def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
     """Per-point residuals (px in the image, mm on the ceiling) and why RANSAC rejected each point."""
     import numpy as np
 
-    from ..ceiling.calibration import point_residuals
+    from ..ceiling.camera.homography import point_residuals
 
     e_px, e_mm = point_residuals(cal, world, image)
     n = len(world)
@@ -136,7 +136,7 @@ def run_calibrate(args) -> int:
     """Run ``posekit ceiling calibrate``; returns the exit code (0)."""
     import numpy as np
 
-    from ..ceiling.calibration import calibrate, read_points_csv
+    from ..ceiling.camera.homography import calibrate, read_points_csv
     from ..errors import ConfigError
 
     if not (np.isfinite(args.threshold_px) and args.threshold_px > 0):
@@ -147,7 +147,7 @@ def run_calibrate(args) -> int:
     pts = read_points_csv(args.points)
     camera = None
     if args.camera:
-        from ..ceiling.camera import load_camera
+        from ..ceiling.camera.lens import load_camera
         camera = load_camera(args.camera)
     if args.from_image:
         world, image, lines = _points_from_image(args, pts, grid_mm, origin_mm, camera)
@@ -157,7 +157,7 @@ def run_calibrate(args) -> int:
         world, image, lines = pts.world_xy, pts.image_uv, pts.lines
     seen = image
     if camera is not None:
-        from ..ceiling.calibration import undistort_calibration_points
+        from ..ceiling.camera.homography import undistort_calibration_points
         image = undistort_calibration_points(camera, seen, lines)
     cal = calibrate(world, image, refine=args.refine, ransac=args.ransac,
                     threshold_px=args.threshold_px, rng=args.seed)
@@ -171,7 +171,7 @@ def run_calibrate(args) -> int:
           f"{cal.rms_world:.3f} world units (mm) on the ceiling")
     radial = None
     if camera is None:
-        from ..ceiling.calibration import radial_pattern
+        from ..ceiling.camera.homography import radial_pattern
         radial = radial_pattern(world, image)
     _print_residuals(args, cal, world, image, seen, lines, radial)
     if radial is not None and radial.detected:

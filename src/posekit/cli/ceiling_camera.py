@@ -66,7 +66,7 @@ def _views(paths):
 
 def run_camera(args) -> int:
     """Run ``posekit ceiling camera``; returns the exit code (0)."""
-    from ..ceiling.camera import calibrate_camera, save_camera
+    from ..ceiling.camera.lens import calibrate_camera, save_camera
 
     check_flags(args)
     board = parse_board(args.board)

@@ -8,7 +8,7 @@ from ._flags import bounded_float, bounded_int, check_flags
 __all__ = ["add_track_parser", "run_track"]
 
 #: ``--duration-s`` of the demo: at most an hour (54,000 frames at 15 fps); > 0 is checked by
-#: ``posekit.ceiling.demo.run_demo`` with its own message.
+#: ``posekit.ceiling.studies.demo.run_demo`` with its own message.
 _DURATION = bounded_float(None, 3600.0, "s", flag="--duration-s")
 
 
@@ -72,10 +72,10 @@ def add_track_parser(verbs):
 def run_track(args) -> int:
     import signal
 
-    from ..ceiling.live import TrackOutputs
-    from ..ceiling.pipeline import parse_dots, track_video
-    from ..ceiling.track import TrackerConfig
-    from ..ceiling.video_io import DEFAULT_FPS, is_live_source
+    from ..ceiling.track.outputs import TrackOutputs
+    from ..ceiling.track.pipeline import parse_dots, track_video
+    from ..ceiling.track.sources import DEFAULT_FPS, is_live_source
+    from ..ceiling.track.types import TrackerConfig
     from ..errors import ConfigError
 
     inputs = [args.input, *args.input2]
@@ -120,7 +120,7 @@ def run_track(args) -> int:
         common = dict(fps=args.fps, camera=lenses, loop=args.loop, max_frames=args.max_frames, live=args.live,
                       progress=None if live else _frame_progress())
         if robots > 1:
-            from ..ceiling.multitrack import track_robots_video
+            from ..ceiling.track.multitrack import track_robots_video
             result = track_robots_video(inputs[0], args.calibration[0], robots, config=config,
                                         on_row=outputs.write, **common)
         else:

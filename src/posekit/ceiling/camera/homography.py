@@ -19,8 +19,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import CalibrationError
-from ..geometry import (
+from ...errors import CalibrationError
+from ...geometry import (
     apply_homography,
     check_correspondences,
     homography_dlt,
@@ -28,7 +28,7 @@ from ..geometry import (
     normalize_homography,
     refine_homography,
 )
-from ..io import load_json, read_text, write_text_atomic
+from ...io import load_json, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
@@ -483,7 +483,7 @@ def load_calibration(path) -> Calibration:
         inliers = np.array(inliers, dtype=bool)
     camera = None
     if data.get("camera") is not None:                    # written by calibrate --camera
-        from .camera import CameraModel
+        from .lens import CameraModel
         camera = CameraModel.from_dict(data["camera"], f"{path}: camera")
     return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera)
 

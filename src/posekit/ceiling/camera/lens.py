@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import lazy
-from ..errors import CalibrationError
-from ..io import load_json, write_text_atomic
+from ..._extras import lazy
+from ...errors import CalibrationError
+from ...io import load_json, write_text_atomic
 
 cv2 = lazy("cv2", "vision", "the ceiling system (lens undistortion)")
 

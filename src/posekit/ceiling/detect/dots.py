@@ -51,8 +51,8 @@ import numpy as np
 
 from posekit._extras import lazy
 
-from ..errors import ConfigError, InputFileError
-from ._detect_kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _blob_table, _lit_pixels
+from ...errors import ConfigError, InputFileError
+from ._kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _blob_table, _lit_pixels
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
@@ -548,15 +548,3 @@ def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> l
                 boxes.append((r[sel].min(), r[sel].max() + 1, c[sel].min(), c[sel].max() + 1))
     return [(max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w))
             for y0, y1, x0, x1 in boxes]
-
-
-_LINE_NAMES = ("Line", "LineDetector", "LINE_METHODS")
-
-
-def __getattr__(name):
-    """The line detector lives in :mod:`posekit.ceiling.detect_line` (imported on first use: that
-    module builds on this one)."""
-    if name in _LINE_NAMES:
-        from . import detect_line
-        return getattr(detect_line, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -68,9 +68,10 @@ from pathlib import Path
 import numpy as np
 from scipy.special import erf
 
-from .._extras import require
-from ..errors import ConfigError, InputFileError
-from ._render_kernels import (
+from ..._extras import require
+from ...errors import ConfigError, InputFileError
+from ..camera.lens import CameraModel
+from ._kernels import (
     NOISE_LUT_BITS,
     albedo_params,
     compose,
@@ -78,10 +79,9 @@ from ._render_kernels import (
     noise_lut,
     render_albedo,
 )
-from ._render_kernels import ceiling_albedo as _ceiling_albedo
-from .camera import CameraModel
-from .render_config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
-from .render_effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
+from ._kernels import ceiling_albedo as _ceiling_albedo
+from .config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
+from .effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
 
 __all__ = [
     "SceneConfig",
@@ -628,7 +628,7 @@ def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
     write_calibration_csv(paths.calibration_points, points)
     write_truth_csv(paths.truth, scene.truth())
     write_lights_csv(paths.stray_lights, scene.lights)
-    from .camera import save_camera
+    from ..camera.lens import save_camera
     save_camera(scene.camera, paths.camera)
     cv2.imwrite(str(paths.reference), scene.reference_image())
     if paths.frames_dir is not None:

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, GeometryError
+from ...errors import ConfigError, GeometryError
 from ._kalman import _mahalanobis2
-from .track import Tracker, TrackerConfig, TrackRow
+from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["Camera", "MultiCameraTracker", "homography_jacobian", "border_distance"]
 

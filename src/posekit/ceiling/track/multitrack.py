@@ -24,11 +24,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from ._kalman import _mahalanobis2
 from .cameras import Camera
 from .pipeline import _TimedRows
-from .track import Tracker, TrackerConfig, TrackRow
+from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["MultiRobotTracker", "RobotsResult", "iter_track_robots", "track_robots_frames", "track_robots_video"]
 
@@ -169,7 +169,7 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
     lights.
     """
     if detector is None:
-        from .detect import DotDetector
+        from ..detect.dots import DotDetector
         detector = DotDetector(("red",))
     mrt = MultiRobotTracker(n_robots, config)
     for index, t_s, image in frames:

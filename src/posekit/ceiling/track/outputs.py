@@ -22,8 +22,8 @@ import socket
 import sys
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..io import atomic_file
+from ...errors import ConfigError
+from ...io import atomic_file
 
 __all__ = ["TrackOutputs", "parse_udp_target", "row_record"]
 

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, InputFileError
+from ...errors import ConfigError, InputFileError
 from .cameras import Camera, MultiCameraTracker, border_distance
-from .track import TrackerConfig, TrackRow
+from .tracker import TrackerConfig, TrackRow
 
 __all__ = ["TRACK_COLUMNS", "TrackResult", "parse_dots", "iter_track", "track_frames", "track_video",
            "write_track_csv", "read_track_csv"]
@@ -129,7 +129,7 @@ def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
 
 def _as_calibration(cal):
     if isinstance(cal, (str, Path)):
-        from .calibration import load_calibration
+        from ..camera.homography import load_calibration
         return load_calibration(cal)
     return cal
 
@@ -166,12 +166,12 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
     uv : ndarray, shape (2,)
         The primary dot as detected in the camera used, px (NaN when not ``ok``).
     """
-    from .detect import DotSignature
+    from ..detect.dots import DotSignature
 
     dots = parse_dots(dots)
     cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
     if detectors is None:
-        from .detect import DotDetector
+        from ..detect.dots import DotDetector
         detectors = [DotDetector(colors=dots) for _ in cameras]
     if len(detectors) != len(cameras):
         raise ConfigError(f"track_frames: {len(detectors)} detectors for {len(cameras)} cameras")
@@ -297,7 +297,7 @@ def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: T
     camera, end points mapped to the world, :class:`~posekit.ceiling.linetrack.LineTracker`.
     With several cameras, the one whose segment centre is farthest from its image border is
     used (the previous one while it stays ``border_margin_px`` inside)."""
-    from .detect_line import LineDetector
+    from ..detect.lines import LineDetector
     from .linetrack import LineTracker, LineTrackerConfig, pick_line
 
     if detectors is None:
@@ -358,7 +358,7 @@ def _as_lens(lens):
     if lens is None:
         return None
     if isinstance(lens, (str, Path)):
-        from .camera import load_camera
+        from ..camera.lens import load_camera
         return load_camera(lens)
     return lens
 
@@ -368,7 +368,7 @@ def open_sources(sources, fps: float | None = None, *, loop: int = 1, max_frames
     """One frame source per input: :func:`~posekit.ceiling.video_io.open_live` for a camera
     index, device or URL (or any input when ``live``), else
     :func:`~posekit.ceiling.video_io.open_frames`."""
-    from .video_io import is_live_source, open_frames, open_live
+    from .sources import is_live_source, open_frames, open_live
 
     out = []
     for s in sources:
@@ -415,8 +415,8 @@ def make_detectors(dots, n: int, detector_options: dict | None = None):
     """``n`` detectors for ``dots`` (None: the defaults of :func:`track_frames`)."""
     if detector_options is None:
         return None
-    from .detect import DotDetector
-    from .detect_line import LineDetector
+    from ..detect.dots import DotDetector
+    from ..detect.lines import LineDetector
     if dots == LINE_DOTS:
         if detector_options.get("method") == "dotted":          # the §III-C dotted line
             from .linetrack import DottedLineDetector
@@ -497,7 +497,7 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
 
 def write_track_csv(rows: Iterable[TrackRow], path: str | Path) -> Path:
     """Write ``frame,time_s,x,y,heading_deg,status,std_mm`` (mm, s, degrees; NaN as empty)."""
-    from ..io import atomic_file
+    from ...io import atomic_file
 
     path = Path(path)
     with atomic_file(path, "w", newline="") as fh:  # complete or absent, never half-written

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import require
-from ..errors import ConfigError, InputFileError
-from ..io import check_frame_size, check_input_file, read_image
+from ..._extras import require
+from ...errors import ConfigError, InputFileError
+from ...io import check_frame_size, check_input_file, read_image
 
 __all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "Frame", "FrameSource", "LiveSource", "open_frames", "open_live",
            "is_live_source", "list_images"]

@@ -49,9 +49,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import GeometryError, TrajectoryError
+from ...errors import GeometryError, TrajectoryError
 from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
-from .track_types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
+from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
 
 __all__ = [
     "STATUSES",
@@ -492,15 +492,3 @@ class Tracker:
             return float("nan")
         deg = float(np.degrees(_wrap(h.x[0])))
         return 180.0 if deg == -180.0 else deg
-
-
-_CAMERA_NAMES = ("Camera", "MultiCameraTracker", "homography_jacobian", "border_distance")
-
-
-def __getattr__(name):
-    """The multi-camera names live in :mod:`posekit.ceiling.cameras` (imported on first use:
-    that module builds on this one)."""
-    if name in _CAMERA_NAMES:
-        from . import cameras
-        return getattr(cameras, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

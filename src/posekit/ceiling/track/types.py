@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["CHI2_2DOF_999", "STATUSES", "DotState", "HeadingState", "TrackRow", "TrackerConfig"]
 
