@@ -93,6 +93,19 @@ class Calibration:
     """The :class:`~posekit.ceiling.camera.CameraModel` whose undistorted pixels the homography
     maps (``calibrate --camera``), or None: pixels as seen (a distortion-free camera). The
     homography never undistorts by itself: undistort detected points with this camera first."""
+    image_size: tuple | None = None
+    """``(width, height)`` px of the images the points were taken in, when known (``--camera``,
+    ``--from-image``, ``--image-size``); ``track`` refuses frames of another shape (and scales
+    the homography for the same shape at another resolution)."""
+    points_extent: tuple | None = None
+    """``(u_min, v_min, u_max, v_max)`` px of the calibration points as seen."""
+    status: str = "ok"
+    """``"ok"``, or ``"suspect"`` when the points contradict the model (the lens file's radial
+    pattern left in the residuals); ``track`` then never marks a row ``ok``."""
+    reasons: tuple = ()
+    """Why the calibration is suspect (empty when ``ok``)."""
+    rms_all_px: float = float("nan")
+    """Rms reprojection distance over every point, rejected ones included, px."""
 
     def image_to_world(self, uv, *, invalid="raise"):
         """Map image points to the ceiling.
@@ -142,6 +155,14 @@ class Calibration:
         if self.camera is not None:
             data["undistorted"] = True              # H maps undistorted pixels: track needs --camera
             data["camera"] = self.camera.to_json()
+        if self.image_size is not None:
+            data["image_size"] = [int(self.image_size[0]), int(self.image_size[1])]
+        if self.points_extent is not None:
+            data["points_extent"] = [round(float(v), 3) for v in self.points_extent]
+        if math.isfinite(self.rms_all_px):
+            data["rms_all_px"] = float(self.rms_all_px)
+        data["status"] = self.status
+        data["reasons"] = list(self.reasons)
         text = "{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items()) + "\n}\n"
         write_text_atomic(path, text, error=CalibrationError)
 
@@ -200,7 +221,9 @@ def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0,
     w_in, i_in = world[inliers], image[inliers]
     rms_px = math.sqrt(float(np.mean(np.sum((apply_homography(H, w_in) - i_in) ** 2, axis=1))))
     rms_world = math.sqrt(float(np.mean(np.sum((apply_homography(H_world_image, i_in) - w_in) ** 2, axis=1))))
-    return Calibration(H, H_world_image, rms_px, rms_world, inliers, n)
+    e_all = np.sum((apply_homography(H, world, invalid="nan") - image) ** 2, axis=1)
+    rms_all = math.sqrt(float(np.nanmean(e_all))) if np.isfinite(e_all).any() else math.nan
+    return Calibration(H, H_world_image, rms_px, rms_world, inliers, n, rms_all_px=rms_all)
 
 
 def undistort_calibration_points(camera, image_uv, lines=None) -> np.ndarray:
@@ -485,7 +508,25 @@ def load_calibration(path) -> Calibration:
     if data.get("camera") is not None:                    # written by calibrate --camera
         from .lens import CameraModel
         camera = CameraModel.from_dict(data["camera"], f"{path}: camera")
-    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera)
+    size = data.get("image_size")
+    if size is not None and not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 < s <= 100_000 for s in size)):
+        raise CalibrationError(f"{path}: 'image_size' must be [width, height] in px (two positive integers)")
+    extent = data.get("points_extent")
+    if extent is not None and not (isinstance(extent, list) and len(extent) == 4 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in extent)):
+        raise CalibrationError(f"{path}: 'points_extent' must be [u_min, v_min, u_max, v_max] in px")
+    status = data.get("status", "ok")
+    if status not in ("ok", "suspect"):
+        raise CalibrationError(f"{path}: 'status' must be \"ok\" or \"suspect\", got {json.dumps(status)[:40]}")
+    reasons = data.get("reasons", [])
+    if not (isinstance(reasons, list) and all(isinstance(r, str) for r in reasons)):
+        raise CalibrationError(f"{path}: 'reasons' must be a list of strings")
+    rms_all = data.get("rms_all_px")
+    rms_all = math.nan if rms_all is None else _rms(data, "rms_all_px", path)
+    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera,
+                       None if size is None else (size[0], size[1]), None if extent is None else tuple(extent),
+                       status, tuple(reasons), rms_all)
 
 
 class CalibrationPoints(NamedTuple):
