@@ -135,7 +135,7 @@ class Overlay:
 
     dot: bool = True
     path: np.ndarray | None = None
-    occluded: tuple = ((148, 158),)
+    occluded: tuple = ((148, 156),)
     lamp_xy: tuple | None = None
     blink_xy: tuple | None = None
     lamp_jitter_px: float = 0.4

@@ -169,7 +169,7 @@ def test_cli_track_line(capsys, tmp_path, method):
     assert args.func(args) == 0
     assert "30 frames: 30 ok" in capsys.readouterr().out
     t, truth = read_track_csv(out), read_truth_csv(paths.truth)
-    assert out.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm"   # DESIGN: std_mm added
+    assert out.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason"
     known = np.isfinite(t["heading_deg"])
     assert known.sum() >= 25
     assert np.abs(dh_deg(t["heading_deg"][known], np.radians(truth.heading_deg[known]))).max() < 3.0

@@ -60,7 +60,7 @@ def test_looped_video_through_the_live_path_jsonl_and_csv(capsys, clip):
     assert rc == 0, err
     recs = [json.loads(line) for line in stdout.splitlines()]
     assert [r["frame"] for r in recs] == list(range(2 * N))
-    assert list(recs[0]) == ["frame", "time_s", "x", "y", "heading_deg", "status", "std_mm"]
+    assert list(recs[0]) == ["frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg", "reason"]
     t = np.array([r["time_s"] for r in recs])
     np.testing.assert_allclose(t, np.arange(2 * N) / FPS)       # media time, continued over the loop
     assert f"{2 * N} frames: " in err and "wrote" in err        # the summary goes to stderr with --jsonl -
@@ -125,11 +125,12 @@ def test_outputs_are_flushed_per_row_and_udp_is_loopback_only(tmp_path):
     outs.write(row)
     # readable before the run ends: the JSON line is flushed, the CSV grows in its temporary file
     assert json.loads((tmp_path / "t.jsonl").read_text()) == {"frame": 0, "time_s": 0.0, "x": 1.0, "y": 2.0,
-                                                              "heading_deg": None, "status": "ok", "std_mm": 0.5}
+                                                              "heading_deg": None, "status": "ok", "std_mm": 0.5,
+                                                              "std_heading_deg": None, "reason": None}
     assert json.loads(rx.recv(65536)) ["std_mm"] == 0.5
     assert not (tmp_path / "t.csv").exists()
     partial = [p for p in tmp_path.iterdir() if p.name.startswith(".t.csv.")]
-    assert len(partial) == 1 and partial[0].read_text().splitlines()[1] == "0,0.000000,1.000,2.000,,ok,0.500"
+    assert len(partial) == 1 and partial[0].read_text().splitlines()[1] == "0,0.000000,1.000,2.000,,ok,0.500,,"
     outs.close()
     assert (tmp_path / "t.csv").read_text().splitlines() == ["frame,time_s,x,y,heading_deg,status,std_mm",
                                                              "0,0.000000,1.000,2.000,,ok,0.500"]
@@ -199,6 +200,8 @@ def test_folder_with_undecodable_frames_gets_lost_rows(capsys, clip, tmp_path):
     t = read_track_csv(tmp_path / "t.csv")
     assert list(t["frame"]) == list(range(20))
     assert t["status"][7] == "lost" and t["status"][12] == "lost" and np.isnan(t["x"][7])
+    assert t["reason"][7].endswith("f007.png: cannot decode this file as an image") and "f012.png" in t["reason"][12]
+    assert "libpng" not in err and "error" not in err.lower()       # the decoder's own words stay in the row
     ok = t["status"] == "ok"
     assert np.count_nonzero(ok) >= 15
     assert np.hypot(t["x"] - sc.truth[:20, 0], t["y"] - sc.truth[:20, 1])[ok].max() < 5.0

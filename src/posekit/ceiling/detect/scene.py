@@ -14,7 +14,7 @@ static light is told from the laser by a statistical test, not a distance thresh
   one moving at constant speed, so the motion does not inflate it;
   ``σ² = median |Δ²p|² / (12 ln 2)``) — and the scene's: the 90th percentile, over the tracks
   not found moving with at least ``min_frames`` sightings, of the spread of their sightings
-  about their mean (what a
+  about a constant-velocity fit (what a
   compressed video's static spots really do: they sit still for a few frames and step by a
   fraction of a pixel when a key frame arrives, which second differences alone miss), never
   below ``jitter_floor_px``;
@@ -87,6 +87,7 @@ class Light:
 class _Track:
     colour: str
     pts: list = field(default_factory=list)        # [(frame, u, v)], the last `window`
+    strong: list = field(default_factory=list)     # per sighting: saturated like a laser core
     last: int = 0
     seen: int = 0
     state: int = NEW
@@ -147,33 +148,42 @@ class StaticLights:
 
     def scene_jitter_px(self) -> float:
         """The scene's centroid jitter, px: the 90th percentile of the spread (1σ per axis about
-        the mean) of the sightings of the tracks not found moving with at least ``min_frames``
-        of them, and of the known lights' jitter; at least ``jitter_floor_px``."""
+        a constant-velocity fit) of the sightings of the tracks not found moving with at least
+        ``min_frames`` of them, and of the known lights' jitter; at least ``jitter_floor_px``."""
         return self._scene_jitter
 
     def _measure_scene_jitter(self) -> float:
         js = [lt.jitter_px for lt in self.known]
         for t in self.tracks:
             if len(t.pts) >= self.min_frames and t.state != MOVING:
+                f = np.array([k for k, _, _ in t.pts], float)
                 p = np.array([(u, v) for _, u, v in t.pts])
-                js.append(float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)) / 2.0)))
+                A = np.column_stack([np.ones_like(f), f - f.mean()])
+                r = p - A @ np.linalg.lstsq(A, p, rcond=None)[0]        # about a constant-velocity fit
+                js.append(float(np.sqrt(np.sum(r * r) / (2.0 * max(len(f) - 2, 1)))))
         return max(float(np.percentile(js, 90)), self.jitter_floor_px) if js else self.jitter_floor_px
 
     @staticmethod
     def _jitter(t: _Track) -> float:
         p = np.array([(u, v) for _, u, v in t.pts])
+        f = np.array([k for k, _, _ in t.pts])
         if len(p) < 3:
             return 0.0
-        dd = p[:-2] - 2.0 * p[1:-1] + p[2:]
-        return float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12))
+        dd = (p[:-2] - 2.0 * p[1:-1] + p[2:])[(f[2:] - f[:-2]) == 2]
+        return float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12)) if len(dd) else 0.0
 
-    def test(self, pts: np.ndarray, floor_px: float | None = None) -> tuple[float, float, float]:
+    def test(self, pts: np.ndarray, floor_px: float | None = None, frames=None) -> tuple[float, float, float]:
         """Motion statistic of sightings ``pts`` (n, 2) px: ``(T, threshold, jitter_px)``;
-        moving when ``T > threshold``."""
+        moving when ``T > threshold``. ``frames`` (n,): their frame numbers; only second
+        differences of three consecutive frames measure the jitter (across a gap the motion
+        would count as jitter)."""
         pts = np.asarray(pts, float).reshape(-1, 2)
         n = len(pts)
         dd = pts[:-2] - 2.0 * pts[1:-1] + pts[2:]
-        s = float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12)) if n >= 3 else 0.0
+        if frames is not None and n >= 3:
+            f = np.asarray(frames)
+            dd = dd[(f[2:] - f[:-2]) == 2]
+        s = float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12)) if len(dd) else 0.0
         s = max(s, self.jitter_floor_px if floor_px is None else floor_px)
         n1 = n // 2
         d = pts[n1:].mean(axis=0) - pts[:n1].mean(axis=0)
@@ -181,7 +191,7 @@ class StaticLights:
         return T, self._threshold(n), s
 
     # -- one frame -------------------------------------------------------------------------
-    def update(self, frame: int, uv, colours) -> np.ndarray:
+    def update(self, frame: int, uv, colours, strong=None) -> np.ndarray:
         """Chain this frame's candidates into tracks and test each; returns their states (K,)
         (:data:`NEW`, :data:`MOVING` or :data:`STATIC`).
 
@@ -192,6 +202,11 @@ class StaticLights:
         uv : ndarray, shape (K, 2)
             Candidate centroids, px.
         colours : sequence of str, length K
+        strong : sequence of bool, length K, optional
+            Which candidates have a saturated core (:attr:`~posekit.ceiling.detect.dots.Dot.saturated`);
+            a track is called moving only if all but one of its last ``steady_frames``
+            sightings were (a laser saturates the camera in every frame; a flickering tape or a
+            shirt now and then). Default: all.
         """
         uv = np.asarray(uv, float).reshape(-1, 2)
         self._frame = frame = int(frame)
@@ -232,7 +247,9 @@ class StaticLights:
                 t.known = self._known_at(p, c)
                 self.tracks.append(t)
             t.pts.append((frame, float(p[0]), float(p[1])))
+            t.strong.append(True if strong is None else bool(strong[k]))
             del t.pts[:-self.window]
+            del t.strong[:-self.window]
             t.last = frame
             t.seen += 1
             t.state = self._state(t, floor)
@@ -257,7 +274,7 @@ class StaticLights:
         if n < 4:
             return NEW
         P = np.array([(u, v) for _, u, v in t.pts])
-        T, thr, _ = self.test(P, floor)
+        T, thr, _ = self.test(P, floor, [f for f, _, _ in t.pts])
         if T > thr:
             return MOVING if self._steady(t, P) else NEW
         return STATIC if n >= self.min_frames else NEW
@@ -267,7 +284,7 @@ class StaticLights:
         them advances along their net displacement (a robot's dot progresses frame after frame;
         a spot that steps once and sits, or hops back and forth, does not)."""
         m = self.steady_frames
-        if len(P) < m or t.pts[-1][0] - t.pts[-m][0] != m - 1:
+        if len(P) < m or t.pts[-1][0] - t.pts[-m][0] != m - 1 or sum(t.strong[-m:]) < m - 1:
             return False
         tail = P[-m:]
         net = tail[-1] - tail[0]

@@ -231,7 +231,8 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             roi = pred[i] if (use_roi and confident and not survey and pred[i]) else None
             ds = det.detect(img, predicted_uv=roi)
             found[i] = ds
-            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds])
+            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds],
+                                      [d.saturated for d in ds])
             by, el, sd, mv = {}, {}, {}, {}
             for d, s in zip(ds, states):
                 sig = signatures[i][d.color]

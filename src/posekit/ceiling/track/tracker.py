@@ -260,7 +260,14 @@ class Tracker:
             if accepted is not None:
                 measured[c] = accepted
                 other = self._rival(st, z, R, mv, accepted[0])
-                if other is not None:
+                if st.probation is not None and other is not None:
+                    st.probation = (st.probation[0], st.probation[1], True)
+                if st.probation is not None and (t_s <= st.probation[0] + 1e-9 or st.probation[2]):
+                    why[c] = (f"re-acquired {st.probation[1]:.0f} mm from where the track was predicted"
+                              + ("; another moving laser-like spot was seen since: which is the laser cannot be told"
+                                 if st.probation[2] else
+                                 f" ({cfg.max_predict_s:g} s of probation: the previous dot may only be hidden)"),)
+                elif other is not None:
                     why[c] = (f"another moving laser-like spot at ({other[0]:.0f}, {other[1]:.0f}) mm, outside the "
                               "gate: which is the laser cannot be told",)
             else:
@@ -332,7 +339,7 @@ class Tracker:
         return (f"{n} candidate(s), {k} laser-like, none seen moving by {self.config.min_move_mm:g} mm yet",)
 
     def _start(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray) -> None:
-        st.pending = st.seen = None
+        st.pending = st.seen = st.probation = None
         st.x = np.array([z[0], z[1], 0.0, 0.0])
         st.P = np.zeros((4, 4))
         st.P[:2, :2] = R
@@ -414,7 +421,11 @@ class Tracker:
         st.n_rejected += 1
         if st.n_rejected < cfg.reinit_after:
             return None
-        return self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        pred = st.x[:2].copy()
+        got = self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
+            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - pred))), False)
+        return got
 
     def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
         st.t_meas_s, st.n_rejected = t_s, 0

@@ -157,6 +157,10 @@ class DotState:
     seen : list or None
         ``[(t_s, (K, 2) xy), ...]``: the verified candidates of the last second without a
         track, to tell which one moves.
+    probation : tuple or None
+        ``(until_s, jump_mm, conflicted)`` after a re-acquisition away from a live prediction:
+        the rows are ``suspect`` until then, and for as long as the track lives once another
+        moving laser-like spot was seen during that time.
     """
 
     x: np.ndarray | None = None
@@ -170,6 +174,7 @@ class DotState:
     noise_stats: dict | None = None
     pending: tuple | None = None
     seen: list | None = None
+    probation: tuple | None = None
 
 
 @dataclass
