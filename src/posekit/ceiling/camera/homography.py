@@ -32,6 +32,7 @@ from ...io import load_json, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
+    "calibrate_points",
     "CalibrationPoints",
     "RadialPattern",
     "calibrate",
@@ -623,3 +624,66 @@ def write_points_csv(path, world_xy, image_uv):
     image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
     body = "".join(f"{X:.6g},{Y:.6g},{u:.4f},{v:.4f}\n" for (X, Y), (u, v) in zip(world, image))
     write_text_atomic(path, ",".join(CSV_HEADER) + "\n" + body, error=CalibrationError)
+
+
+#: A calibration whose RANSAC keeps fewer than this share of the points is suspect: the model
+#: (homography, with the lens given) explains a minority of the data.
+MIN_INLIER_SHARE = 0.5
+
+
+def calibrate_points(world_xy, image_uv, *, camera=None, lines=None, image_size=None, refine=True, ransac=None,
+                     threshold_px=3.0, rng=None) -> tuple[Calibration, "RadialPattern | None"]:
+    """``posekit ceiling calibrate``: the homography from clicked points, checked against the lens.
+
+    Parameters
+    ----------
+    world_xy : array_like, shape (N, 2)
+        Ceiling points, mm.
+    image_uv : array_like, shape (N, 2)
+        Their pixels *as seen* (distorted by the lens when ``camera`` is given), px.
+    camera : CameraModel, optional
+        The lens: pixels are undistorted before the homography, and the residuals are tested
+        for the radial pattern of a lens model the points contradict (k1 of the wrong sign, the
+        file of another camera).
+    lines : array_like of int, optional
+        The points' lines in their file, to name them.
+    image_size : (int, int), optional
+        Of the images the points were clicked in (default the camera's).
+    refine, ransac, threshold_px, rng :
+        As :func:`calibrate`.
+
+    Returns
+    -------
+    calibration : Calibration
+        ``status`` ``"suspect"`` with ``reasons`` when the points contradict the lens model (a
+        significant radial pattern left after undistortion: :func:`radial_pattern`) or RANSAC
+        kept fewer than :data:`MIN_INLIER_SHARE` of them; ``image_size``, ``points_extent``
+        and ``camera`` set.
+    radial : RadialPattern or None
+        The radial test of the residuals (without a camera: of the raw pixels, the hint to
+        calibrate the lens).
+    """
+    seen = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    image = seen if camera is None else undistort_calibration_points(camera, seen, lines)
+    cal = calibrate(world_xy, image, refine=refine, ransac=ransac, threshold_px=threshold_px, rng=rng)
+    cal.camera = camera
+    cal.image_size = tuple(image_size) if image_size is not None else (
+        None if camera is None else tuple(camera.image_size))
+    cal.points_extent = (float(seen[:, 0].min()), float(seen[:, 1].min()), float(seen[:, 0].max()),
+                         float(seen[:, 1].max()))
+    radial = radial_pattern(world_xy, image)
+    reasons = []
+    n, n_in = int(cal.n_points), int(cal.inliers.sum())
+    names = [f"line {lines[k]}" if lines is not None else f"point {k}" for k in np.flatnonzero(~cal.inliers)]
+    shown = ", ".join(names[:8]) + (", ..." if len(names) > 8 else "")
+    if camera is not None and radial.detected:
+        reasons.append(f"the points contradict the lens model: after undistortion a radial pattern of "
+                       f"{radial.rms_px:.1f} px rms remains (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}); "
+                       "a wrong or another camera's CAMERA.json (k1's sign?)")
+    if n_in < MIN_INLIER_SHARE * n:
+        reasons.append(f"RANSAC kept {n_in} of {n} points")
+    if reasons:
+        if names:
+            reasons.append(f"rejected: {shown}")
+        cal.status, cal.reasons = "suspect", tuple(reasons)
+    return cal, radial

@@ -364,7 +364,8 @@ class DotDetector:
         if dots is None:
             dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
             if dots is None:                         # most of the frame lit: the scene changed
-                self._rebuild(frame)
+                if self.status != "rebuilt":         # (once a frame)
+                    self._rebuild(frame)
                 dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])]) or []
         self._update_background(frame)
         self._frames += 1

@@ -6,6 +6,7 @@ from .linetrack import LineTracker, LineTrackerConfig
 from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
 from .outputs import TrackOutputs
 from .pipeline import TrackResult, iter_track, read_track_csv, track_frames, track_video, write_track_csv
+from .scene_learning import SceneLearning, learn_scene
 from .sources import open_frames, open_live
 from .tracker import Tracker
 from .types import STATUSES, TrackerConfig, TrackRow
@@ -31,4 +32,6 @@ __all__ = [
     "open_frames",
     "open_live",
     "TrackOutputs",
+    "SceneLearning",
+    "learn_scene",
 ]
