@@ -146,6 +146,7 @@ class Tracker:
         """Forget every dot and the heading (the next detection re-initialises)."""
         self.states = {c: DotState() for c in self.config.dots}
         self.heading = HeadingState()
+        self._sep = (0, 0.0, 0.0)           # separation of the two dots: count, mean, sum of squares (Welford)
         self.frame = 0
         self.t_s = float("nan")
         self._pred_cache = None
@@ -272,6 +273,7 @@ class Tracker:
                               "gate: which is the laser cannot be told",)
             else:
                 why[c] = self._why_not(st, t_s, len(z), had, el, mv)
+        self._rigid_second_dot(t_s, dots_world, meas_cov, eligible, measured, why)
         for c in cfg.dots:
             st = self.states[c]
             if c in measured:
@@ -293,6 +295,44 @@ class Tracker:
                         camera=camera if measured else -1,
                         measured={c: (float(v[0]), float(v[1])) for c, (v, _) in measured.items()},
                         dots=dots)
+
+    def _rigid_second_dot(self, t_s, dots_world, meas_cov, eligible, measured, why) -> None:
+        """The two lasers sit on one robot: their distance is fixed. When the first dot was
+        accepted and the second was not (a turn on the spot swings it far outside its own gate),
+        a lone eligible candidate of the second colour at that distance (within 3σ of the
+        separation measured so far, at least ``gate_floor_mm / 2``) is the second dot: its filter
+        restarts there, so the heading follows what the two dots measure. The separation is
+        learned from the frames where both were accepted."""
+        cfg = self.config
+        if len(cfg.dots) < 2:
+            return
+        c0, c1 = cfg.dots[0], cfg.dots[1]
+        if c0 in measured and c1 in measured:
+            d = float(np.hypot(*(measured[c1][0] - measured[c0][0])))
+            n, m, v = self._sep
+            n += 1
+            dm = d - m
+            m += dm / n
+            self._sep = (n, m, v + dm * (d - m))
+            return
+        n, m, v = self._sep
+        if c0 not in measured or c1 in measured or n < 5:
+            return
+        z = _as_candidates(dots_world.get(c1), c1)
+        if len(z) == 0:
+            return
+        el = _as_eligible(None if eligible is None else eligible.get(c1), dots_world.get(c1), len(z))
+        R = _as_covariances((meas_cov or {}).get(c1), len(z), c1, cfg.meas_std_mm, cfg.min_meas_std_mm)
+        sd = max(3.0 * float(np.sqrt(v / (n - 1))), cfg.gate_floor_mm / 2.0)
+        dist = np.hypot(*(z - measured[c0][0]).T)
+        at = np.flatnonzero(el & (np.abs(dist - m) <= sd))
+        if len(at) != 1:
+            return
+        k = int(at[0])
+        st = self.states[c1]
+        self._start(st, t_s, z[k], R[k] * st.noise_scale)
+        measured[c1] = (z[k], R[k])
+        why.pop(c1, None)
 
     def _coast_var(self, st: DotState, t_s: float) -> float:
         """Variance per axis (mm²) of the manoeuvre a robot may make unseen since the last
