@@ -225,3 +225,42 @@ def judge(rows, scene: Overlay) -> dict:
 def _pred_cover(st, err, std):
     p = st == "predicted"
     return float(np.mean(err[p] <= 3 * std[p])) if p.any() else float("nan")
+
+
+def scenes() -> dict:
+    """The scenes of ``test_real_footage.py`` by name (the figures of docs/notes/issue-25.md)."""
+    lamps = {"lamp_xy": (700.0, 600.0), "blink_xy": (1200.0, 300.0)}
+    decoy = np.full((N_FRAMES, 2), np.nan)
+    k = np.arange(140, 220)
+    decoy[k] = np.c_[800.0 + 15.0 * (k - 140), np.full(len(k), 1150.0)]
+    return {
+        "no dot": Overlay(dot=False),
+        "no dot, steady + blinking red lamp": Overlay(dot=False, **lamps),
+        "dot": Overlay(),
+        "dot + lamps": Overlay(**lamps),
+        "dot + moving decoy while hidden": Overlay(decoy=decoy),
+        "dot, occluded 1.6 s": Overlay(occluded=((146, 162),)),
+        "dot, JPEG q75": Overlay(jpeg_quality=75),
+        "dot, JPEG q60": Overlay(jpeg_quality=60),
+    }
+
+
+def main() -> None:
+    """Print the per-scene figures: ``PYTHONPATH=src python tests/ceiling/footage.py``."""
+    import json
+    import time
+
+    from posekit.ceiling.track.cameras import Camera
+    from posekit.ceiling.track.pipeline import track_frames
+
+    for name, scene in scenes().items():
+        t0 = time.perf_counter()
+        res = track_frames(scene.frames(), [Camera(calibration(), (W, H))], ("red",))
+        j = judge(res.rows, scene)
+        c = res.counts()
+        print(json.dumps({"scene": name, **c, **{k: round(float(v), 3) for k, v in j.items() if k != "ok"},
+                          "rebuilds": res.stats["rebuilds"], "s": round(time.perf_counter() - t0, 1)}))
+
+
+if __name__ == "__main__":
+    main()

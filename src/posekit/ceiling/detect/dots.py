@@ -482,15 +482,13 @@ class DotDetector:
         d2 = cv2.multiply(d, d)
         inlier = cv2.bitwise_and(cv2.compare(f, self._thr[r0:r1].reshape(n, -1), cv2.CMP_LE),
                                  cv2.compare(f, self._thr_lo[r0:r1].reshape(n, -1), cv2.CMP_GE))
+        outlier = cv2.bitwise_not(inlier)
         cv2.accumulateWeighted(d2, var, alpha, inlier)
         cv2.accumulateWeighted(f, bg, alpha, inlier)
-        if (self._frames // stride) % 4 == 0:   # every fourth visit of the band, four times the rate:
-            # what stays becomes background, slowly; an outlier tells only that |d| exceeded the bar
-            outlier = cv2.bitwise_not(inlier)
-            beta = 1.0 - (1.0 - alpha / 20.0) ** 4
-            bar = self._bar[r0:r1].reshape(n, -1)
-            cv2.accumulateWeighted(cv2.min(d2, cv2.multiply(bar, bar)), var, beta, outlier)
-            cv2.accumulateWeighted(f, bg, beta, outlier)
+        # what stays becomes background, slowly; an outlier tells only that |d| exceeded the bar
+        bar = self._bar[r0:r1].reshape(n, -1)
+        cv2.accumulateWeighted(cv2.min(d2, cv2.multiply(bar, bar)), var, alpha / 20.0, outlier)
+        cv2.accumulateWeighted(f, bg, alpha / 20.0, outlier)
         for y0, y1, x0, x1, saved, saved_var in keep:
             self._bg[y0:y1, x0:x1] = saved
             self._var[y0:y1, x0:x1] = saved_var

@@ -138,7 +138,6 @@ class StaticLights:
         self._q = {}
         self._frame = -1
         self._scene_jitter = self.jitter_floor_px
-        self._jitter_frame = -10**9
 
     # -- the test --------------------------------------------------------------------------
     def _threshold(self, n: int) -> float:
@@ -255,9 +254,7 @@ class StaticLights:
             t.seen += 1
             t.state = self._state(t, floor)
             states[k] = t.state
-        if frame - self._jitter_frame >= 5 or frame < self._jitter_frame:    # slow to change: every 5 frames
-            self._scene_jitter = self._measure_scene_jitter()
-            self._jitter_frame = frame
+        self._scene_jitter = self._measure_scene_jitter()
         return states
 
     def _known_at(self, p, colour) -> Light | None:
