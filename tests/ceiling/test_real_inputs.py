@@ -145,8 +145,8 @@ def test_jsonl_to_a_reader_that_closes_ends_within_a_second(clips, tmp_path):
         dt = time.monotonic() - t0
     assert [json.loads(line)["frame"] for line in lines] == [0, 1, 2, 3, 4]
     # measured 0.5 s from the reader's close to the exit (the next frame, the CSV's rename, the
-    # interpreter's exit); the bound leaves room for a loaded test machine
-    assert dt < 3.0
+    # interpreter's exit; 3.2 s once on a machine at load 15); the bound leaves room for that
+    assert dt < 5.0
     err = (tmp_path / "err.txt").read_text()
     assert "Broken pipe" not in err and "Traceback" not in err
     assert err.startswith("posekit: stopped: the reader of --jsonl - closed after") and err.count("\n") == 1

@@ -656,9 +656,10 @@ def calibrate_points(world_xy, image_uv, *, camera=None, lines=None, image_size=
     -------
     calibration : Calibration
         ``status`` ``"suspect"`` with ``reasons`` when the points contradict the lens model (a
-        significant radial pattern left after undistortion: :func:`radial_pattern`) or RANSAC
-        kept fewer than :data:`MIN_INLIER_SHARE` of them; ``image_size``, ``points_extent``
-        and ``camera`` set.
+        significant radial pattern left after undistortion: :func:`radial_pattern`, or RANSAC
+        kept fewer than :data:`MIN_INLIER_SHARE` of them); without a lens model the radial
+        pattern is only the hint to calibrate one. ``image_size``, ``points_extent`` and
+        ``camera`` set.
     radial : RadialPattern or None
         The radial test of the residuals (without a camera: of the raw pixels, the hint to
         calibrate the lens).
@@ -680,7 +681,7 @@ def calibrate_points(world_xy, image_uv, *, camera=None, lines=None, image_size=
         reasons.append(f"the points contradict the lens model: after undistortion a radial pattern of "
                        f"{radial.rms_px:.1f} px rms remains (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}); "
                        "a wrong or another camera's CAMERA.json (k1's sign?)")
-    if n_in < MIN_INLIER_SHARE * n:
+    if camera is not None and n_in < MIN_INLIER_SHARE * n:
         reasons.append(f"RANSAC kept {n_in} of {n} points")
     if reasons:
         if names:
