@@ -259,20 +259,20 @@ class DotDetector:
             self._var = np.full(self._bg.shape, s0 * s0, np.float32)
         self._bg_u8 = bg_u8.copy()
         self._thr = np.empty_like(self._bg_u8)
-        self._thr_lo = np.empty_like(self._bg_u8)
-        self._bar = np.empty_like(self._bg)
+        self._bar_u8 = np.empty_like(self._bg_u8)
+        self._bar2 = np.empty_like(self._bg)
         self._threshold_rows(0, bg_u8.shape[0])
         cap = max(256, int(self.max_lit_fraction * bg_u8.shape[0] * bg_u8.shape[1]))
         self._coords = np.empty((cap, 2), np.int32)
 
     def _threshold_rows(self, r0: int, r1: int) -> None:
-        """The bar ``max(contrast, k σ)`` and ``thr = mean ± bar`` (uint8, saturated) for rows r0:r1."""
+        """The bar ``max(contrast, k σ)`` (uint8 and squared, float32) and ``thr = mean + bar``
+        (uint8, saturated) for rows r0:r1."""
         h = r1 - r0
-        bar = self._bar[r0:r1].reshape(h, -1)
-        cv2.max(cv2.sqrt(self._var[r0:r1].reshape(h, -1)) * self.k_sigma, float(self.contrast), bar)
-        bg = self._bg[r0:r1].reshape(h, -1)
-        cv2.convertScaleAbs(cv2.add(bg, bar), self._thr[r0:r1].reshape(h, -1))
-        cv2.convertScaleAbs(cv2.subtract(bg, bar), self._thr_lo[r0:r1].reshape(h, -1))
+        bar = cv2.max(cv2.sqrt(self._var[r0:r1].reshape(h, -1)) * self.k_sigma, float(self.contrast))
+        cv2.multiply(bar, bar, self._bar2[r0:r1].reshape(h, -1))
+        cv2.convertScaleAbs(bar, self._bar_u8[r0:r1].reshape(h, -1))
+        cv2.add(self._bg_u8[r0:r1].reshape(h, -1), self._bar_u8[r0:r1].reshape(h, -1), self._thr[r0:r1].reshape(h, -1))
 
     def _relight(self, frame: np.ndarray) -> None:
         """Exposure steps: rescale the background by the median frame/background ratio on a
@@ -353,7 +353,7 @@ class DotDetector:
             else:
                 self._start_background(frame)
             self.status = "started"
-        else:
+        elif self._frames % self.background_stride == 0:    # exposure drift: once a band cycle
             self._relight(frame)
         dots = None
         rects = self._rois(predicted_uv, frame.shape)
@@ -363,6 +363,9 @@ class DotDetector:
                 dots = None if self._unmatched(dots, rects) else dots
         if dots is None:
             dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
+            if dots is None and self.status not in ("relit", "rebuilt"):   # an exposure step?
+                self._relight(frame)
+                dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
             if dots is None:                         # most of the frame lit: the scene changed
                 if self.status != "rebuilt":         # (once a frame)
                     self._rebuild(frame)
@@ -478,16 +481,14 @@ class DotDetector:
         f = frame[r0:r1].reshape(n, -1)
         bg = self._bg[r0:r1].reshape(n, -1)
         var = self._var[r0:r1].reshape(n, -1)
-        d = cv2.subtract(f, bg, dtype=cv2.CV_32F)
-        d2 = cv2.multiply(d, d)
-        inlier = cv2.bitwise_and(cv2.compare(f, self._thr[r0:r1].reshape(n, -1), cv2.CMP_LE),
-                                 cv2.compare(f, self._thr_lo[r0:r1].reshape(n, -1), cv2.CMP_GE))
-        outlier = cv2.bitwise_not(inlier)
-        cv2.accumulateWeighted(d2, var, alpha, inlier)
+        d = cv2.absdiff(f, self._bg_u8[r0:r1].reshape(n, -1))
+        inlier = cv2.compare(d, self._bar_u8[r0:r1].reshape(n, -1), cv2.CMP_LE)    # |d| within the bar
+        cv2.accumulateWeighted(cv2.multiply(d, d, dtype=cv2.CV_32F), var, alpha, inlier)
         cv2.accumulateWeighted(f, bg, alpha, inlier)
         # what stays becomes background, slowly; an outlier tells only that |d| exceeded the bar
-        bar = self._bar[r0:r1].reshape(n, -1)
-        cv2.accumulateWeighted(cv2.min(d2, cv2.multiply(bar, bar)), var, alpha / 20.0, outlier)
+        # (its squared deviation counts as the bar's square)
+        outlier = cv2.bitwise_not(inlier)
+        cv2.accumulateWeighted(self._bar2[r0:r1].reshape(n, -1), var, alpha / 20.0, outlier)
         cv2.accumulateWeighted(f, bg, alpha / 20.0, outlier)
         for y0, y1, x0, x1, saved, saved_var in keep:
             self._bg[y0:y1, x0:x1] = saved
