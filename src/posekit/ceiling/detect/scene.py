@@ -254,7 +254,8 @@ class StaticLights:
             t.seen += 1
             t.state = self._state(t, floor)
             states[k] = t.state
-        self._scene_jitter = self._measure_scene_jitter()
+        if not frame % 5:                       # it changes slowly: every fifth frame
+            self._scene_jitter = self._measure_scene_jitter()
         return states
 
     def _known_at(self, p, colour) -> Light | None:
