@@ -66,12 +66,13 @@ def test_ok_implies_a_dot_this_frame(present, seed):
     meas[rng.random(n) < 0.15] += rng.normal(0, 2000.0, 2)      # some wild outliers too
     rows = run(Tracker(), t, meas, present)
     for r, p in zip(rows, present):
-        assert r.status in ("ok", "predicted", "lost")
-        if r.status == "ok":
+        assert r.status in ("ok", "suspect", "predicted", "lost")
+        if r.status in ("ok", "suspect"):               # suspect: accepted, but e.g. re-acquired far away
             assert p and "red" in r.measured
         if not p:
-            assert r.status != "ok" and r.measured == {}
+            assert r.status not in ("ok", "suspect") and r.measured == {}
         assert np.isfinite(r.x) == (r.status != "lost")
+        assert bool(r.reasons) == (r.status != "ok")
 
 
 def test_filter_reduces_noise_on_a_straight_line():
