@@ -115,7 +115,7 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
     _hide(monkeypatch, "cv2")
     import importlib
 
-    import posekit.ceiling.detect as detect
+    import posekit.ceiling.detect.dots as detect
     import posekit.localcal.sim.camera as camera
     import posekit.localcal.sim.marker_detector as marker_detector
 

@@ -9,11 +9,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
+from ...verdict import Verdict
 
 __all__ = ["CHI2_2DOF_999", "STATUSES", "DotState", "HeadingState", "TrackRow", "TrackerConfig"]
 
-STATUSES = ("ok", "predicted", "lost")
+STATUSES = ("ok", "suspect", "predicted", "lost")
 
 CHI2_2DOF_999 = float(-2.0 * np.log(1e-3))
 """χ² quantile of 2 dof at 0.999 (13.8): the default gate on the squared Mahalanobis distance."""
@@ -70,10 +71,17 @@ class TrackerConfig:
         After coasting longer than this (s), a candidate inside the gate resumes the track only
         when the next frame shows it moving as the track was.
     min_move_mm : float
-        A lone candidate starts a track only once it has moved this far (mm): a static blob
-        (a lamp, an LED, a glint) never does. A robot at rest is acquired when it moves (or,
-        after a dropout, where it was last seen). 0: a lone candidate starts the track at once
-        (world measurements known to be the dot, no stray light possible).
+        Without the caller's verdict on motion (``moving=`` of :meth:`Tracker.step`, the
+        image-space test of :class:`~posekit.ceiling.detect.scene.StaticLights`), a lone
+        candidate starts a track only once it has moved this far (mm) over its chained
+        history. 0: a lone candidate starts the track at once (world measurements known to be
+        the dot, no stray light possible).
+    coast_speed_share : float
+        While the dot is not measured, the prediction's 1σ grows by this share of the distance
+        the track would travel at its speed: a ground robot may stop or turn while its dot is
+        hidden, which leaves the constant-velocity prediction by up to ``|v| t`` (a stop); 0.5
+        puts a stop at 2σ and a right-angle turn (``√2 |v| t``) at 2.8σ. Also widens the gate
+        of a coasting track by as much.
     adapt_noise : bool
         Scale the measurement covariance by a running mean of the normalised innovation
         squared of accepted measurements (at least 1), so that ``std_mm`` stays honest when
@@ -96,6 +104,7 @@ class TrackerConfig:
     adapt_noise: bool = True
     confirm_after_s: float = 0.25
     min_move_mm: float = 8.0
+    coast_speed_share: float = 0.5
 
     def __post_init__(self):
         dots = tuple(self.dots)
@@ -109,7 +118,7 @@ class TrackerConfig:
             if not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a positive number, got {v!r}")
         for name in ("min_meas_std_mm", "max_predict_s", "gate_floor_mm", "max_speed_mm_s", "confirm_after_s",
-                     "min_move_mm"):
+                     "min_move_mm", "coast_speed_share"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a number >= 0, got {v!r}")
@@ -148,6 +157,10 @@ class DotState:
     seen : list or None
         ``[(t_s, (K, 2) xy), ...]``: the verified candidates of the last second without a
         track, to tell which one moves.
+    probation : tuple or None
+        ``(until_s, jump_mm, conflicted)`` after a re-acquisition away from a live prediction:
+        the rows are ``suspect`` until then, and for as long as the track lives once another
+        moving laser-like spot was seen during that time.
     """
 
     x: np.ndarray | None = None
@@ -161,6 +174,7 @@ class DotState:
     noise_stats: dict | None = None
     pending: tuple | None = None
     seen: list | None = None
+    probation: tuple | None = None
 
 
 @dataclass
@@ -189,10 +203,16 @@ class TrackRow:
         Direction from the red to the green dot, degrees in (-180, 180]; NaN with one dot
         or when either dot is lost.
     status : str
-        ``"ok"``, ``"predicted"`` or ``"lost"`` (see the module docstring).
+        ``"ok"``, ``"suspect"``, ``"predicted"`` or ``"lost"`` (see
+        :mod:`posekit.ceiling.track.tracker`).
     std_mm : float
         1σ of the position: square root of the largest eigenvalue of the position
-        covariance, mm (NaN when lost).
+        covariance, mm (NaN when lost); while coasting it includes the manoeuvre term
+        (``coast_speed_share``).
+    std_heading_deg : float
+        1σ of the heading, degrees (NaN with one dot or without a heading).
+    reasons : tuple of str
+        Why the row is not ``ok`` (empty when it is).
     camera : int
         Index of the camera whose measurement was used this frame (-1 if none).
     measured : dict
@@ -210,21 +230,42 @@ class TrackRow:
     heading_deg: float
     status: str
     std_mm: float = float("nan")
+    std_heading_deg: float = float("nan")
+    reasons: tuple = ()
     camera: int = -1
     measured: dict = field(default_factory=dict)
     dots: dict = field(default_factory=dict)
     robot: int = 0
 
+    @property
+    def reason(self) -> str:
+        """The reasons joined by ``"; "`` (the CSV's ``reason`` field)."""
+        return "; ".join(self.reasons)
+
+    @property
+    def verdict(self) -> Verdict:
+        """The row as the shared :class:`posekit.verdict.Verdict` (std of x/y in mm, heading in degrees)."""
+        std = None
+        if np.isfinite(self.std_mm):
+            std = {"xy_mm": float(self.std_mm)}
+            if np.isfinite(self.std_heading_deg):
+                std["heading_deg"] = float(self.std_heading_deg)
+        return Verdict(self.status, self.reasons, std)
+
     def csv_fields(self) -> list[str]:
-        """``frame,time_s,x,y,heading_deg,status,std_mm`` as strings; NaN becomes an empty field."""
+        """``frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason`` as strings;
+        NaN becomes an empty field."""
         def f(v, fmt):
             return "" if not np.isfinite(v) else format(v, fmt)
         return [str(self.frame), f"{self.time_s:.6f}", f(self.x, ".3f"), f(self.y, ".3f"),
-                f(self.heading_deg, ".3f"), self.status, f(self.std_mm, ".3f")]
+                f(self.heading_deg, ".3f"), self.status, f(self.std_mm, ".3f"), f(self.std_heading_deg, ".3f"),
+                self.reason]
 
     def json_record(self) -> dict:
-        """``{"frame", "time_s", "x", "y", "heading_deg", "status", "std_mm"}`` (NaN → None)."""
+        """``{"frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg",
+        "reason"}`` (NaN → None; ``reason`` None when ``ok``)."""
         def f(v):
             return float(v) if np.isfinite(v) else None
         return {"frame": int(self.frame), "time_s": f(self.time_s), "x": f(self.x), "y": f(self.y),
-                "heading_deg": f(self.heading_deg), "status": self.status, "std_mm": f(self.std_mm)}
+                "heading_deg": f(self.heading_deg), "status": self.status, "std_mm": f(self.std_mm),
+                "std_heading_deg": f(self.std_heading_deg), "reason": self.reason or None}

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
-from ._detect_kernels import _AREA, _ELONG, _MUU, _MUV, _MVV, _PEAK, _U, _V
-from .detect import DotDetector, cv2
+from ...errors import ConfigError
+from ._kernels import _AREA, _ELONG, _MUU, _MUV, _MVV, _PEAK, _U, _V
+from .dots import DotDetector, cv2
 
 __all__ = ["LINE_METHODS", "Line", "LineDetector"]
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import ConfigError, GeometryError
+from ...errors import ConfigError, GeometryError
 
 __all__ = [
     "ERROR_MODELS",
@@ -374,8 +374,8 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
     -------
     KnownPointsResult
     """
-    from .detect import DotDetector
-    from .render import CeilingScene
+    from ..detect.dots import DotDetector
+    from ..sim.render import CeilingScene
 
     x0, y0, x1, y1 = config.path_rect_mm if rect_mm is None else rect_mm
     pts = known_points_grid((x0, x1), (y0, y1), n=n, inset=inset)

@@ -17,9 +17,9 @@ import math
 
 import numpy as np
 
-from .._extras import lazy
-from ._render_kernels import shade_board, undistort_many
-from .camera import CameraModel
+from ..._extras import lazy
+from ..camera.lens import CameraModel
+from ._kernels import shade_board, undistort_many
 
 cv2 = lazy("cv2", "vision", "the chessboard renderer")
 

@@ -39,8 +39,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import ConfigError, GeometryError, TrajectoryError
-from .track import HeadingState, Tracker, TrackerConfig, TrackRow, cv_predict, kf_update
+from ...errors import ConfigError, GeometryError, TrajectoryError
+from .tracker import HeadingState, Tracker, TrackerConfig, TrackRow, cv_predict, kf_update
 
 __all__ = ["LineTracker", "LineTrackerConfig", "DottedLineDetector", "dots_to_line", "line_world_measurement",
            "pick_line", "wrap_half"]
@@ -417,8 +417,8 @@ class DottedLineDetector:
 
     def __init__(self, color: str = "red", *, tol_px: float = 2.0, min_dots: int = 3, contrast: int = 60,
                  n_dots: int = 5, **kwargs):
-        from .detect import DotDetector
-        from .detect_line import LineDetector
+        from ..detect.dots import DotDetector
+        from ..detect.lines import LineDetector
         self._dots = DotDetector(colors=(color,), contrast=contrast, **kwargs)
         self._lines = LineDetector(color)
         self.colors = (color,)
@@ -431,7 +431,7 @@ class DottedLineDetector:
     def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list:
         """The dotted segment of this frame as a one-element list of ``Line`` (or empty).
         The whole frame is searched (a row of dots is wider than the dot detector's window)."""
-        from .detect_line import Line
+        from ..detect.lines import Line
         dots = [d for d in self._dots.detect(frame_bgr) if d.color == self.colors[0] and not d.stray]
         streaks = self._lines.detect(frame_bgr)
         self.last_dots = dots

@@ -68,9 +68,10 @@ from pathlib import Path
 import numpy as np
 from scipy.special import erf
 
-from .._extras import require
-from ..errors import ConfigError, InputFileError
-from ._render_kernels import (
+from ..._extras import require
+from ...errors import ConfigError, InputFileError
+from ..camera.lens import CameraModel
+from ._kernels import (
     NOISE_LUT_BITS,
     albedo_params,
     compose,
@@ -78,10 +79,9 @@ from ._render_kernels import (
     noise_lut,
     render_albedo,
 )
-from ._render_kernels import ceiling_albedo as _ceiling_albedo
-from .camera import CameraModel
-from .render_config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
-from .render_effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
+from ._kernels import ceiling_albedo as _ceiling_albedo
+from .config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
+from .effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
 
 __all__ = [
     "SceneConfig",
@@ -625,20 +625,63 @@ def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
                           f"expected one of {', '.join(can) or 'none'}")
     if config.codec == "mjpg":
         writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
-    write_calibration_csv(paths.calibration_points, points)
-    write_truth_csv(paths.truth, scene.truth())
-    write_lights_csv(paths.stray_lights, scene.lights)
-    from .camera import save_camera
-    save_camera(scene.camera, paths.camera)
-    cv2.imwrite(str(paths.reference), scene.reference_image())
-    if paths.frames_dir is not None:
-        paths.frames_dir.mkdir(exist_ok=True)
     try:
-        frames = scene.frames()
-        for k, frame in enumerate(progress(frames, total=scene.n_frames) if progress else frames):
-            writer.write(frame)
-            if paths.frames_dir is not None:
-                cv2.imwrite(str(paths.frames_dir / f"{k:06d}.png"), frame)
-    finally:
-        writer.release()
+        write_calibration_csv(paths.calibration_points, points)
+        write_truth_csv(paths.truth, scene.truth())
+        write_lights_csv(paths.stray_lights, scene.lights)
+        from ..camera.lens import save_camera
+        save_camera(scene.camera, paths.camera)
+        _imwrite(cv2, paths.reference, scene.reference_image())
+        if paths.frames_dir is not None:
+            paths.frames_dir.mkdir(exist_ok=True)
+        try:
+            frames = scene.frames()
+            for k, frame in enumerate(progress(frames, total=scene.n_frames) if progress else frames):
+                writer.write(frame)
+                if paths.frames_dir is not None:
+                    _imwrite(cv2, paths.frames_dir / f"{k:06d}.png", frame)
+        finally:
+            writer.release()
+    except OSError as exc:
+        raise InputFileError(_write_failure(out, getattr(exc, "filename", None) or out, exc)) from None
+    _check_video(cv2, paths.video, scene.n_frames, out)
     return paths
+
+
+def _write_failure(out: Path, name, exc: OSError | None = None, need_bytes: int = 1 << 20) -> str:
+    """One line: what could not be written, and why (no space left when that is the cause: the
+    error says so, or less than ``need_bytes`` is free where it was written — OpenCV's writers
+    give no reason and remove what they could not finish)."""
+    import errno
+    import os
+    full = exc is not None and exc.errno == errno.ENOSPC
+    if not full:
+        try:
+            st = os.statvfs(out)
+            full = st.f_bavail * st.f_frsize < need_bytes
+        except OSError:
+            pass
+    why = "no space left on device" if full else (getattr(exc, "strerror", None) or "the write failed")
+    return f"{name}: cannot write ({why}); nothing was installed at the output folder"
+
+
+def _imwrite(cv2, path: Path, image) -> None:
+    """``cv2.imwrite`` that fails loudly (OpenCV returns False on a full disk)."""
+    if not cv2.imwrite(str(path), image):
+        raise InputFileError(_write_failure(path.parent, path, need_bytes=max(image.nbytes, 1 << 20)))
+
+
+def _check_video(cv2, path: Path, n_frames: int, out: Path) -> None:
+    """The written video holds ``n_frames`` readable frames (``cv2.VideoWriter`` says nothing when
+    the disk fills up: the container comes out short or without its index)."""
+    cap = cv2.VideoCapture(str(path))
+    try:
+        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0) if cap.isOpened() else 0
+        ok = n == n_frames
+        if ok and n_frames > 0:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, n_frames - 1)
+            ok, _ = cap.read()
+    finally:
+        cap.release()
+    if not ok:
+        raise InputFileError(_write_failure(out, path) + f" (the video holds {n} of {n_frames} frames)")

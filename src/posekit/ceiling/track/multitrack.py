@@ -24,11 +24,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from ._kalman import _mahalanobis2
 from .cameras import Camera
 from .pipeline import _TimedRows
-from .track import Tracker, TrackerConfig, TrackRow
+from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["MultiRobotTracker", "RobotsResult", "iter_track_robots", "track_robots_frames", "track_robots_video"]
 
@@ -165,14 +165,18 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
 
     ``frames`` yields ``(index, time_s, image)`` (image BGR (H, W, 3), or None when the
     frame could not be decoded: every robot's row is then ``lost``). Every frame is searched
-    whole (several dots). Detections that no robot takes teach the detector's mask of static
-    lights.
+    whole (several dots); a dot the camera's model of static lights finds static
+    (:class:`~posekit.ceiling.detect.scene.StaticLights`) never starts a robot's track.
     """
+    from ..detect.scene import STATIC, StaticLights
+
     if detector is None:
-        from .detect import DotDetector
+        from ..detect.dots import DotDetector
         detector = DotDetector(("red",))
+    lights = StaticLights(jitter_floor_px=camera.detection_std_px)
     mrt = MultiRobotTracker(n_robots, config)
-    for index, t_s, image in frames:
+    for item in frames:
+        index, t_s, image = item[:3]
         if isinstance(image, (list, tuple)):
             image = image[0]
         t0 = time.perf_counter()
@@ -180,15 +184,13 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
         if ds:
             uv = np.array([[d.u, d.v] for d in ds])
             xy, R = camera.measurement(uv)
-            el = np.array([not d.stray for d in ds])
+            el = lights.update(index, uv, ["red"] * len(ds)) != STATIC
         else:
             xy, R, el = np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0, bool)
         rows = mrt.step(t_s, xy, R, frame=index, eligible=el)
         if image is None:
-            rows = [replace(r, x=float("nan"), y=float("nan"), status="lost", std_mm=float("nan"), measured={})
-                    for r in rows]
-        taken = [r.measured["red"] for r in rows if "red" in r.measured]
-        detector.learn(ds, camera.to_image(np.array(taken)) if taken else None)
+            rows = [replace(r, x=float("nan"), y=float("nan"), status="lost", std_mm=float("nan"), measured={},
+                            reasons=("the frame could not be decoded",)) for r in rows]
         if timings is not None:
             timings.append(time.perf_counter() - t0)
         yield rows

@@ -27,16 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, InputFileError
+from ...errors import ConfigError, InputFileError
 from .cameras import Camera, MultiCameraTracker, border_distance
-from .track import TrackerConfig, TrackRow
+from .types import STATUSES, TrackerConfig, TrackRow
 
 __all__ = ["TRACK_COLUMNS", "TrackResult", "parse_dots", "iter_track", "track_frames", "track_video",
            "write_track_csv", "read_track_csv"]
 
-TRACK_COLUMNS = ("frame", "time_s", "x", "y", "heading_deg", "status", "std_mm")
-"""Columns of the track CSV: the contract's six, then ``std_mm`` (1σ of the position, mm)."""
+TRACK_COLUMNS = ("frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg", "reason")
+"""Columns of the track CSV: the contract's six, then ``std_mm`` (1σ of the position, mm),
+``std_heading_deg`` (1σ of the heading, degrees; empty with one dot) and ``reason`` (why a row
+is not ``ok``; empty when it is)."""
 LEGACY_TRACK_COLUMNS = TRACK_COLUMNS[:6]
+EARLIER_TRACK_COLUMNS = TRACK_COLUMNS[:7]
 KNOWN_COLOURS = ("red", "green")
 LINE_DOTS = ("line",)
 """``dots`` of case C: one laser line (:class:`~posekit.ceiling.detect.LineDetector` and
@@ -91,6 +94,11 @@ class TrackResult(_TimedRows):
         Camera names.
     warnings : list of str
         What the sources reported (a video shorter than its header says, a stream that stopped).
+    stats : dict
+        ``rebuilds`` and ``relights`` of the detectors' backgrounds (a rebuild is a scene
+        change the exposure gain did not explain; 0 on a steady scene), ``static_lights`` held
+        at the end and where they came from (``scene``: ``"learned online"`` or ``"from the
+        scene file"``).
     """
 
     rows: list[TrackRow]
@@ -100,6 +108,7 @@ class TrackResult(_TimedRows):
     fps_source: str = ""
     cameras: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
 
     def xy(self) -> np.ndarray:
         """(N, 2) track in the world plane, mm (NaN where lost)."""
@@ -113,7 +122,7 @@ class TrackResult(_TimedRows):
 
     def counts(self) -> dict[str, int]:
         s = self.status()
-        return {k: int(np.sum(s == k)) for k in ("ok", "predicted", "lost")}
+        return {k: int(np.sum(s == k)) for k in STATUSES}
 
 
 def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
@@ -129,7 +138,7 @@ def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
 
 def _as_calibration(cal):
     if isinstance(cal, (str, Path)):
-        from .calibration import load_calibration
+        from ..camera.homography import load_calibration
         return load_calibration(cal)
     return cal
 
@@ -144,21 +153,27 @@ def _dots_by_colour(dots) -> dict[str, np.ndarray]:
 def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] = ("red",), *,
                config: TrackerConfig | None = None, detectors: Sequence | None = None,
                border_margin_px: float = 20.0, use_roi: bool = True, survey_every: int = 30,
-               timings: list | None = None) -> Iterator[tuple[TrackRow, np.ndarray]]:
+               timings: list | None = None, scenes: Sequence | None = None,
+               stats: dict | None = None) -> Iterator[tuple[TrackRow, np.ndarray]]:
     """Track frame by frame, yielding each row as soon as its frame is done (live use).
 
     Per frame and camera: the detector searches a window around the predicted dot while the
     track is ``ok`` (and the whole frame every ``survey_every`` frames, and whenever the track
-    is not ``ok``: re-acquisition is a whole-frame search); every candidate is verified —
-    not where a static light was learned (:meth:`DotDetector.learn`), brightness and size like
-    the tracked laser's (:class:`DotSignature`) — and the tracker accepts only a gated
-    candidate or a lone verified one. After the step, the detections that were not the track
-    teach the detector's mask of static lights.
+    is not ``ok``: re-acquisition is a whole-frame search); every candidate goes through the
+    camera's model of static lights (:class:`~posekit.ceiling.detect.scene.StaticLights`: a
+    test over several frames of whether its motion is more than its own centroid jitter) and is
+    verified — not a static light, a saturated core, brightness and size like the tracked
+    laser's (:class:`DotSignature`). The tracker accepts only a gated candidate, or re-acquires
+    on the one verified candidate the test found moving.
 
     Parameters are those of :func:`track_frames`; ``images`` of a frame may be None (or a
-    camera's entry None) for a frame that could not be decoded: its row is ``lost`` (the
-    filter still advances in time). ``timings``, if given, receives the processing time of
-    each frame (s, decoding excluded).
+    camera's entry None) for a frame that could not be decoded: its row is ``lost`` with the
+    reason (a fourth item of the frame tuple, a list of one string per camera, when given).
+    ``timings``, if given, receives the processing time of each frame (s, decoding excluded).
+    ``scenes``: per camera the static lights of a learned scene (a list of
+    :class:`~posekit.ceiling.detect.scene.Light`, or None: learned online). ``stats``, if
+    given, is filled with ``rebuilds``, ``relights`` (background), ``static_lights`` and
+    ``scene`` (``"learned online"`` or ``"from the scene file"``) as the run goes.
 
     Yields
     ------
@@ -166,25 +181,37 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
     uv : ndarray, shape (2,)
         The primary dot as detected in the camera used, px (NaN when not ``ok``).
     """
-    from .detect import DotSignature
+    from ..detect.dots import DotSignature
+    from ..detect.scene import MOVING, STATIC, StaticLights
 
     dots = parse_dots(dots)
     cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
     if detectors is None:
-        from .detect import DotDetector
+        from ..detect.dots import DotDetector
         detectors = [DotDetector(colors=dots) for _ in cameras]
     if len(detectors) != len(cameras):
         raise ConfigError(f"track_frames: {len(detectors)} detectors for {len(cameras)} cameras")
+    if scenes is None:
+        scenes = [None] * len(cameras)
+    lights = [StaticLights(known=s or (), jitter_floor_px=cam.detection_std_px) for s, cam in zip(scenes, cameras)]
+    stats = {} if stats is None else stats
+    stats.update(rebuilds=0, relights=0, static_lights=0,
+                 scene="from the scene file" if any(s is not None for s in scenes) else "learned online")
     survey_every = max(int(survey_every), 1)
     signatures = [{c: DotSignature() for c in dots} for _ in cameras]     # per camera and colour
     mct = MultiCameraTracker(cameras, cfg, border_margin_px=border_margin_px)
+    suspect_cal = [getattr(c.calibration, "status", "ok") == "suspect" for c in cameras]
     confident = False
-    for index, t_s, images in frames:
+    for item in frames:
+        index, t_s, images = item[:3]
+        errors = item[3] if len(item) > 3 else None
         t0 = time.perf_counter()
         if images is None:
             images = [None] * len(cameras)
         elif len(cameras) == 1 and isinstance(images, np.ndarray):
             images = [images]
+        if errors is None or isinstance(errors, str):
+            errors = [errors] * len(cameras)
         pred = mct.predicted_uv(t_s)
         search = list(range(len(cameras)))
         a = mct.active
@@ -193,35 +220,46 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             if bd >= 2 * border_margin_px:
                 search = [a]                        # camera switch: the others can sleep
         survey = index % survey_every == 0
-        detections, eligible, stds, found = [], [], [], {}
+        detections, eligible, stds, moving, found = [], [], [], [], {}
         for i, (det, img) in enumerate(zip(detectors, images)):
             if i not in search or img is None:
                 detections.append(None)
                 eligible.append(None)
                 stds.append(None)
+                moving.append(None)
                 continue
             roi = pred[i] if (use_roi and confident and not survey and pred[i]) else None
             ds = det.detect(img, predicted_uv=roi)
             found[i] = ds
-            by, el, sd = {}, {}, {}
-            for d in ds:
+            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds],
+                                      [d.saturated for d in ds])
+            by, el, sd, mv = {}, {}, {}, {}
+            for d, s in zip(ds, states):
                 sig = signatures[i][d.color]
                 by.setdefault(d.color, []).append((d.u, d.v))
-                el.setdefault(d.color, []).append(not d.stray and sig.consistent(d))
+                el.setdefault(d.color, []).append(s != STATIC and d.saturated and sig.consistent(d))
+                mv.setdefault(d.color, []).append(s == MOVING)
                 sd.setdefault(d.color, []).append(sig.std_px(d, cameras[i].detection_std_px))
             detections.append({c: np.asarray(v, dtype=float) for c, v in by.items()})
             eligible.append({c: np.asarray(v, dtype=bool) for c, v in el.items()})
+            moving.append({c: np.asarray(v, dtype=bool) for c, v in mv.items()})
             stds.append({c: np.asarray(v, dtype=float) for c, v in sd.items()})
-        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds)
+        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving)
         if all(img is None for img in images):
+            why = "; ".join(e for e in errors if e) or "the frame could not be decoded"
             row = replace(row, x=float("nan"), y=float("nan"), heading_deg=float("nan"), status="lost",
-                          std_mm=float("nan"), camera=-1, measured={})
+                          std_mm=float("nan"), std_heading_deg=float("nan"), camera=-1, measured={},
+                          reasons=(why,))
+        elif row.status in ("predicted", "lost"):
+            row = _blind_reason(row, pred, detectors, images)
+        elif row.camera >= 0 and suspect_cal[row.camera]:
+            cal = cameras[row.camera].calibration
+            why = "; ".join(getattr(cal, "reasons", ()) or ("the calibration is suspect",))
+            row = replace(row, status="suspect", reasons=row.reasons + (f"calibration: {why}",))
         uv = np.full(2, np.nan)
-        watched = list(mct.tracker.pending().values())
         for i, ds in found.items():
-            track_uv = cameras[i].to_image(np.array(watched)) if watched else None
             if row.camera == i and row.measured:
-                track_uv = cameras[i].to_image(np.array(list(row.measured.values()) + watched))
+                track_uv = cameras[i].to_image(np.array(list(row.measured.values())))
                 for j, c in enumerate(row.measured):
                     p = track_uv[j]
                     best = min((d for d in ds if d.color == c), key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2,
@@ -229,19 +267,33 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
                     if best is None:
                         continue
                     signatures[i][c].update(best)
-                    if c == dots[0] and row.status == "ok":
+                    if c == dots[0] and row.status in ("ok", "suspect"):
                         uv = np.array([best.u, best.v])
-            detectors[i].learn(ds, track_uv)
         confident = row.status == "ok"
+        stats.update(rebuilds=sum(getattr(d, "rebuilds", 0) for d in detectors),
+                     relights=sum(getattr(d, "relights", 0) for d in detectors),
+                     static_lights=sum(lt.n_static for lt in lights))
         if timings is not None:
             timings.append(time.perf_counter() - t0)
         yield row, uv
 
 
+def _blind_reason(row: TrackRow, pred, detectors, images) -> TrackRow:
+    """Add to a row without a dot that the background at the predicted dot is saturated."""
+    for i, (det, img) in enumerate(zip(detectors, images)):
+        p = pred[i].get(row.dots and next(iter(row.dots)) or "red") if i < len(pred) else None
+        if img is None or p is None or not hasattr(det, "blind_fraction"):
+            continue
+        if det.blind_fraction(p) > 0.5:
+            return replace(row, reasons=row.reasons + ("the background at the predicted dot is saturated: a dot "
+                                                       "there cannot be told from the scene",))
+    return row
+
+
 def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] = ("red",), *,
                  config: TrackerConfig | None = None, detectors: Sequence | None = None,
                  border_margin_px: float = 20.0, use_roi: bool = True, progress=None,
-                 on_row=None) -> TrackResult:
+                 on_row=None, scenes: Sequence | None = None) -> TrackResult:
     """Track already-decoded frames of one or more synchronised cameras.
 
     Parameters
@@ -267,6 +319,9 @@ def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str
         Wraps the frame iterable (a progress bar).
     on_row : callable, optional
         Called with each :class:`TrackRow` as soon as its frame is done.
+    scenes : sequence, optional
+        Per camera the static lights of a learned scene (:func:`~posekit.ceiling.detect.scene.load_scene`),
+        or None: learned online.
 
     Returns
     -------
@@ -277,17 +332,18 @@ def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str
     if dots == LINE_DOTS:
         return _track_line_frames(it, cameras, config=config, detectors=detectors,
                                   border_margin_px=border_margin_px, use_roi=use_roi, on_row=on_row)
-    rows, uvs, proc = [], [], []
+    rows, uvs, proc, stats = [], [], [], {}
     t_start = time.perf_counter()
     for row, uv in iter_track(it, cameras, dots, config=config, detectors=detectors,
-                              border_margin_px=border_margin_px, use_roi=use_roi, timings=proc):
+                              border_margin_px=border_margin_px, use_roi=use_roi, timings=proc, scenes=scenes,
+                              stats=stats):
         rows.append(row)
         uvs.append(uv)
         if on_row is not None:
             on_row(row)
     total = time.perf_counter() - t_start
     return TrackResult(rows=rows, image_uv=np.array(uvs, dtype=float).reshape(-1, 2), seconds_total=total,
-                       seconds_processing=np.array(proc), cameras=[c.name for c in cameras])
+                       seconds_processing=np.array(proc), cameras=[c.name for c in cameras], stats=stats)
 
 
 def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: TrackerConfig | None = None,
@@ -297,7 +353,7 @@ def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: T
     camera, end points mapped to the world, :class:`~posekit.ceiling.linetrack.LineTracker`.
     With several cameras, the one whose segment centre is farthest from its image border is
     used (the previous one while it stays ``border_margin_px`` inside)."""
-    from .detect_line import LineDetector
+    from ..detect.lines import LineDetector
     from .linetrack import LineTracker, LineTrackerConfig, pick_line
 
     if detectors is None:
@@ -308,7 +364,8 @@ def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: T
     rows, uvs, proc = [], [], []
     active = -1
     t_start = time.perf_counter()
-    for index, t_s, images in frames:
+    for item in frames:
+        index, t_s, images = item[:3]
         if images is None:
             images = [None] * len(cameras)
         elif len(cameras) == 1 and isinstance(images, np.ndarray):
@@ -358,7 +415,7 @@ def _as_lens(lens):
     if lens is None:
         return None
     if isinstance(lens, (str, Path)):
-        from .camera import load_camera
+        from ..camera.lens import load_camera
         return load_camera(lens)
     return lens
 
@@ -368,23 +425,23 @@ def open_sources(sources, fps: float | None = None, *, loop: int = 1, max_frames
     """One frame source per input: :func:`~posekit.ceiling.video_io.open_live` for a camera
     index, device or URL (or any input when ``live``), else
     :func:`~posekit.ceiling.video_io.open_frames`."""
-    from .video_io import is_live_source, open_frames, open_live
+    from .sources import is_live_source, open_frames, open_live
 
     out = []
     for s in sources:
         if live or is_live_source(s):
             out.append(open_live(s, loop=loop, max_frames=max_frames, fps=fps))
         else:
-            out.append(open_frames(s, fps))
+            out.append(open_frames(s, fps, max_frames=max_frames))
     return out
 
 
-def frame_groups(streams) -> Iterator[tuple[int, float, list]]:
-    """``(index, time_s, images)`` of synchronised sources (the shortest ends it); an image
-    that could not be decoded is None."""
+def frame_groups(streams) -> Iterator[tuple[int, float, list, list]]:
+    """``(index, time_s, images, errors)`` of synchronised sources (the shortest ends it); an
+    image that could not be decoded is None and its error says why."""
     for group in zip(*streams):
         f0 = group[0]
-        yield f0.index, f0.time_s, [f.image for f in group]
+        yield f0.index, f0.time_s, [f.image for f in group], [f.error for f in group]
 
 
 def make_cameras(streams, calibrations, lenses=None) -> list[Camera]:
@@ -407,16 +464,53 @@ def make_cameras(streams, calibrations, lenses=None) -> list[Camera]:
             raise ConfigError(f"{st.path}: frames are {st.image_size[0]}x{st.image_size[1]} px but the camera model "
                               f"is for {lens.image_size[0]}x{lens.image_size[1]} px; calibrate the lens at the "
                               "resolution of the video")
-        cams.append(Camera(_as_calibration(cal), st.image_size, name=str(st.path), lens=lens))
+        cal = fit_calibration(_as_calibration(cal), st.image_size, str(st.path), notes=getattr(st, "warnings", None))
+        cams.append(Camera(cal, st.image_size, name=str(st.path), lens=lens))
     return cams
+
+
+def fit_calibration(cal, frame_size, source: str = "INPUT", notes: list | None = None):
+    """The calibration for frames of ``frame_size`` (w, h) px.
+
+    A calibration that knows its image size and matches is returned as is; one made at another
+    resolution of the same shape (aspect within 0.5 %) gets its homography scaled (pixel
+    centres: ``u' + ½ = s (u + ½)``) and a note in ``notes``; another shape is a one-line
+    :class:`ConfigError`. Without a size, calibration points beyond the frame are a
+    :class:`ConfigError` too (a calibration made for larger frames).
+    """
+    w, h = int(frame_size[0]), int(frame_size[1])
+    size = getattr(cal, "image_size", None)
+    if size is not None and tuple(size) != (w, h):
+        cw, ch = size
+        s = w / cw
+        if abs(h / ch - s) > 0.005 * s:
+            raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration was made on {cw}x{ch} px "
+                              "images of another shape; calibrate at the resolution of the video")
+        from ..camera.homography import Calibration
+        c = 0.5 / s - 0.5
+        A = np.array([[1.0 / s, 0.0, c], [0.0, 1.0 / s, c], [0.0, 0.0, 1.0]])     # new px -> old px
+        Hwi = cal.H_world_image @ A
+        Hwi = Hwi / Hwi[2, 2]
+        Hiw = np.linalg.inv(Hwi)
+        ext = None if cal.points_extent is None else tuple(s * (v + 0.5) - 0.5 for v in cal.points_extent)
+        if notes is not None:
+            notes.append(f"{source}: the calibration was made on {cw}x{ch} px images, frames are {w}x{h} px: "
+                         f"its homography is scaled by {s:g}")
+        return Calibration(Hiw / Hiw[2, 2], Hwi, cal.rms_px * s, cal.rms_world, cal.inliers, cal.n_points, cal.camera,
+                           (w, h), ext, cal.status, cal.reasons, cal.rms_all_px * s)
+    ext = getattr(cal, "points_extent", None)
+    if size is None and ext is not None and (ext[2] > w - 0.5 + 1.0 or ext[3] > h - 0.5 + 1.0):
+        raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration points reach u={ext[2]:.0f}, "
+                          f"v={ext[3]:.0f} px; was the calibration made at another resolution?")
+    return cal
 
 
 def make_detectors(dots, n: int, detector_options: dict | None = None):
     """``n`` detectors for ``dots`` (None: the defaults of :func:`track_frames`)."""
     if detector_options is None:
         return None
-    from .detect import DotDetector
-    from .detect_line import LineDetector
+    from ..detect.dots import DotDetector
+    from ..detect.lines import LineDetector
     if dots == LINE_DOTS:
         if detector_options.get("method") == "dotted":          # the §III-C dotted line
             from .linetrack import DottedLineDetector
@@ -429,7 +523,7 @@ def make_detectors(dots, n: int, detector_options: dict | None = None):
 def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, fps: float | None = None,
                 config: TrackerConfig | None = None, border_margin_px: float = 20.0, use_roi: bool = True,
                 detector_options: dict | None = None, progress=None, camera=None, on_row=None,
-                loop: int = 1, max_frames: int | None = None, live: bool = False) -> TrackResult:
+                loop: int = 1, max_frames: int | None = None, live: bool = False, scene=None) -> TrackResult:
     """Track the laser dot(s) in a video, a folder of images, a camera or a stream per calibrated camera.
 
     Parameters
@@ -458,8 +552,11 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
     on_row : callable, optional
         Called with each row as soon as its frame is done.
     loop, max_frames, live :
-        Live input: passes over a video file played live, a frame limit, and whether to
-        read a file through the live path (:func:`~posekit.ceiling.video_io.open_live`).
+        Passes over a video file played live, a frame limit (every kind of source), and
+        whether to read a file through the live path (:func:`~posekit.ceiling.track.sources.open_live`).
+    scene : path, or a sequence of them (one per source), optional
+        Scene file(s) of ``posekit ceiling learn-scene``: the static lights, known from the
+        first frame. Default: learned online.
 
     Returns
     -------
@@ -485,19 +582,44 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
         raise ConfigError(f"track_video: {len(sources)} input(s) but {len(calibrations)} calibration(s); "
                           "give one calibration per camera")
     cals = [_as_calibration(c) for c in calibrations]
+    scenes = _as_scenes(scene, len(sources))
     streams = open_sources(sources, fps, loop=loop, max_frames=max_frames, live=live)
     cameras = make_cameras(streams, cals, camera)
+    for (lights, size, name), st in zip(scenes, streams):
+        if size is not None and tuple(size) != tuple(st.image_size):
+            raise ConfigError(f"{name}: the scene was learned on {size[0]}x{size[1]} px frames, {st.path} has "
+                              f"{st.image_size[0]}x{st.image_size[1]} px; learn it from this camera at this resolution")
     detectors = make_detectors(dots, len(cameras), detector_options)
     result = track_frames(frame_groups(streams), cameras, dots, config=config, detectors=detectors,
-                          border_margin_px=border_margin_px, use_roi=use_roi, progress=progress, on_row=on_row)
+                          border_margin_px=border_margin_px, use_roi=use_roi, progress=progress, on_row=on_row,
+                          scenes=None if scene is None else [s[0] for s in scenes])
     result.fps_source = streams[0].fps_source
     result.warnings = [w for st in streams for w in st.warnings]
     return result
 
 
+def _as_scenes(scene, n: int) -> list:
+    """Per source ``(lights or None, image_size or None, name)`` from ``track_video``'s ``scene``."""
+    if scene is None:
+        return [(None, None, "")] * n
+    items = list(scene) if isinstance(scene, (list, tuple)) else [scene]
+    if len(items) == 1:
+        items = items * n
+    if len(items) != n:
+        raise ConfigError(f"--scene given {len(items)} time(s) for {n} input(s); give it once for all inputs or "
+                          "once per input")
+    from ..detect.scene import load_scene
+    out = []
+    for s in items:
+        lights, size = load_scene(s)
+        out.append((lights, size, str(s)))
+    return out
+
+
 def write_track_csv(rows: Iterable[TrackRow], path: str | Path) -> Path:
-    """Write ``frame,time_s,x,y,heading_deg,status,std_mm`` (mm, s, degrees; NaN as empty)."""
-    from ..io import atomic_file
+    """Write ``frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason`` (mm, s,
+    degrees; NaN as empty)."""
+    from ...io import atomic_file
 
     path = Path(path)
     with atomic_file(path, "w", newline="") as fh:  # complete or absent, never half-written
@@ -514,8 +636,9 @@ def read_track_csv(path: str | Path) -> dict[str, np.ndarray]:
     Raises
     ------
     InputFileError
-        Missing file or header other than ``frame,time_s,x,y,heading_deg,status[,std_mm[,robot]]``
-        (a file without ``std_mm`` reads it as NaN).
+        Missing file or header other than
+        ``frame,time_s,x,y,heading_deg,status[,std_mm[,std_heading_deg,reason]][,robot]``
+        (a column a file lacks reads as NaN, or "" for ``reason``).
     """
     path = Path(path)
     try:
@@ -526,7 +649,8 @@ def read_track_csv(path: str | Path) -> dict[str, np.ndarray]:
     except OSError as exc:
         raise InputFileError(f"{path}: cannot read track CSV ({exc.strerror or exc})") from None
     names = tuple(h.strip() for h in header) if header is not None else ()
-    if names not in (TRACK_COLUMNS, LEGACY_TRACK_COLUMNS, TRACK_COLUMNS + ("robot",)):
+    if names not in (TRACK_COLUMNS, LEGACY_TRACK_COLUMNS, EARLIER_TRACK_COLUMNS, TRACK_COLUMNS + ("robot",),
+                     EARLIER_TRACK_COLUMNS + ("robot",)):
         raise InputFileError(f"{path}: expected header {','.join(TRACK_COLUMNS)}, got {','.join(header or [])!r}")
     bad = next((k for k, r in enumerate(body) if len(r) != len(names)), None)
     if bad is not None:
@@ -534,12 +658,15 @@ def read_track_csv(path: str | Path) -> dict[str, np.ndarray]:
     cols = list(zip(*body)) if body else [()] * len(names)
     out = {}
     for name, col in zip(names, cols):
-        if name == "status":
+        if name in ("status", "reason"):
             out[name] = np.array(col, dtype=str)
         elif name in ("frame", "robot"):
             out[name] = np.array([int(v) for v in col], dtype=int)
         else:
             out[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
-    if "std_mm" not in out:
-        out["std_mm"] = np.full(len(body), np.nan)
+    for name in ("std_mm", "std_heading_deg"):
+        if name not in out:
+            out[name] = np.full(len(body), np.nan)
+    if "reason" not in out:
+        out["reason"] = np.full(len(body), "", dtype=str)
     return out

@@ -19,8 +19,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import CalibrationError
-from ..geometry import (
+from ...errors import CalibrationError
+from ...geometry import (
     apply_homography,
     check_correspondences,
     homography_dlt,
@@ -28,10 +28,11 @@ from ..geometry import (
     normalize_homography,
     refine_homography,
 )
-from ..io import load_json, read_text, write_text_atomic
+from ...io import load_json, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
+    "calibrate_points",
     "CalibrationPoints",
     "RadialPattern",
     "calibrate",
@@ -93,6 +94,19 @@ class Calibration:
     """The :class:`~posekit.ceiling.camera.CameraModel` whose undistorted pixels the homography
     maps (``calibrate --camera``), or None: pixels as seen (a distortion-free camera). The
     homography never undistorts by itself: undistort detected points with this camera first."""
+    image_size: tuple | None = None
+    """``(width, height)`` px of the images the points were taken in, when known (``--camera``,
+    ``--from-image``, ``--image-size``); ``track`` refuses frames of another shape (and scales
+    the homography for the same shape at another resolution)."""
+    points_extent: tuple | None = None
+    """``(u_min, v_min, u_max, v_max)`` px of the calibration points as seen."""
+    status: str = "ok"
+    """``"ok"``, or ``"suspect"`` when the points contradict the model (the lens file's radial
+    pattern left in the residuals); ``track`` then never marks a row ``ok``."""
+    reasons: tuple = ()
+    """Why the calibration is suspect (empty when ``ok``)."""
+    rms_all_px: float = float("nan")
+    """Rms reprojection distance over every point, rejected ones included, px."""
 
     def image_to_world(self, uv, *, invalid="raise"):
         """Map image points to the ceiling.
@@ -142,6 +156,14 @@ class Calibration:
         if self.camera is not None:
             data["undistorted"] = True              # H maps undistorted pixels: track needs --camera
             data["camera"] = self.camera.to_json()
+        if self.image_size is not None:
+            data["image_size"] = [int(self.image_size[0]), int(self.image_size[1])]
+        if self.points_extent is not None:
+            data["points_extent"] = [round(float(v), 3) for v in self.points_extent]
+        if math.isfinite(self.rms_all_px):
+            data["rms_all_px"] = float(self.rms_all_px)
+        data["status"] = self.status
+        data["reasons"] = list(self.reasons)
         text = "{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items()) + "\n}\n"
         write_text_atomic(path, text, error=CalibrationError)
 
@@ -200,7 +222,9 @@ def calibrate(world_xy, image_uv, *, refine=True, ransac=None, threshold_px=3.0,
     w_in, i_in = world[inliers], image[inliers]
     rms_px = math.sqrt(float(np.mean(np.sum((apply_homography(H, w_in) - i_in) ** 2, axis=1))))
     rms_world = math.sqrt(float(np.mean(np.sum((apply_homography(H_world_image, i_in) - w_in) ** 2, axis=1))))
-    return Calibration(H, H_world_image, rms_px, rms_world, inliers, n)
+    e_all = np.sum((apply_homography(H, world, invalid="nan") - image) ** 2, axis=1)
+    rms_all = math.sqrt(float(np.nanmean(e_all))) if np.isfinite(e_all).any() else math.nan
+    return Calibration(H, H_world_image, rms_px, rms_world, inliers, n, rms_all_px=rms_all)
 
 
 def undistort_calibration_points(camera, image_uv, lines=None) -> np.ndarray:
@@ -483,9 +507,27 @@ def load_calibration(path) -> Calibration:
         inliers = np.array(inliers, dtype=bool)
     camera = None
     if data.get("camera") is not None:                    # written by calibrate --camera
-        from .camera import CameraModel
+        from .lens import CameraModel
         camera = CameraModel.from_dict(data["camera"], f"{path}: camera")
-    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera)
+    size = data.get("image_size")
+    if size is not None and not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 < s <= 100_000 for s in size)):
+        raise CalibrationError(f"{path}: 'image_size' must be [width, height] in px (two positive integers)")
+    extent = data.get("points_extent")
+    if extent is not None and not (isinstance(extent, list) and len(extent) == 4 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in extent)):
+        raise CalibrationError(f"{path}: 'points_extent' must be [u_min, v_min, u_max, v_max] in px")
+    status = data.get("status", "ok")
+    if status not in ("ok", "suspect"):
+        raise CalibrationError(f"{path}: 'status' must be \"ok\" or \"suspect\", got {json.dumps(status)[:40]}")
+    reasons = data.get("reasons", [])
+    if not (isinstance(reasons, list) and all(isinstance(r, str) for r in reasons)):
+        raise CalibrationError(f"{path}: 'reasons' must be a list of strings")
+    rms_all = data.get("rms_all_px")
+    rms_all = math.nan if rms_all is None else _rms(data, "rms_all_px", path)
+    return Calibration(H_iw, H_wi, rms_px, rms_world, inliers, n_points, camera,
+                       None if size is None else (size[0], size[1]), None if extent is None else tuple(extent),
+                       status, tuple(reasons), rms_all)
 
 
 class CalibrationPoints(NamedTuple):
@@ -582,3 +624,67 @@ def write_points_csv(path, world_xy, image_uv):
     image = np.asarray(image_uv, dtype=float).reshape(-1, 2)
     body = "".join(f"{X:.6g},{Y:.6g},{u:.4f},{v:.4f}\n" for (X, Y), (u, v) in zip(world, image))
     write_text_atomic(path, ",".join(CSV_HEADER) + "\n" + body, error=CalibrationError)
+
+
+#: A calibration whose RANSAC keeps fewer than this share of the points is suspect: the model
+#: (homography, with the lens given) explains a minority of the data.
+MIN_INLIER_SHARE = 0.5
+
+
+def calibrate_points(world_xy, image_uv, *, camera=None, lines=None, image_size=None, refine=True, ransac=None,
+                     threshold_px=3.0, rng=None) -> tuple[Calibration, "RadialPattern | None"]:
+    """``posekit ceiling calibrate``: the homography from clicked points, checked against the lens.
+
+    Parameters
+    ----------
+    world_xy : array_like, shape (N, 2)
+        Ceiling points, mm.
+    image_uv : array_like, shape (N, 2)
+        Their pixels *as seen* (distorted by the lens when ``camera`` is given), px.
+    camera : CameraModel, optional
+        The lens: pixels are undistorted before the homography, and the residuals are tested
+        for the radial pattern of a lens model the points contradict (k1 of the wrong sign, the
+        file of another camera).
+    lines : array_like of int, optional
+        The points' lines in their file, to name them.
+    image_size : (int, int), optional
+        Of the images the points were clicked in (default the camera's).
+    refine, ransac, threshold_px, rng :
+        As :func:`calibrate`.
+
+    Returns
+    -------
+    calibration : Calibration
+        ``status`` ``"suspect"`` with ``reasons`` when the points contradict the lens model (a
+        significant radial pattern left after undistortion: :func:`radial_pattern`, or RANSAC
+        kept fewer than :data:`MIN_INLIER_SHARE` of them); without a lens model the radial
+        pattern is only the hint to calibrate one. ``image_size``, ``points_extent`` and
+        ``camera`` set.
+    radial : RadialPattern or None
+        The radial test of the residuals (without a camera: of the raw pixels, the hint to
+        calibrate the lens).
+    """
+    seen = np.asarray(image_uv, dtype=float).reshape(-1, 2)
+    image = seen if camera is None else undistort_calibration_points(camera, seen, lines)
+    cal = calibrate(world_xy, image, refine=refine, ransac=ransac, threshold_px=threshold_px, rng=rng)
+    cal.camera = camera
+    cal.image_size = tuple(image_size) if image_size is not None else (
+        None if camera is None else tuple(camera.image_size))
+    cal.points_extent = (float(seen[:, 0].min()), float(seen[:, 1].min()), float(seen[:, 0].max()),
+                         float(seen[:, 1].max()))
+    radial = radial_pattern(world_xy, image)
+    reasons = []
+    n, n_in = int(cal.n_points), int(cal.inliers.sum())
+    names = [f"line {lines[k]}" if lines is not None else f"point {k}" for k in np.flatnonzero(~cal.inliers)]
+    shown = ", ".join(names[:8]) + (", ..." if len(names) > 8 else "")
+    if camera is not None and radial.detected:
+        reasons.append(f"the points contradict the lens model: after undistortion a radial pattern of "
+                       f"{radial.rms_px:.1f} px rms remains (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}); "
+                       "a wrong or another camera's CAMERA.json (k1's sign?)")
+    if camera is not None and n_in < MIN_INLIER_SHARE * n:
+        reasons.append(f"RANSAC kept {n_in} of {n} points")
+    if reasons:
+        if names:
+            reasons.append(f"rejected: {shown}")
+        cal.status, cal.reasons = "suspect", tuple(reasons)
+    return cal, radial

@@ -35,7 +35,7 @@ def plot_calibration_check(reference_bgr, world_xy, image_uv, calibration, path,
     inliers : ndarray of bool, shape (N,), optional
         Points used (others drawn in grey).
     """
-    from ..report import pyplot, save_figure
+    from ...report import pyplot, save_figure
     plt = pyplot()
     back = calibration.world_to_image(np.asarray(world_xy, float), invalid="nan")
     if lens is not None:
@@ -61,7 +61,7 @@ def plot_calibration_check(reference_bgr, world_xy, image_uv, calibration, path,
 def plot_known_points(result: KnownPointsResult, path, *, paper_mean_mm: float = 14.0) -> Path:
     """Fig. 6: known positions (circles) and the positions estimated from the rendered dots
     (crosses) on the ceiling plane, with the errors magnified in an inset scale."""
-    from ..report import pyplot, save_figure
+    from ...report import pyplot, save_figure
     plt = pyplot()
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1.6, 1]})
     w, e = result.world_xy, result.estimated_xy
@@ -94,7 +94,7 @@ def plot_heading_simulation(sim: HeadingSimulation, path, *, n_lines: int = 60, 
     """Fig. 7: the paper's heading simulation. Left: two dots ``D`` apart, each estimated on a
     circle of radius ``e`` about its ideal position, and some estimated lines (angle θ to the
     ideal line). Right: the distribution of θ with its std (Monte Carlo and closed form ``e/D``)."""
-    from ..report import pyplot, save_figure
+    from ...report import pyplot, save_figure
     plt = pyplot()
     rng = np.random.default_rng(rng)
     D, e = sim.distance_mm, sim.error_mm

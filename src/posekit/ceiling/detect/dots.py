@@ -9,8 +9,9 @@ convention** -- the centre of the top-left pixel is (0, 0), so pixel ``[row, col
 
 How a frame is processed (``DotDetector.detect``):
 
-1. *Lit pixels.* A byte (one channel of one pixel) is lit when it exceeds the background by
-   ``contrast`` grey levels. The test runs on the whole frame, or only in a square of side
+1. *Lit pixels.* A byte (one channel of one pixel) is lit when it exceeds the background mean
+   by ``max(contrast, k_sigma · σ)`` grey levels, σ the running standard deviation of that
+   byte (grass, brick texture, compression noise, leaves in the wind raise their own bar). The test runs on the whole frame, or only in a square of side
    ``2 * roi_radius_px + 1`` around each predicted dot position (the fast path). A compiled
    kernel rejects a row with one vectorised pass and lists the lit pixels of the few rows that
    have any.
@@ -28,12 +29,17 @@ How a frame is processed (``DotDetector.detect``):
 4. *Centroid.* In the blob's bounding box grown by ``window_margin_px``, each pixel weighs the
    sum over channels of its positive background difference minus ``weight_threshold``; the
    dot is the weighted mean of the pixel centres.
-5. *Background update.* The background is a running average of the frame: each frame updates
-   one band of ``1 / background_stride`` of the rows (cycling, with the learning rate
-   compounded so the time constant is that of updating every row every frame), leaves out the
-   lit bytes and the windows of the detected dots, and is kept as float32 (H, W, 3). A band
-   with more than ``max_lit_fraction`` of its bytes lit means a sudden change of illumination
-   (a light switched on): the background is rebuilt from the frame.
+5. *Background update.* The background is per-byte running statistics of the frame — a mean
+   and a variance (float32 (H, W, 3)): each frame updates one band of ``1 / background_stride``
+   of the rows (cycling, with the learning rate compounded so the time constant is that of
+   updating every row every frame); lit bytes are absorbed 20 times slower (a parked object
+   becomes background in minutes, a passing person does not), the windows of the detected dots
+   not at all. People, cars and moving shadows are foreground, never a reason to rebuild.
+6. *Illumination.* Every frame the median ratio of the frame to the background on a sparse
+   grid gives the exposure gain; a step of more than ``relight_gain`` rescales the background
+   (``relights``). Only when more than ``max_lit_fraction`` of the frame is still lit after that
+   is the background rebuilt from the frame (``rebuilds``: expected to stay 0 on a steady
+   scene; the track summary reports it).
 
 The first frame (or the first after :meth:`DotDetector.reset`) builds the background from the
 frame itself, with the pixels of laser colour (thresholds on the raw frame) and the saturated
@@ -45,14 +51,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from posekit._extras import lazy
 
-from ..errors import ConfigError, InputFileError
-from ._detect_kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _blob_table, _lit_pixels
+from ...errors import ConfigError, InputFileError
+from ._kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _VAR_UV, _blob_table, _lit_pixels
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
@@ -94,9 +100,14 @@ class Dot:
 
     ``u, v``: sub-pixel position in px (pixel-centre convention: the top-left pixel's centre
     is (0, 0)); ``area_px``: pixels in its blob; ``peak``: the largest background difference
-    in the blob, summed over the three channels (grey levels, 0-765); ``stray``: the blob
-    lies where the detector has learned a static light or reflection (see
-    :meth:`DotDetector.learn`), so it must not start or re-acquire a track.
+    in the blob, summed over the three channels (grey levels, 0-765); ``stray``: the blob is a
+    static light (:class:`~posekit.ceiling.detect.scene.StaticLights`; set by the caller, never
+    by the detector), so it must not start or re-acquire a track; ``saturated``: some pixel of
+    the blob reaches ``core_level`` in a channel — a laser pointer is far brighter than the
+    room it lights, so its core saturates a camera exposed for the room (only such blobs may
+    start a track; a dim reflection or a person's red shirt does not); ``noise_px``: 1σ per
+    axis of the centroid that the background's measured noise under the blob's window gives
+    (px; a dot on flickering tape or a compressed, textured background moves by this much).
     """
 
     color: str
@@ -105,6 +116,8 @@ class Dot:
     area_px: int
     peak: float
     stray: bool = False
+    saturated: bool = False
+    noise_px: float = 0.0
 
 
 class DotDetector:
@@ -120,7 +133,10 @@ class DotDetector:
         Weight of the new frame in the running-average background, per frame (0.05: a time
         constant of 20 frames, 1.3 s at 15 fps).
     contrast : int
-        Grey levels by which a channel must exceed the background to be lit.
+        Least grey levels by which a channel must exceed the background mean to be lit.
+    k_sigma : float
+        ... or this many running standard deviations of that byte, if more (4: a Gaussian
+        byte exceeds it 3 times in 100,000).
     core_level : int
         A pixel with all three channels at or above it is a saturated dot core.
     min_area_px, max_area_px, max_elongation
@@ -137,28 +153,27 @@ class DotDetector:
     background_stride : int
         The background update covers 1 / stride of the rows per frame (1: all rows).
     max_lit_fraction : float
-        Fraction of lit bytes in the updated band (or of lit pixels in a full-frame search)
-        above which the illumination is taken to have jumped and the background is rebuilt.
+        Fraction of the frame lit (after the exposure gain was applied) above which the
+        scene is taken to have changed and the background is rebuilt from the frame.
+    relight_gain : float
+        An exposure gain (median frame / background ratio on a sparse grid) further than this
+        from 1 rescales the background.
     background : ndarray, shape (H, W, 3), optional
         An image of the ceiling without dots (uint8 BGR) to start the background from.
     min_color_fraction : float
         A blob is of a laser colour when at least this fraction of its unsaturated pixels
         (and at least 2) have that colour (0.2: compressed video, whose 4:2:0 chroma smears
         a small dot's colour, keeps its dots; a white lamp has none).
-    stray_cell_px, stray_hits, stray_memory_frames, stray_still_px
-        The adaptive mask of static lights (:meth:`learn`): cells of ``stray_cell_px``
-        square pixels; a cell is a stray light once it holds ``stray_hits`` sightings of a
-        blob that was not the tracked dot and stayed within ``stray_still_px`` of where the
-        cell first saw it (a blob that moves restarts the count: a slow robot is not a
-        lamp), each sighting fading with a time constant of ``stray_memory_frames`` frames (so
-        a light that blinks stays masked, and a place the laser only crossed is not).
 
     Attributes
     ----------
     status : str
         What the last :meth:`detect` did with the background: ``"ok"`` (updated),
-        ``"started"`` (built from this frame or ``background``), ``"rebuilt"`` (the
-        illumination jumped; rebuilt from this frame); ``"empty"`` before the first frame.
+        ``"started"`` (built from this frame or ``background``), ``"relit"`` (rescaled by an
+        exposure step), ``"rebuilt"`` (the scene changed; rebuilt from this frame); ``"empty"``
+        before the first frame.
+    rebuilds, relights : int
+        How many times the background was rebuilt / rescaled since :meth:`reset`.
 
     Examples
     --------
@@ -171,10 +186,8 @@ class DotDetector:
                  core_level: int = 250, min_area_px: int = 8, max_area_px: int = 900,
                  max_elongation: float = 3.0, roi_radius_px: int = 24, roi_fallback: bool = True,
                  weight_threshold: float = 12.0, window_margin_px: int = 3, background_stride: int = 4,
-                 max_lit_fraction: float = 0.01, background: np.ndarray | None = None,
-                 stray_cell_px: int = 8, stray_hits: float = 5.0, stray_memory_frames: float = 150.0,
-                 stray_still_px: float = 0.4,
-                 min_color_fraction: float = 0.2):
+                 max_lit_fraction: float = 0.3, background: np.ndarray | None = None,
+                 min_color_fraction: float = 0.2, k_sigma: float = 4.0, relight_gain: float = 0.08):
         colors = (colors,) if isinstance(colors, str) else tuple(colors)
         unknown = [c for c in colors if c not in LASER_COLORS]
         if not colors or unknown or len(set(colors)) != len(colors):
@@ -204,12 +217,10 @@ class DotDetector:
         if not 0.0 < float(min_color_fraction) <= 1.0:
             raise ConfigError(f"min_color_fraction: expected a number in (0, 1], got {min_color_fraction}")
         self.min_color_fraction = float(min_color_fraction)
-        if int(stray_cell_px) < 2 or not stray_hits > 0 or not stray_memory_frames > 0:
-            raise ConfigError("stray_cell_px must be >= 2, stray_hits and stray_memory_frames > 0")
-        self.stray_cell_px = int(stray_cell_px)
-        self.stray_hits = float(stray_hits)
-        self.stray_still_px = float(stray_still_px)
-        self._stray_keep = 1.0 - 1.0 / float(stray_memory_frames)
+        if not (k_sigma >= 0 and 0 < relight_gain < 1 and 0 < max_lit_fraction <= 1):
+            raise ConfigError("k_sigma must be >= 0, relight_gain in (0, 1), max_lit_fraction in (0, 1]")
+        self.k_sigma = float(k_sigma)
+        self.relight_gain = float(relight_gain)
         self._kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
         self.reset()
         self._initial = None if background is None else self._check_frame(background, "background").copy()
@@ -217,15 +228,15 @@ class DotDetector:
     # -- state --
     def reset(self) -> None:
         """Forget the background (the next frame starts a new one) and the frame count."""
-        self._bg = None           # float32 (H, W, 3)
+        self._bg = None           # float32 (H, W, 3) running mean
+        self._var = None          # float32 (H, W, 3) running variance
         self._bg_u8 = None        # rounded background, uint8 (H, W, 3)
-        self._thr = None          # min(background + contrast, 255), uint8 (H, W, 3)
+        self._thr = None          # min(mean + max(contrast, k_sigma σ), 255), uint8 (H, W, 3)
         self._frames = 0
         self._coords = None
-        self._stray = None        # float32 (rows, cols) sightings at _stray_t, per cell
-        self._stray_t = None      # int64 frame of the last change, per cell
-        self._anchor = None       # float (rows, cols, 2): where the blob of each cell was first seen, px
-        self.status = "empty"     # 'ok', 'started', 'rebuilt' (background built from this frame)
+        self.status = "empty"     # 'ok', 'started', 'relit', 'rebuilt'
+        self.rebuilds = 0
+        self.relights = 0
 
     @property
     def background(self) -> np.ndarray | None:
@@ -243,10 +254,61 @@ class DotDetector:
 
     def _set_background(self, bg_u8: np.ndarray, bg_f: np.ndarray | None = None) -> None:
         self._bg = bg_u8.astype(np.float32) if bg_f is None else bg_f
+        if self._var is None or self._var.shape != self._bg.shape:
+            s0 = self.contrast / max(self.k_sigma, 1.0)       # until measured: the bar is ``contrast``
+            self._var = np.full(self._bg.shape, s0 * s0, np.float32)
         self._bg_u8 = bg_u8.copy()
-        self._thr = cv2.add(self._bg_u8.reshape(bg_u8.shape[0], -1), self.contrast).reshape(bg_u8.shape)
+        self._thr = np.empty_like(self._bg_u8)
+        self._bar_u8 = np.empty_like(self._bg_u8)
+        self._bar2 = np.empty_like(self._bg)
+        self._threshold_rows(0, bg_u8.shape[0])
         cap = max(256, int(self.max_lit_fraction * bg_u8.shape[0] * bg_u8.shape[1]))
         self._coords = np.empty((cap, 2), np.int32)
+
+    def _threshold_rows(self, r0: int, r1: int) -> None:
+        """The bar ``max(contrast, k σ)`` (uint8 and squared, float32) and ``thr = mean + bar``
+        (uint8, saturated) for rows r0:r1."""
+        h = r1 - r0
+        bar = cv2.max(cv2.sqrt(self._var[r0:r1].reshape(h, -1)) * self.k_sigma, float(self.contrast))
+        cv2.multiply(bar, bar, self._bar2[r0:r1].reshape(h, -1))
+        cv2.convertScaleAbs(bar, self._bar_u8[r0:r1].reshape(h, -1))
+        cv2.add(self._bg_u8[r0:r1].reshape(h, -1), self._bar_u8[r0:r1].reshape(h, -1), self._thr[r0:r1].reshape(h, -1))
+
+    def _relight(self, frame: np.ndarray) -> None:
+        """Exposure steps: rescale the background by the median frame/background ratio on a
+        sparse grid when it is further than ``relight_gain`` from 1; rebuild when, after that,
+        more than ``max_lit_fraction`` of the grid is still lit (the scene itself changed)."""
+        fs = frame[4::16, 4::16].astype(np.float32)
+        bs = self._bg[4::16, 4::16]
+        g = np.median((fs + 1.0) / (bs + 1.0), axis=(0, 1))
+        if np.all(np.abs(g - 1.0) <= self.relight_gain):
+            return
+        self._bg *= g.astype(np.float32)
+        self._bg_u8 = cv2.convertScaleAbs(self._bg)
+        self._threshold_rows(0, self._bg.shape[0])
+        self.relights += 1
+        self.status = "relit"
+        lit = np.any(frame[4::16, 4::16] > self._thr[4::16, 4::16], axis=2)
+        if lit.mean() > self.max_lit_fraction:
+            self._rebuild(frame)
+
+    def _rebuild(self, frame: np.ndarray) -> None:
+        self._start_background(frame)
+        self.rebuilds += 1
+        self.status = "rebuilt"
+
+    def blind_fraction(self, uv, radius_px: int = 6) -> float:
+        """Fraction of the pixels within ``radius_px`` of ``uv`` (px) where no channel can exceed
+        the background (every channel's bar at 255): a dot there cannot be told from the scene
+        (a saturated lamp, a sunlit wall). 0 before the first frame."""
+        if self._thr is None:
+            return 0.0
+        u, v = int(round(float(uv[0]))), int(round(float(uv[1])))
+        h, w = self._thr.shape[:2]
+        y0, y1, x0, x1 = max(v - radius_px, 0), min(v + radius_px + 1, h), max(u - radius_px, 0), min(u + radius_px + 1, w)
+        if y0 >= y1 or x0 >= x1:
+            return 0.0
+        return float(np.mean(np.min(self._thr[y0:y1, x0:x1], axis=2) >= 255))
 
     def _start_background(self, frame: np.ndarray) -> None:
         """Background from a frame: laser-coloured and saturated pixels (raw thresholds, grown
@@ -254,6 +316,8 @@ class DotDetector:
         hsv = cv2.cvtColor(frame, cv2.COLOR_BGR2HSV_FULL)
         h, s, v = hsv[..., 0].astype(np.float32) * (360.0 / 256.0), hsv[..., 1] / 255.0, hsv[..., 2]
         mask = np.all(frame >= self.core_level, axis=2)
+        grey = frame.max(axis=2)
+        mask |= cv2.subtract(grey, cv2.medianBlur(grey, 15)) > 2 * self.contrast   # a small bright spot
         for spec in LASER_COLORS.values():
             mask |= spec.hue_mask(h) & (s >= spec.raw_min_saturation) & (v >= 100)
         bg = frame.copy()
@@ -289,6 +353,8 @@ class DotDetector:
             else:
                 self._start_background(frame)
             self.status = "started"
+        elif self._frames % self.background_stride == 0:    # exposure drift: once a band cycle
+            self._relight(frame)
         dots = None
         rects = self._rois(predicted_uv, frame.shape)
         if rects:
@@ -297,69 +363,16 @@ class DotDetector:
                 dots = None if self._unmatched(dots, rects) else dots
         if dots is None:
             dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
-            if dots is None:                         # too many lit pixels: illumination jumped
-                self._start_background(frame)
-                self.status = "rebuilt"
+            if dots is None and self.status not in ("relit", "rebuilt"):   # an exposure step?
+                self._relight(frame)
+                dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
+            if dots is None:                         # most of the frame lit: the scene changed
+                if self.status != "rebuilt":         # (once a frame)
+                    self._rebuild(frame)
                 dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])]) or []
         self._update_background(frame)
         self._frames += 1
-        if self._stray is None:
-            cs = self.stray_cell_px
-            shape = (frame.shape[0] // cs + 1, frame.shape[1] // cs + 1)
-            self._stray, self._stray_t = np.zeros(shape, np.float32), np.zeros(shape, np.int64)
-        if dots and self._stray.any():
-            dots = [Dot(d.color, d.u, d.v, d.area_px, d.peak, True) if self.is_stray(d.u, d.v) else d for d in dots]
         return dots
-
-    # -- the adaptive mask of static lights --
-    def _cells(self, u: float, v: float):
-        cs = self.stray_cell_px
-        r, c = int(round(v)) // cs, int(round(u)) // cs
-        h, w = self._stray.shape
-        return slice(max(r - 1, 0), min(r + 2, h)), slice(max(c - 1, 0), min(c + 2, w)), (r, c)
-
-    def stray_level(self, u: float, v: float) -> float:
-        """Sightings of non-tracked blobs (faded) in the 3×3 cells around ``(u, v)`` px (max)."""
-        if self._stray is None:
-            return 0.0
-        rs, cs, _ = self._cells(u, v)
-        age = self._frames - self._stray_t[rs, cs]
-        return float((self._stray[rs, cs] * self._stray_keep ** age).max())
-
-    def is_stray(self, u: float, v: float) -> bool:
-        """True if ``(u, v)`` px is where a static light or reflection has been learned."""
-        return self.stray_level(u, v) >= self.stray_hits
-
-    def learn(self, dots, track_uv=None, radius_px: float = 6.0) -> None:
-        """Teach the mask of static lights: every dot of ``dots`` (this frame's detections)
-        farther than ``radius_px`` from each of ``track_uv`` ((u, v) or (K, 2) px: where the
-        tracker put the laser this frame; None: no track) is a sighting of something that is
-        not the laser. Sightings pile up only where a blob stays still, so a lamp, a steady or
-        blinking LED, or a reflection becomes ``stray`` within ``stray_hits`` frames, while the
-        laser, followed by the tracker or moving (more than ``stray_still_px`` in a few
-        frames), never does."""
-        if self._stray is None or not dots:
-            return
-        tr = np.zeros((0, 2)) if track_uv is None else np.asarray(track_uv, float).reshape(-1, 2)
-        tr = tr[np.all(np.isfinite(tr), axis=1)]
-        h, w = self._stray.shape
-        if self._anchor is None:
-            self._anchor = np.full((h, w, 2), np.nan)
-        for d in dots:
-            if len(tr) and np.min(np.hypot(tr[:, 0] - d.u, tr[:, 1] - d.v)) <= radius_px:
-                continue
-            _, _, (r, c) = self._cells(d.u, d.v)
-            if 0 <= r < h and 0 <= c < w:
-                a = self._anchor[r, c]
-                age = self._frames - self._stray_t[r, c]
-                level = self._stray[r, c] * self._stray_keep ** age
-                if level >= self.stray_hits or (np.isfinite(a[0]) and
-                                                math.hypot(d.u - a[0], d.v - a[1]) <= self.stray_still_px):
-                    self._stray[r, c] = level + 1.0     # still there (a learned light stays learned)
-                else:                               # a blob that moved: not a fixed light (a slow robot)
-                    self._anchor[r, c] = (d.u, d.v)
-                    self._stray[r, c] = 1.0
-                self._stray_t[r, c] = self._frames
 
     def _rois(self, predicted_uv, shape) -> list[tuple[int, int, int, int]]:
         if predicted_uv is None:
@@ -422,8 +435,8 @@ class DotDetector:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if n <= 1:
             return []
-        table = _blob_table(frame[y0:y1, x0:x1], self._bg[y0:y1, x0:x1], labels, stats, n, self._spec_table,
-                            self.core_level, self.window_margin_px, self.weight_threshold)
+        table = _blob_table(frame[y0:y1, x0:x1], self._bg[y0:y1, x0:x1], self._var[y0:y1, x0:x1], labels, stats, n,
+                            self._spec_table, self.core_level, self.window_margin_px, self.weight_threshold)
         out = []
         for k in range(1, n):
             row = table[k]
@@ -436,6 +449,10 @@ class DotDetector:
             found = self._make(self.colors[best], row, x0, y0)
             if found is not None:
                 bx, by, bw, bh = stats[k, :4]
+                if isinstance(found, Dot):
+                    win = frame[y0 + by:y0 + by + bh, x0 + bx:x0 + bx + bw]
+                    sat = bool(win[labels[by:by + bh, bx:bx + bw] == k].max() >= self.core_level)
+                    found = replace(found, saturated=sat)
                 self._protect.append((y0 + by - 8, y0 + by + bh + 8, x0 + bx - 8, x0 + bx + bw + 8))
                 out.append(found)
         return out
@@ -444,7 +461,8 @@ class DotDetector:
         """The detection of one blob that passed the area and colour gates (None: rejected)."""
         if row[_ELONG] > self.max_elongation:
             return None
-        return Dot(color, float(row[_U] + x0), float(row[_V] + y0), int(row[_AREA]), float(row[_PEAK]))
+        return Dot(color, float(row[_U] + x0), float(row[_V] + y0), int(row[_AREA]), float(row[_PEAK]),
+                   noise_px=float(np.sqrt(max(row[_VAR_UV], 0.0))))
 
     def _update_background(self, frame: np.ndarray) -> None:
         h, w, _ = frame.shape
@@ -458,22 +476,25 @@ class DotDetector:
         for y0, y1, x0, x1 in self._protect:      # the detected dots are masked out of the update
             y0, y1, x0, x1 = max(y0, r0), min(y1, r1), max(x0, 0), min(x1, w)
             if y0 < y1 and x0 < x1:
-                keep.append((y0, y1, x0, x1, self._bg[y0:y1, x0:x1].copy()))
-        f = frame[r0:r1].reshape(r1 - r0, -1)
-        bg = self._bg[r0:r1].reshape(r1 - r0, -1)
-        bg_u8 = self._bg_u8[r0:r1].reshape(r1 - r0, -1)
-        thr = self._thr[r0:r1].reshape(r1 - r0, -1)
-        unlit = cv2.compare(f, thr, cv2.CMP_LE)
-        lit_fraction = 1.0 - cv2.countNonZero(unlit) / unlit.size
-        if lit_fraction > self.max_lit_fraction and self.status != "rebuilt":
-            self._start_background(frame)
-            self.status = "rebuilt"
-            return
-        cv2.accumulateWeighted(f, bg, alpha, unlit)
-        for y0, y1, x0, x1, saved in keep:
+                keep.append((y0, y1, x0, x1, self._bg[y0:y1, x0:x1].copy(), self._var[y0:y1, x0:x1].copy()))
+        n = r1 - r0
+        f = frame[r0:r1].reshape(n, -1)
+        bg = self._bg[r0:r1].reshape(n, -1)
+        var = self._var[r0:r1].reshape(n, -1)
+        d = cv2.absdiff(f, self._bg_u8[r0:r1].reshape(n, -1))
+        inlier = cv2.compare(d, self._bar_u8[r0:r1].reshape(n, -1), cv2.CMP_LE)    # |d| within the bar
+        cv2.accumulateWeighted(cv2.multiply(d, d, dtype=cv2.CV_32F), var, alpha, inlier)
+        cv2.accumulateWeighted(f, bg, alpha, inlier)
+        # what stays becomes background, slowly; an outlier tells only that |d| exceeded the bar
+        # (its squared deviation counts as the bar's square)
+        outlier = cv2.bitwise_not(inlier)
+        cv2.accumulateWeighted(self._bar2[r0:r1].reshape(n, -1), var, alpha / 20.0, outlier)
+        cv2.accumulateWeighted(f, bg, alpha / 20.0, outlier)
+        for y0, y1, x0, x1, saved, saved_var in keep:
             self._bg[y0:y1, x0:x1] = saved
-        cv2.convertScaleAbs(bg, bg_u8)
-        cv2.add(bg_u8, self.contrast, thr)
+            self._var[y0:y1, x0:x1] = saved_var
+        cv2.convertScaleAbs(bg, self._bg_u8[r0:r1].reshape(n, -1))
+        self._threshold_rows(r0, r1)
 
 
 class DotSignature:
@@ -510,14 +531,22 @@ class DotSignature:
 
     def std_px(self, dot: Dot, floor_px: float = 0.1) -> float:
         """1σ per axis of the dot's centroid, px: ``0.04 sqrt(area)`` for a blooming or blurred
-        blob (at least ``floor_px``); for a blob smaller than the recent ones (cut by an
+        blob, or the noise the background under it gives (``dot.noise_px``), whichever is
+        larger (at least ``floor_px``); for a blob smaller than the recent ones (cut by an
         occluder's edge, a vent or the image border) up to the dot's radius in proportion to
-        the missing area, since the centroid of a clipped dot moves away from the cut."""
-        s = max(floor_px, 0.04 * math.sqrt(max(dot.area_px, 1)))
+        the missing area, since the centroid of a clipped dot moves away from the cut; for a
+        blob larger than the recent ones (merged with a bright thing beside it: the halo on a
+        white stripe saturates on that side) by ``extra/(1 + extra)`` of the radius, the shift
+        of a centroid by an added area ``extra`` times the dot's at about a radius."""
+        s = max(floor_px, 0.04 * math.sqrt(max(dot.area_px, 1)), getattr(dot, "noise_px", 0.0))
         if self.n >= self.warmup and self.recent_area > 0:
+            r = math.sqrt(self.recent_area / math.pi)
             missing = 1.0 - dot.area_px / self.recent_area
             if missing > 0.15:
-                s = max(s, missing * math.sqrt(self.recent_area / math.pi))
+                s = max(s, missing * r)
+            extra = dot.area_px / self.recent_area - 1.0
+            if extra > 0.15:                         # merged with something bright beside it
+                s = max(s, extra / (1.0 + extra) * r)
         return s
 
     def consistent(self, dot: Dot) -> bool:
@@ -548,15 +577,3 @@ def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> l
                 boxes.append((r[sel].min(), r[sel].max() + 1, c[sel].min(), c[sel].max() + 1))
     return [(max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w))
             for y0, y1, x0, x1 in boxes]
-
-
-_LINE_NAMES = ("Line", "LineDetector", "LINE_METHODS")
-
-
-def __getattr__(name):
-    """The line detector lives in :mod:`posekit.ceiling.detect_line` (imported on first use: that
-    module builds on this one)."""
-    if name in _LINE_NAMES:
-        from . import detect_line
-        return getattr(detect_line, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

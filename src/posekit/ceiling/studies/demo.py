@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import require
-from ..errors import ConfigError, InputFileError
+from ..._extras import require
+from ...errors import ConfigError, InputFileError
 from .accuracy import ErrorStats, HeadingSimulation, KnownPointsResult, error_stats
 
 __all__ = ["SceneTruthTable", "DemoReport", "read_truth_csv", "calibrate_rendered", "calibrate_rendered_points",
@@ -99,7 +99,7 @@ def calibrate_rendered_points(render_dir, grid=None, lens=None):
     image_uv : ndarray, shape (N, 2)
         Their pixels as seen (distorted), px.
     """
-    from .calibration import calibrate, read_points_csv, undistort_calibration_points
+    from ..camera.homography import calibrate, read_points_csv, undistort_calibration_points
 
     render_dir = Path(render_dir)
     pts = read_points_csv(render_dir / "calibration_points.csv")
@@ -108,9 +108,9 @@ def calibrate_rendered_points(render_dir, grid=None, lens=None):
     if ref.exists():
         cv2 = require("cv2", "vision", "posekit ceiling demo")
 
-        from .grid import CeilingGrid, find_grid_corners
+        from ..camera.grid import CeilingGrid, find_grid_corners
         if grid is None:
-            from .render import SceneConfig
+            from ..sim.render import SceneConfig
             c = SceneConfig()
             grid = CeilingGrid(spacing_mm=c.tile_size_mm, bar_width_mm=c.tbar_width_mm)
         image = cv2.imread(str(ref))
@@ -147,8 +147,8 @@ def lens_from_chessboards(camera, out_dir=None, *, n_views: int = 12, board=(9, 
     -------
     LensCalibration
     """
-    from .camera import calibrate_camera
-    from .render_chessboard import chessboard_poses, render_board_view
+    from ..camera.lens import calibrate_camera
+    from ..sim.chessboard import chessboard_poses, render_board_view
 
     poses = chessboard_poses(camera, board, square_mm, n_views, rng=seed)
     views = [(f"view_{k:02d}", render_board_view(camera, T, board, square_mm, supersample=2, rng=[seed, k]))
@@ -201,7 +201,7 @@ def plot_trajectories(result, truth: SceneTruthTable, calibration, reference_bgr
     plane, mm), each with the truth; PNG files in ``out_dir``."""
     from matplotlib.patches import Rectangle
 
-    from ..report import pyplot, save_figure
+    from ...report import pyplot, save_figure
     plt = pyplot()
 
     out_dir = Path(out_dir)
@@ -326,7 +326,7 @@ def _stats_row(name: str, s: ErrorStats, paper: str = "") -> dict:
 def write_demo_report(report: DemoReport) -> Path:
     """Write ``report.html`` into ``report.out_dir``: what :meth:`DemoReport.summary` prints, as tables,
     and the figures of ``report.files`` (Fig. 8 and 9), embedded."""
-    from ..report import html_figure, html_table, write_html
+    from ...report import html_figure, html_table, write_html
 
     e = report.errors
     overview = [
@@ -444,11 +444,11 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
 
     cv2 = require("cv2", "vision", "posekit ceiling demo")
 
+    from ..camera.lens import CameraModel, load_camera
+    from ..sim.render import SceneConfig, render_video
+    from ..track.pipeline import track_video, write_track_csv
     from .accuracy import known_points_assessment, simulate_heading_error
-    from .camera import CameraModel, load_camera
     from .figures import plot_calibration_check, plot_heading_simulation, plot_known_points
-    from .pipeline import track_video, write_track_csv
-    from .render import SceneConfig, render_video
 
     out = Path(out_dir)
     try:
@@ -472,8 +472,8 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
                               f"the demo renders {cfg.width_px}x{cfg.height_px}")
         lens_method = f"given ({camera if not isinstance(camera, CameraModel) else 'model'}; rms {lens.rms_px:.3f} px)"
     elif any(cfg.dist):
-        from .camera import save_camera
-        from .render import lens_camera
+        from ..camera.lens import save_camera
+        from ..sim.render import lens_camera
         lc = lens_from_chessboards(lens_camera(cfg), out, seed=int(seed))
         lens = lc.camera
         save_camera(lens, out / "camera_calibrated.json")
@@ -481,7 +481,7 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
                        f"k1 {lens.dist[0]:+.4f}, k2 {lens.dist[1]:+.4f}; boards cover {100 * lc.coverage:.0f} % "
                        f"of the image); truth k1 {cfg.dist[0]:+.4f}, k2 {cfg.dist[1]:+.4f}")
 
-    from .grid import CeilingGrid
+    from ..camera.grid import CeilingGrid
     grid = CeilingGrid(spacing_mm=cfg.tile_size_mm, bar_width_mm=cfg.tbar_width_mm)
     cal, method, cal_world, cal_seen = calibrate_rendered_points(out, grid, lens)
     cal.to_json(out / "calibration.json")
@@ -519,8 +519,8 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
 def _track_dotted_line(video, cal, lens, progress):
     """Track the §III-C dotted line: :class:`~posekit.ceiling.linetrack.DottedLineDetector` in
     the line pipeline of :func:`~posekit.ceiling.pipeline.track_frames`."""
-    from .linetrack import DottedLineDetector
-    from .pipeline import frame_groups, make_cameras, open_sources, track_frames
+    from ..track.linetrack import DottedLineDetector
+    from ..track.pipeline import frame_groups, make_cameras, open_sources, track_frames
 
     streams = open_sources([video])
     cameras = make_cameras(streams, [cal], lens)

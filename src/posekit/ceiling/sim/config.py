@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["SceneConfig", "REALISTIC", "CODECS", "DEFAULT_HOLES_MM", "NOMINAL_TILE_ALBEDO"]
 

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, GeometryError
+from ...errors import ConfigError, GeometryError
 from ._kalman import _mahalanobis2
-from .track import Tracker, TrackerConfig, TrackRow
+from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["Camera", "MultiCameraTracker", "homography_jacobian", "border_distance"]
 
@@ -90,7 +90,10 @@ class Camera:
         self._H_wi = None if H is None else np.asarray(H, dtype=float)
         H = getattr(cal, "H_image_world", None)
         self._H_iw = None if H is None else np.asarray(H, dtype=float)
-        self._std_px = max(float(getattr(cal, "rms_px", 0.0) or 0.0), self.detection_std_px)
+        rms = float(getattr(cal, "rms_px", 0.0) or 0.0)
+        if getattr(cal, "status", "ok") == "suspect":        # the points contradict the model: all of them count
+            rms = max(rms, float(np.nan_to_num(getattr(cal, "rms_all_px", 0.0), nan=0.0)))
+        self._std_px = max(rms, self.detection_std_px)
 
     def measurement(self, uv: np.ndarray, std_px: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """World positions (K, 2) mm and covariances (K, 2, 2) mm² of image points (K, 2) px.
@@ -197,7 +200,8 @@ class MultiCameraTracker:
 
     def step(self, t_s: float, dots_image: Sequence[Mapping | None], *,
              frame: int | None = None, eligible: Sequence[Mapping | None] | None = None,
-             std_px: Sequence[Mapping | None] | None = None) -> TrackRow:
+             std_px: Sequence[Mapping | None] | None = None,
+             moving: Sequence[Mapping | None] | None = None) -> TrackRow:
         """Fuse one frame of detections from every camera.
 
         Parameters
@@ -213,6 +217,8 @@ class MultiCameraTracker:
         std_px : sequence of mapping or None, optional
             Per camera ``{colour: (K,) px}``: the detector's uncertainty of each candidate
             (see :meth:`Camera.measurement`).
+        moving : sequence of mapping or None, optional
+            Per camera ``{colour: (K,) bool}``: candidates found moving (see :meth:`Tracker.step`).
 
         Returns
         -------
@@ -273,8 +279,10 @@ class MultiCameraTracker:
                     break
             self.active = chosen
         meas = seen[chosen]
-        el = None
+        el = mv = None
         if eligible is not None and eligible[chosen] is not None:
             el = {c: eligible[chosen][c] for c in meas if c in eligible[chosen]}
+        if moving is not None and moving[chosen] is not None:
+            mv = {c: moving[chosen][c] for c in meas if c in moving[chosen]}
         return self.tracker.step(t_s, {c: m[0] for c, m in meas.items()}, {c: m[1] for c, m in meas.items()},
-                                 frame=frame, camera=chosen, eligible=el)
+                                 frame=frame, camera=chosen, eligible=el, moving=mv)

@@ -25,18 +25,27 @@ Status of a frame, for the primary dot (red; its x, y are the track):
 
 ``ok``
     a dot was measured **and accepted** this frame; x, y is the filtered estimate.
+``suspect``
+    a dot was accepted, but another verified, moving laser-like spot is in view outside the
+    gate: which of the two is the laser cannot be told (``reasons`` says where the other is).
 ``predicted``
     no accepted dot this frame (the dot fell into an air-conditioning hole, was occluded
     or gated out) and the last accepted one is at most ``max_predict_s`` old; x, y is the
-    constant-velocity prediction.
+    constant-velocity prediction, and its ``std_mm`` grows with the time coasted by
+    ``coast_speed_share`` of the distance travelled (the robot may stop or turn unseen).
 ``lost``
     no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
     (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
 
 A row is never ``ok`` without a dot. Heading (case B of the paper) is the direction from
 the red to the green dot, filtered by a circular constant-turn-rate filter on the unwrapped
-angle (innovations wrapped to (-π, π]); NaN with one dot, or when the green or red dot has
-not been seen for ``max_predict_s``.
+angle (innovations wrapped to (-π, π]), with its 1σ (``std_heading_deg``, from the two dots'
+covariances: ``σθ² = n̂ᵀ(R_red + R_green)n̂ / d²``); a measured direction more than 3σ from
+the filter's prediction (a turn on the spot) restarts the filter on the measurement, so the
+heading of a frame whose two dots were measured never lies more than 3σ from what they say.
+NaN with one dot, or when the green or red dot has not been seen for ``max_predict_s``.
+
+Every row carries ``reasons``: why it is not ``ok``.
 
 :class:`Tracker` works on world measurements (no video needed).
 :class:`~posekit.ceiling.cameras.MultiCameraTracker` (case D, :mod:`posekit.ceiling.cameras`;
@@ -49,9 +58,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import GeometryError, TrajectoryError
+from ...errors import GeometryError, TrajectoryError
 from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
-from .track_types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
+from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
 
 __all__ = [
     "STATUSES",
@@ -137,6 +146,7 @@ class Tracker:
         """Forget every dot and the heading (the next detection re-initialises)."""
         self.states = {c: DotState() for c in self.config.dots}
         self.heading = HeadingState()
+        self._sep = (0, 0.0, 0.0)           # separation of the two dots: count, mean, sum of squares (Welford)
         self.frame = 0
         self.t_s = float("nan")
         self._pred_cache = None
@@ -173,7 +183,7 @@ class Tracker:
     # -- one frame -------------------------------------------------------------------------
     def step(self, t_s: float, dots_world: Mapping | np.ndarray | None,
              meas_cov: Mapping | None = None, *, frame: int | None = None,
-             camera: int = -1, eligible: Mapping | None = None) -> TrackRow:
+             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None) -> TrackRow:
         """Advance to ``t_s`` and fuse this frame's detections.
 
         Parameters
@@ -198,6 +208,12 @@ class Tracker:
             start or re-acquire a track, and only they continue one that has been coasting;
             an ineligible one continues a track only inside the χ² gate of the very next
             frame (the dot passing over a lamp). Default: all eligible.
+        moving : mapping, optional
+            ``{colour: (K,) bool}``: which candidates a test over several frames found moving
+            (:class:`~posekit.ceiling.detect.scene.StaticLights`). When given, a lost dot is
+            re-acquired only on the one eligible candidate found moving, and a track is
+            ``suspect`` while another eligible moving candidate is in view outside its gate.
+            Default: the tracker's own test (chained motion of at least ``min_move_mm``).
 
         Returns
         -------
@@ -231,18 +247,37 @@ class Tracker:
         frame = self.frame if frame is None else int(frame)
         self.frame = frame + 1
 
-        measured, dots = {}, {}
+        measured, dots, why = {}, {}, {}
         for c in cfg.dots:
             z = _as_candidates(dots_world.get(c), c)
             R = _as_covariances(meas_cov.get(c), len(z), c, cfg.meas_std_mm, cfg.min_meas_std_mm)
             el = _as_eligible(None if eligible is None else eligible.get(c), dots_world.get(c), len(z))
-            accepted = self._update_dot(self.states[c], t_s, z, R, el)
+            mv = None
+            if moving is not None and c in moving:
+                mv = _as_eligible(moving[c], dots_world.get(c), len(z)) & el
+            st = self.states[c]
+            had = st.x is not None and self._alive(st, t_s)
+            accepted = self._update_dot(st, t_s, z, R, el, mv)
             if accepted is not None:
                 measured[c] = accepted
+                other = self._rival(st, z, R, mv, accepted[0])
+                if st.probation is not None and other is not None:
+                    st.probation = (st.probation[0], st.probation[1], True)
+                if st.probation is not None and (t_s <= st.probation[0] + 1e-9 or st.probation[2]):
+                    why[c] = (f"re-acquired {st.probation[1]:.0f} mm from where the track was predicted"
+                              + ("; another moving laser-like spot was seen since: which is the laser cannot be told"
+                                 if st.probation[2] else
+                                 f" ({cfg.max_predict_s:g} s of probation: the previous dot may only be hidden)"),)
+                elif other is not None:
+                    why[c] = (f"another moving laser-like spot at ({other[0]:.0f}, {other[1]:.0f}) mm, outside the "
+                              "gate: which is the laser cannot be told",)
+            else:
+                why[c] = self._why_not(st, t_s, len(z), had, el, mv)
+        self._rigid_second_dot(t_s, dots_world, meas_cov, eligible, measured, why)
         for c in cfg.dots:
             st = self.states[c]
             if c in measured:
-                status = "ok"
+                status = "suspect" if c in why else "ok"
             elif self._alive(st, t_s):
                 status = "predicted"
             else:
@@ -251,17 +286,100 @@ class Tracker:
             xy = st.x[:2].copy() if st.x is not None else np.full(2, np.nan)
             dots[c] = (float(xy[0]), float(xy[1]), status)
 
-        heading = self._update_heading(t_s, measured)
+        heading, heading_std = self._update_heading(t_s, measured)
         main = self.states[cfg.dots[0]]
         x, y, status = dots[cfg.dots[0]]
-        std = float(np.sqrt(np.linalg.eigvalsh(main.P[:2, :2])[-1])) if main.x is not None else float("nan")
+        std = self._std_mm(main, t_s) if main.x is not None else float("nan")
         return TrackRow(frame=frame, time_s=t_s, x=x, y=y, heading_deg=heading, status=status, std_mm=std,
+                        std_heading_deg=heading_std, reasons=tuple(why.get(cfg.dots[0], ())),
                         camera=camera if measured else -1,
                         measured={c: (float(v[0]), float(v[1])) for c, (v, _) in measured.items()},
                         dots=dots)
 
+    def _rigid_second_dot(self, t_s, dots_world, meas_cov, eligible, measured, why) -> None:
+        """The two lasers sit on one robot: their distance is fixed. When the first dot was
+        accepted and the second was not (a turn on the spot swings it far outside its own gate),
+        a lone eligible candidate of the second colour at that distance (within 3σ of the
+        separation measured so far, at least ``gate_floor_mm / 2``) is the second dot: its filter
+        restarts there, so the heading follows what the two dots measure. The separation is
+        learned from the frames where both were accepted."""
+        cfg = self.config
+        if len(cfg.dots) < 2:
+            return
+        c0, c1 = cfg.dots[0], cfg.dots[1]
+        if c0 in measured and c1 in measured:
+            d = float(np.hypot(*(measured[c1][0] - measured[c0][0])))
+            n, m, v = self._sep
+            n += 1
+            dm = d - m
+            m += dm / n
+            self._sep = (n, m, v + dm * (d - m))
+            return
+        n, m, v = self._sep
+        if c0 not in measured or c1 in measured or n < 5:
+            return
+        z = _as_candidates(dots_world.get(c1), c1)
+        if len(z) == 0:
+            return
+        el = _as_eligible(None if eligible is None else eligible.get(c1), dots_world.get(c1), len(z))
+        R = _as_covariances((meas_cov or {}).get(c1), len(z), c1, cfg.meas_std_mm, cfg.min_meas_std_mm)
+        sd = max(3.0 * float(np.sqrt(v / (n - 1))), cfg.gate_floor_mm / 2.0)
+        dist = np.hypot(*(z - measured[c0][0]).T)
+        at = np.flatnonzero(el & (np.abs(dist - m) <= sd))
+        if len(at) != 1:
+            return
+        k = int(at[0])
+        st = self.states[c1]
+        self._start(st, t_s, z[k], R[k] * st.noise_scale)
+        measured[c1] = (z[k], R[k])
+        why.pop(c1, None)
+
+    def _coast_var(self, st: DotState, t_s: float) -> float:
+        """Variance per axis (mm²) of the manoeuvre a robot may make unseen since the last
+        accepted dot: ``(coast_speed_share · |v| · t)²``."""
+        since = t_s - st.t_meas_s
+        if st.x is None or not np.isfinite(since) or since <= 0:
+            return 0.0
+        return (self.config.coast_speed_share * float(np.hypot(*st.x[2:])) * since) ** 2
+
+    def _std_mm(self, st: DotState, t_s: float) -> float:
+        """1σ of the position (largest axis), the coasting manoeuvre included, mm."""
+        return float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+
+    def _rival(self, st: DotState, z: np.ndarray, R: np.ndarray, moving, accepted_z):
+        """An eligible, moving candidate outside the gate of the accepted one (or None)."""
+        if moving is None or not moving.any():
+            return None
+        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
+        far = moving & (d2 > self.config.gate_chi2) & (np.hypot(*(z - accepted_z).T) > self.config.gate_floor_mm)
+        if not far.any():
+            return None
+        return z[int(np.flatnonzero(far)[0])]
+
+    def _why_not(self, st: DotState, t_s: float, n: int, had: bool, eligible, moving) -> tuple:
+        """The reason of a row without an accepted dot."""
+        if self._alive(st, t_s):
+            since = t_s - st.t_meas_s
+            if n == 0:
+                return (f"no dot seen this frame; predicted {since:.2f} s after the last one",)
+            if st.pending is not None:
+                return (f"a candidate near the prediction waits to be seen moving with the track ({since:.2f} s "
+                        "coasted)",)
+            return (f"{n} candidate(s), none inside the gate of the prediction ({since:.2f} s coasted)",)
+        if had:
+            return (f"no dot accepted for more than {self.config.max_predict_s:g} s",)
+        if n == 0:
+            return ("no dot seen",)
+        k = int(np.count_nonzero(eligible))
+        if moving is not None:
+            m = int(np.count_nonzero(moving))
+            if m > 1:
+                return (f"{m} moving laser-like spots: which is the laser cannot be told",)
+            return (f"{n} candidate(s), {k} laser-like, none seen moving yet (static lights are never acquired)",)
+        return (f"{n} candidate(s), {k} laser-like, none seen moving by {self.config.min_move_mm:g} mm yet",)
+
     def _start(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray) -> None:
-        st.pending = st.seen = None
+        st.pending = st.seen = st.probation = None
         st.x = np.array([z[0], z[1], 0.0, 0.0])
         st.P = np.zeros((4, 4))
         st.P[:2, :2] = R
@@ -269,7 +387,8 @@ class Tracker:
         st.t_meas_s, st.n_rejected, st.last_d2 = t_s, 0, 0.0
         st.z_meas = np.array(z, dtype=float)
 
-    def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray):
+    def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
+                    moving: np.ndarray | None = None):
         """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None.
 
         While the track is fresh (the previous frame was accepted): (1) the candidate of
@@ -302,13 +421,14 @@ class Tracker:
             return None
         R = R * st.noise_scale
         if st.x is None:
-            return self._acquire(st, t_s, z, R, eligible)
+            return self._acquire(st, t_s, z, R, eligible, moving)
         since = t_s - st.t_meas_s
         fresh = since <= 1.5 * dt_pred + 1e-9
         reach = cfg.gate_floor_mm + cfg.max_speed_mm_s * since
         dist_last = np.hypot(*(z - st.z_meas).T) if st.z_meas is not None else np.zeros(len(z))
         dist_pred = np.hypot(*(z - st.x[:2]).T)
-        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
+        coast = 0.0 if fresh else self._coast_var(st, t_s)
+        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R + coast * np.eye(2))
         st.last_d2 = float(d2.min())
         in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach)
         near = eligible & (dist_pred <= cfg.gate_floor_mm)
@@ -341,7 +461,11 @@ class Tracker:
         st.n_rejected += 1
         if st.n_rejected < cfg.reinit_after:
             return None
-        return self._acquire(st, t_s, z, R, eligible)   # the prediction is not trusted any more
+        pred = st.x[:2].copy()
+        got = self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
+            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - pred))), False)
+        return got
 
     def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
         st.t_meas_s, st.n_rejected = t_s, 0
@@ -371,9 +495,13 @@ class Tracker:
         return (0 < t_s - t0 <= 1.0 and float(np.hypot(*(z - z0))) < self.config.min_move_mm
                 and float(np.hypot(*(z - st.z_meas))) <= self.config.gate_floor_mm)
 
-    def _acquire(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray):
+    def _acquire(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
+                 moving: np.ndarray | None = None):
         """Start the track on the one verified candidate seen moving (or still where the dot
         was last accepted) over the last second; None while there is none, or more than one.
+
+        With ``moving`` (the caller's test over several frames), the candidates it found
+        moving replace the chain test below for "moving"; "resting" is still the chain's.
 
         Each current candidate is chained back through the verified candidates of the
         previous frames (nearest within reach at each step, at most 1 s back); it is moving
@@ -391,9 +519,9 @@ class Tracker:
             return z[k], R[k]
         hist = [h for h in (st.seen or []) if 0 < t_s - h[0] <= 1.0]
         st.seen = hist + [(t_s, z[cand].copy())]
-        if not hist or len(cand) == 0:
+        if len(cand) == 0 or (not hist and (moving is None or not moving.any())):
             return None
-        moving, resting, vel = [], [], []
+        moving_chain, resting, vel = [], [], []
         for k in cand:
             p, t_p, length = z[k], t_s, 0
             far = p
@@ -407,17 +535,20 @@ class Tracker:
                 p, t_p, length = z_h[m], t_h, length + 1
                 far = p
             move = float(np.hypot(*(z[k] - far)))
-            moving.append(length >= 1 and move >= cfg.min_move_mm)
+            moving_chain.append(length >= 1 and move >= cfg.min_move_mm)
             resting.append(length >= 2 and move < cfg.min_move_mm and st.z_meas is not None
                            and float(np.hypot(*(z[k] - st.z_meas))) <= cfg.gate_floor_mm)
             vel.append((z[k] - far) / max(t_s - t_p, 1e-9))
-        ok = np.array(moving) | np.array(resting)
+        chain = list(moving_chain)
+        if moving is not None:                      # the caller's test over several frames
+            moving_chain = [bool(moving[k]) for k in cand]
+        ok = np.array(moving_chain) | np.array(resting)
         if np.count_nonzero(ok) != 1:
             return None
         n = int(np.flatnonzero(ok)[0])
         k = int(cand[n])
         self._start(st, t_s, z[k], R[k])
-        if moving[n]:
+        if chain[n]:
             st.x[2:] = vel[n]
         return z[k], R[k]
 
@@ -460,11 +591,19 @@ class Tracker:
             trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
             st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
 
-    def _update_heading(self, t_s: float, measured: dict) -> float:
-        """Circular filter of the red→green direction; returns degrees in (-180, 180] or NaN."""
+    def _update_heading(self, t_s: float, measured: dict) -> tuple[float, float]:
+        """Circular filter of the red→green direction; returns (degrees in (-180, 180], 1σ in
+        degrees), NaN without a heading.
+
+        The measured direction's variance is ``n̂ᵀ(R₀ + R₁)n̂ / d²`` (n̂ perpendicular to the
+        red→green segment of length d). A measurement more than 3σ from the prediction (the
+        robot turned faster than the filter's model) restarts the filter on it: the heading of
+        a frame whose two dots were measured is what they say, within its σ.
+        """
         cfg = self.config
+        nan = float("nan")
         if len(cfg.dots) < 2:
-            return float("nan")
+            return nan, nan
         h = self.heading
         c0, c1 = cfg.dots[0], cfg.dots[1]
         if h.x is not None and t_s - h.t_meas_s > cfg.max_predict_s + 1e-9:
@@ -480,27 +619,15 @@ class Tracker:
                 theta = float(np.arctan2(d[1], d[0]))
                 n = np.array([-d[1], d[0]]) / dist          # perpendicular: the direction of angle error
                 var = float(n @ (R0 + R1) @ n) / dist ** 2   # small-angle law: σθ² = σ⊥² / d²
-                if h.x is None:
+                nu = _wrap(theta - h.x[0]) if h.x is not None else 0.0
+                if h.x is None or nu * nu > 9.0 * (h.P[0, 0] + var):
                     h.x = np.array([theta, 0.0])
                     h.P = np.diag([var, cfg.init_rate_std_rad_s ** 2])
                 else:
-                    nu = _wrap(theta - h.x[0])
                     h.x, h.P = kf_update(h.x, h.P, np.array([h.x[0] + nu]), np.array([[var]]),
                                          innovation=np.array([nu]))
                 h.t_meas_s = t_s
         if h.x is None or any(self.states[c].x is None for c in (c0, c1)):
-            return float("nan")
+            return nan, nan
         deg = float(np.degrees(_wrap(h.x[0])))
-        return 180.0 if deg == -180.0 else deg
-
-
-_CAMERA_NAMES = ("Camera", "MultiCameraTracker", "homography_jacobian", "border_distance")
-
-
-def __getattr__(name):
-    """The multi-camera names live in :mod:`posekit.ceiling.cameras` (imported on first use:
-    that module builds on this one)."""
-    if name in _CAMERA_NAMES:
-        from . import cameras
-        return getattr(cameras, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return (180.0 if deg == -180.0 else deg), float(np.degrees(np.sqrt(max(h.P[0, 0], 0.0))))

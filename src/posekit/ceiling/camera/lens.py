@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import lazy
-from ..errors import CalibrationError
-from ..io import load_json, write_text_atomic
+from ..._extras import lazy
+from ...errors import CalibrationError
+from ...io import load_json, write_text_atomic
 
 cv2 = lazy("cv2", "vision", "the ceiling system (lens undistortion)")
 
@@ -368,6 +368,8 @@ class LensCalibration:
         Cells of a 3×3 grid over the image that hold corners (of 9).
     per_view_rms_px : ndarray, shape (len(used),)
         Reprojection rms of each used view, px.
+    warnings : list of str
+        A board with more inner corners in view than ``board`` says (checked on the first views).
     """
 
     camera: CameraModel
@@ -376,6 +378,7 @@ class LensCalibration:
     coverage: float
     cells_hit: int
     per_view_rms_px: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    warnings: list = field(default_factory=list)
 
 
 def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_size=None,
@@ -398,12 +401,11 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
     Raises
     ------
     CalibrationError
-        Fewer than :data:`MIN_VIEWS` boards found (naming the views without one), or images of
-        different sizes.
+        Fewer than :data:`MIN_VIEWS` boards found (naming the views without one). A view of
+        another size than most views is skipped and named in ``skipped``.
     """
     obj = _board_points_from_outer_corner(board, square_mm)
-    img_pts, used, skipped = [], [], []
-    size = None if image_size is None else (int(image_size[0]), int(image_size[1]))
+    found, skipped, larger = [], [], []
     for name, gray in views:
         if gray is None:
             skipped.append((name, "cannot decode the image"))
@@ -411,22 +413,36 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         shape = (gray.shape[1], gray.shape[0])
-        if size is None:
-            size = shape
-        elif shape != size:
-            raise CalibrationError(f"{name}: image of {shape[0]}x{shape[1]} px; expected {size[0]}x{size[1]} "
-                                   "like the other views (one camera, one resolution)")
         c = find_board(gray, board)
+        if len(found) + len(skipped) < 3 and not larger:   # more inner corners in view than the board given?
+            for bigger in ((board[0] + 1, board[1]), (board[0], board[1] + 1)):
+                flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
+                if cv2.findChessboardCorners(gray, bigger, flags=flags)[0]:
+                    larger.append((name, bigger))
+                    break
         if c is None:
             skipped.append((name, f"chessboard {board[0]}x{board[1]} not found"))
+            continue
+        found.append((name, shape, c))
+    size = None if image_size is None else (int(image_size[0]), int(image_size[1]))
+    if size is None and found:                      # the resolution of most views, not of the first
+        shapes = [s for _, s, _ in found]
+        size = max(set(shapes), key=shapes.count)
+    img_pts, used = [], []
+    for name, shape, c in found:
+        if shape != size:
+            skipped.append((name, f"image of {shape[0]}x{shape[1]} px; the other views are {size[0]}x{size[1]} "
+                                  "(one camera, one resolution)"))
             continue
         img_pts.append(c)
         used.append(name)
     if len(used) < MIN_VIEWS:
         why = "; ".join(f"{n}: {r}" for n, r in skipped[:5]) + (" ..." if len(skipped) > 5 else "")
+        hint = (f" ({Path(larger[0][0]).name} shows a {larger[0][1][0]}x{larger[0][1][1]} board)") if larger else ""
         raise CalibrationError(f"lens calibration: the board was found in {len(used)} view(s); expected at least "
                                f"{MIN_VIEWS}" + (f" ({why})" if why else "") +
-                               " — check --board (inner corners, COLSxROWS) and that the whole board is in view")
+                               f" — check --board (inner corners, COLSxROWS){hint} and that the whole board is in "
+                               "view")
     flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj.astype(np.float32)] * len(img_pts),
@@ -438,7 +454,10 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
         per_view.append(math.sqrt(float(np.mean(np.sum((proj.reshape(-1, 2) - c) ** 2, axis=1)))))
     area, cells = corner_coverage(img_pts, size)
     model = CameraModel(K=K, dist=np.asarray(dist, float).reshape(-1)[:5], image_size=size, rms_px=float(rms))
-    return LensCalibration(model, used, skipped, area, cells, np.array(per_view))
+    warnings = [f"{name}: a chessboard of {b[0]}x{b[1]} inner corners is visible, more than --board "
+                f"{board[0]}x{board[1]}: give the printed board's full inner-corner count (a smaller one fits "
+                "several places on the board)" for name, b in larger]
+    return LensCalibration(model, used, skipped, area, cells, np.array(per_view), warnings)
 
 
 def _board_points_from_outer_corner(board: tuple[int, int], square_mm: float) -> np.ndarray:

@@ -44,11 +44,11 @@ HEADER = ("| case | seed | ok | predicted | lost | ok error mean (mm) | p95 | ma
 
 def effect_row(name: str, overrides, use_camera: bool, *, duration_s: float, seed: int, out_dir) -> str:
     """Render, calibrate, track one case; its Markdown table row."""
-    from .calibration import calibrate, read_points_csv, undistort_calibration_points
-    from .camera import load_camera
+    from ..camera.homography import calibrate, read_points_csv, undistort_calibration_points
+    from ..camera.lens import load_camera
+    from ..sim.render import REALISTIC, SceneConfig, render_video
+    from ..track.pipeline import track_video
     from .demo import compare_with_truth, read_truth_csv
-    from .pipeline import track_video
-    from .render import REALISTIC, SceneConfig, render_video
 
     kw = dict(REALISTIC) if overrides == "REALISTIC" else {
         k: (REALISTIC[k] if v == "REALISTIC" else v) for k, v in overrides.items()}

@@ -6,7 +6,7 @@ import math
 import numba as nb
 import numpy as np
 
-__all__ = ["_AREA", "_COUNTS", "_ELONG", "_MUU", "_MUV", "_MVV", "_PEAK", "_PLAIN", "_U", "_V",
+__all__ = ["_AREA", "_COUNTS", "_ELONG", "_MUU", "_MUV", "_MVV", "_PEAK", "_PLAIN", "_U", "_V", "_VAR_UV",
            "_blob_table", "_lit_pixels"]
 
 
@@ -40,16 +40,21 @@ def _lit_pixels(frame, thr, y0, y1, x0, x1, coords):
 
 
 #: Columns of the per-blob table computed by :func:`_blob_table`: area, elongation, weighted
-#: centroid, peak, unsaturated pixels, weighted central second moments (uu, vv, uv; px²), then
-#: one count per colour.
-_AREA, _ELONG, _U, _V, _PEAK, _PLAIN, _MUU, _MVV, _MUV, _COUNTS = range(10)
+#: centroid, peak, unsaturated pixels, weighted central second moments (uu, vv, uv; px²), the
+#: variance of the centroid per axis that the background's own noise gives (px²), then one
+#: count per colour.
+_AREA, _ELONG, _U, _V, _PEAK, _PLAIN, _MUU, _MVV, _MUV, _VAR_UV, _COUNTS = range(11)
 
 
 @nb.njit(cache=True, boundscheck=False)
-def _blob_table(frame, bg, labels, stats, n, specs, core_level, margin, weight_threshold):
+def _blob_table(frame, bg, var, labels, stats, n, specs, core_level, margin, weight_threshold):
     """Per blob 1..n-1 of ``labels`` (a window of the frame): area, elongation, weighted
-    centroid (u, v in window pixels), peak, number of unsaturated pixels and, per colour of
-    ``specs`` ((k, 3): hue lo, hue hi in degrees, min saturation), how many of those have it."""
+    centroid (u, v in window pixels; each pixel weighs its summed positive difference to the
+    background less ``max(weight_threshold, 3σ)``, σ that sum's own noise, so flickering
+    texture under the window does not pull it), peak, number of unsaturated pixels, the centroid's
+    variance from the background noise (``Σ (x − ū)² Var(w) / W²`` averaged over the two
+    axes, ``var`` the per-byte background variance) and, per colour of ``specs`` ((k, 3): hue
+    lo, hue hi in degrees, min saturation), how many of those have it."""
     h, w = labels.shape
     k_col = specs.shape[0]
     out = np.zeros((n, _COUNTS + k_col))
@@ -112,10 +117,12 @@ def _blob_table(frame, bg, labels, stats, n, specs, core_level, margin, weight_t
         for i in range(y0, y1):
             for j in range(x0, x1):
                 s = 0.0
+                vs = 0.0
                 for c in range(3):
                     s += max(np.float64(frame[i, j, c]) - bg[i, j, c], 0.0)
+                    vs += var[i, j, c]
                 peak = max(peak, s)
-                wt = s - weight_threshold
+                wt = s - max(weight_threshold, 3.0 * math.sqrt(vs))     # within the pixel's own noise: no weight
                 if wt > 0.0:
                     sw += wt
                     su += wt * j
@@ -128,6 +135,17 @@ def _blob_table(frame, bg, labels, stats, n, specs, core_level, margin, weight_t
             u, v = su / sw, sv / sw
             out[lab, _U], out[lab, _V] = u, v
             out[lab, _MUU], out[lab, _MVV], out[lab, _MUV] = suu / sw - u * u, svv / sw - v * v, suv / sw - u * v
+            acc = 0.0
+            for i in range(y0, y1):
+                for j in range(x0, x1):
+                    s = 0.0
+                    vs = 0.0
+                    for c in range(3):
+                        s += max(np.float64(frame[i, j, c]) - bg[i, j, c], 0.0)
+                        vs += var[i, j, c]
+                    if s - max(weight_threshold, 3.0 * math.sqrt(vs)) > 0.0:
+                        acc += 0.5 * ((j - u) ** 2 + (i - v) ** 2) * vs
+            out[lab, _VAR_UV] = acc / (sw * sw)
         else:
             out[lab, _U] = out[lab, _V] = np.nan
     return out

@@ -20,8 +20,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import CalibrationError
-from ..geometry import apply_homography, check_correspondences, homography_dlt, homography_ransac, refine_homography
+from ...errors import CalibrationError
+from ...geometry import apply_homography, check_correspondences, homography_dlt, homography_ransac, refine_homography
 
 __all__ = ["CeilingGrid", "GridCorners", "find_grid_corners"]
 

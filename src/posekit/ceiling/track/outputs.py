@@ -7,8 +7,10 @@ live camera sees poses as they come and an interrupted run loses nothing:
   renamed into place when the run ends — normally, on Ctrl-C or on SIGTERM — so the target is
   either absent or complete (whole rows, the header first), never half-written;
 * ``--jsonl FILE|-`` writes one JSON object per frame
-  ``{"frame", "time_s", "x", "y", "heading_deg", "status", "std_mm"}`` (``null`` for an
-  empty value; ``"robot"`` added with several robots) and flushes it at once;
+  ``{"frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg",
+  "reason"}`` (``null`` for an empty value; ``"robot"`` added with several robots) and flushes
+  it at once; when its reader goes away (``| head``), the run stops within the frame
+  (:class:`ReaderGone`);
 * ``--udp HOST:PORT`` sends the same object as one UTF-8 datagram per frame, to a loopback
   address unless ``allow_remote``.
 """
@@ -22,10 +24,15 @@ import socket
 import sys
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..io import atomic_file
+from ...errors import ConfigError
+from ...io import atomic_file
 
-__all__ = ["TrackOutputs", "parse_udp_target", "row_record"]
+__all__ = ["TrackOutputs", "ReaderGone", "parse_udp_target", "row_record"]
+
+
+class ReaderGone(Exception):
+    """The reader of ``--jsonl -`` (or of a FIFO given as ``--jsonl``) closed its end: the run
+    stops (raised from :meth:`TrackOutputs.write`, out of the tracking loop)."""
 
 
 def row_record(row, robot: int | None = None) -> dict:
@@ -91,7 +98,7 @@ class TrackOutputs:
         from .pipeline import TRACK_COLUMNS
 
         self.robots = int(robots)
-        self.counts = {"ok": 0, "predicted": 0, "lost": 0}
+        self.counts = {"ok": 0, "suspect": 0, "predicted": 0, "lost": 0}
         self.frames = 0
         self.errors: list[str] = []
         self._udp = None
@@ -150,6 +157,15 @@ class TrackOutputs:
                 try:
                     self._jsonl.write(line)
                     self._jsonl.flush()
+                except BrokenPipeError:
+                    fh, self._jsonl = self._jsonl, None     # nothing more can go there, not even a flush
+                    if self._own_jsonl:
+                        try:
+                            fh.close()
+                        except OSError:
+                            pass
+                    raise ReaderGone(f"the reader of --jsonl {self.jsonl_target} closed after "
+                                     f"{self.frames - 1} rows") from None
                 except (OSError, ValueError) as exc:
                     self._fail(f"--jsonl {self.jsonl_target}: cannot write "
                                f"({getattr(exc, 'strerror', None) or exc})")

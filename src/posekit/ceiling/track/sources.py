@@ -6,9 +6,10 @@ the frame rate from ``fps=``, else the video container, else
 :data:`DEFAULT_FPS` (the paper's camera; ``fps_source`` says which).
 Bad input is an :class:`~posekit.errors.InputFileError` with a one-line message naming
 the path: a missing path, a file OpenCV cannot decode as a video, an empty folder or one
-without images, frames that change size. An image in a folder that does not decode is not
-an error: its :class:`Frame` has ``image=None`` and the reason in ``error`` (the tracker
-writes a ``lost`` row and goes on). A video that ends before the frame count its header
+without images. An image in a folder that does not decode, or a frame of another size than
+the first, is not an error: its :class:`Frame` has ``image=None`` and the reason in ``error``
+(the tracker writes a ``lost`` row with it and goes on); what an image decoder prints goes
+into that reason, never to the terminal. A video that ends before the frame count its header
 declares is read to its end; ``FrameSource.warnings`` then says how many frames were
 declared and how many decoded.
 
@@ -27,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._extras import require
-from ..errors import ConfigError, InputFileError
-from ..io import check_frame_size, check_input_file, read_image
+from ..._extras import require
+from ...errors import ConfigError, InputFileError
+from ...io import check_frame_size, check_input_file, read_image
 
 __all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "Frame", "FrameSource", "LiveSource", "open_frames", "open_live",
            "is_live_source", "list_images"]
@@ -116,9 +117,12 @@ class FrameSource:
     container's count, which may be approximate).
     """
 
-    def __init__(self, path: Path, fps: float | None = None):
+    def __init__(self, path: Path, fps: float | None = None, max_frames: int | None = None):
         cv2 = require("cv2", "vision", "reading video and images (ceiling track)")
         self.path = Path(path)
+        if max_frames is not None and int(max_frames) < 1:
+            raise ConfigError(f"--max-frames must be at least 1, got {max_frames}")
+        self.max_frames = None if max_frames is None else int(max_frames)
         if fps is not None and not (np.isfinite(fps) and fps > 0):
             raise ConfigError(f"--fps must be a positive number, got {fps!r}")
         if not self.path.exists():
@@ -167,26 +171,33 @@ class FrameSource:
             self.fps, self.fps_source = DEFAULT_FPS, "default"
 
     def _try_image(self, p: Path) -> tuple[np.ndarray | None, str]:
-        """The image of ``p`` (BGR) and "", or None and why it could not be read."""
-        try:
-            img = read_image(p)  # the header's size is checked before decoding
-        except InputFileError as exc:
-            return None, str(exc)
+        """The image of ``p`` (BGR) and "", or None and why it could not be read (with what the
+        decoder said, which never reaches the terminal: libpng and libjpeg write to fd 2)."""
+        with _captured_stderr() as said:
+            try:
+                img = read_image(p)  # the header's size is checked before decoding
+            except InputFileError as exc:
+                img, why = None, str(exc)
+            else:
+                why = "" if img is not None else f"{p}: cannot decode this file as an image"
         if img is None:
-            return None, f"{p}: cannot decode this file as an image"
+            text = " ".join(said.text.split())[:120]
+            return None, why + (f" (decoder: {text})" if text else "")
         return _as_bgr(img), ""
 
     def __len__(self) -> int:
-        return self._count
+        return self._count if self.max_frames is None else min(self._count, self.max_frames)
 
     def __iter__(self) -> Iterator[Frame]:
         size = self.image_size
         self.decoded = 0
         if self.is_folder:
-            for i, p in enumerate(self._files):
+            files = self._files if self.max_frames is None else self._files[:self.max_frames]
+            for i, p in enumerate(files):
                 img, why = self._try_image(p)
                 if img is not None:
-                    self._check_size(img, size, p.name)
+                    img, why = self._check_size(img, size, p.name)
+                if img is not None:
                     self.decoded += 1
                 yield Frame(i, i / self.fps, img, p.name, why)
             return
@@ -194,28 +205,58 @@ class FrameSource:
         cap = cv2.VideoCapture(str(self.path))
         try:
             i = 0
-            while True:
+            while self.max_frames is None or i < self.max_frames:
                 ok, img = cap.read()
                 if not ok or img is None:
                     break
-                img = _as_bgr(img)
-                self._check_size(img, size, f"frame {i}")
-                self.decoded += 1
-                yield Frame(i, i / self.fps, img, f"frame {i}")
+                img, why = self._check_size(_as_bgr(img), size, f"frame {i}")
+                if img is not None:
+                    self.decoded += 1
+                yield Frame(i, i / self.fps, img, f"frame {i}", why)
                 i += 1
-            if self._count > 0 and i < self._count:
+            if self._count > 0 and i < self._count and (self.max_frames is None or i < self.max_frames):
                 self.warnings.append(f"{self.path}: the header declares {self._count} frames but {i} were decoded "
                                      "(a truncated or damaged video?); tracked the decoded frames")
         finally:
             cap.release()
 
     def _check_size(self, img, size, name):
+        """(img, "") or, for a frame of another size than the first, (None, why): a ``lost`` row."""
         if (img.shape[1], img.shape[0]) != size:
-            raise InputFileError(f"{self.path}: {name} is {img.shape[1]}x{img.shape[0]} px but the first frame "
-                                 f"is {size[0]}x{size[1]} px; every frame must have the same size")
+            return None, (f"{name} is {img.shape[1]}x{img.shape[0]} px but the first frame is {size[0]}x{size[1]} px "
+                          "(skipped)")
+        return img, ""
 
 
-def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
+class _Said:
+    text = ""
+
+
+class _captured_stderr:
+    """Redirect file descriptor 2 into a temporary file for the block; ``.text`` afterwards."""
+
+    def __enter__(self):
+        import tempfile
+        self.said = _Said()
+        try:
+            self._tmp = tempfile.TemporaryFile()
+            self._saved = os.dup(2)
+            os.dup2(self._tmp.fileno(), 2)
+        except OSError:
+            self._saved = None
+        return self.said
+
+    def __exit__(self, *exc):
+        if self._saved is not None:
+            os.dup2(self._saved, 2)
+            os.close(self._saved)
+            self._tmp.seek(0)
+            self.said.text = self._tmp.read(4096).decode("utf-8", "replace")
+            self._tmp.close()
+        return False
+
+
+def open_frames(path: str | Path, fps: float | None = None, max_frames: int | None = None) -> FrameSource:
     """Open a video file or a folder of images for reading.
 
     Parameters
@@ -225,6 +266,8 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
         (``IMAGE_SUFFIXES``, sorted by name; hidden and non-image files are skipped).
     fps : float, optional
         Frame rate for the timestamps, Hz (overrides the container's).
+    max_frames : int, optional
+        Read at most this many frames.
 
     Returns
     -------
@@ -238,7 +281,7 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
     ConfigError
         ``fps`` is not positive.
     """
-    return FrameSource(Path(path), fps)
+    return FrameSource(Path(path), fps, max_frames)
 
 
 _URL = re.compile(r"^(rtsp|rtsps|rtmp|http|https|udp|tcp|srt)://", re.IGNORECASE)
