@@ -32,7 +32,7 @@ def add_match_parser(verbs):
                    help="fine matcher with --no-timestamps: cpd (positions) or hybrid (positions and "
                         "orientations, hybrid-mixture style) (default cpd)")
     p.add_argument("--residuals", default=None, metavar="FILE.csv",
-                   help="also write every pose pair's residual (stamps, indices, ex ey ez, |e| mm, kept)")
+                   help="also write every pose pair's residual (stamps, indices, ex ey ez and their norm in mm, kept)")
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="also write the figures (trajectories.png: both paths in the base frame; error.png: "
                         "the error of every pair over time) to the folder DIR")
