@@ -38,7 +38,8 @@ import weakref
 from dataclasses import astuple, dataclass
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import ConfigError, ProfileError
 from ...geometry import robust_line_kernel

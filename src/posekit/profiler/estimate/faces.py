@@ -21,7 +21,8 @@
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry._fit import FASTMATH
 from .segments import (

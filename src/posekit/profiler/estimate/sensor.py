@@ -18,8 +18,9 @@ multipath near valleys, machining error, scale error, dropouts on steep faces): 
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.spatial.transform import Rotation
+
+from posekit._jit import njit
 
 from ...errors import ConfigError
 from ...geometry import transform_from

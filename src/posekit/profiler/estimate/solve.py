@@ -45,7 +45,8 @@ tolerance) and the tests are in :mod:`~posekit.profiler.estimate.verdict`.
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import EstimationError
 from .closed_form import cf4_start, cf_kernel, closed_form

@@ -44,8 +44,9 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.stats import chi2 as _chi2
+
+from posekit._jit import njit
 
 from ...errors import EstimationError
 from ...geometry import matrix_from_rotation_vector, quaternion_from_matrix, rotation_vector_from_matrix
