@@ -183,8 +183,13 @@ def test_notice_can_be_silenced(monkeypatch, capsys):
     monkeypatch.setenv("POSEKIT_COMPILE_NOTICE", "0")
     monkeypatch.setattr(_jit, "_LISTENER", None)
     _jit.enable_compile_notice()
-    assert _fresh_kernel(5.0)(1.0) == 5.0
-    assert _jit._LISTENER is None and capsys.readouterr().err == ""
+    listener = _jit._LISTENER
+    try:
+        assert _fresh_kernel(5.0)(1.0) == 5.0
+        assert capsys.readouterr().err == "" and _jit.compile_count() == 1      # counted, not told
+    finally:
+        from numba.core import event
+        event.unregister("numba:compile", listener)
 
 
 def test_slice_assignment_of_the_wrong_size_still_raises():

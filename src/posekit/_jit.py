@@ -229,8 +229,9 @@ class _CompileListener(_event.Listener):
     """Counts top-level compilations of posekit kernels; the first one prints the note (once per
     process) and, on a terminal, starts a progress bar of the kernels compiled."""
 
-    def __init__(self, system: str | None):
+    def __init__(self, system: str | None, quiet: bool):
         self.system = system
+        self.quiet = quiet
         self.depth = threading.local()
         self.count = 0
         self.bar = None
@@ -243,7 +244,8 @@ class _CompileListener(_event.Listener):
             return
         if self.t0 is None:
             self.t0 = time.perf_counter()
-            self._announce(event)
+            if not self.quiet:
+                self._announce(event)
 
     def on_end(self, event):
         self.depth.n = max(getattr(self.depth, "n", 1) - 1, 0)
@@ -279,20 +281,22 @@ def _is_posekit(event) -> bool:
 _LISTENER = None
 
 
-def enable_compile_notice(system: str | None = None) -> None:
+def enable_compile_notice(system: str | None = None, *, quiet: bool = False) -> None:
     """Print one line on stderr when a posekit kernel first compiles in this process (with a
-    progress bar on a terminal); ``system`` names whose first-compile time the line quotes.
-    ``POSEKIT_COMPILE_NOTICE=0`` silences it (the test suite does)."""
+    progress bar on a terminal) and count the kernels compiled (:func:`compile_count`).
+
+    ``system`` names whose first-compile time the line quotes; ``quiet`` (or the environment
+    variable ``POSEKIT_COMPILE_NOTICE=0``, which the test suite sets) only counts.
+    """
     global _LISTENER
-    if os.environ.get("POSEKIT_COMPILE_NOTICE", "1") == "0":
-        return
+    quiet = quiet or os.environ.get("POSEKIT_COMPILE_NOTICE", "1") == "0"
     if _LISTENER is None:
-        _LISTENER = _CompileListener(system)
+        _LISTENER = _CompileListener(system, quiet)
         _event.register("numba:compile", _LISTENER)
         import atexit
         atexit.register(_LISTENER.close)
     else:
-        _LISTENER.system = system
+        _LISTENER.system, _LISTENER.quiet = system, quiet
 
 
 def compile_count() -> int:

@@ -34,13 +34,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    from . import bench, ceiling, demo, localcal, profiler, seam
+    from . import bench, ceiling, demo, localcal, profiler, seam, warmup
     demo.add_parser(sub)
     profiler.add_parser(sub)
     ceiling.add_parser(sub)
     localcal.add_parser(sub)
     seam.add_parser(sub)
     bench.add_parser(sub)
+    warmup.add_parser(sub)
     _describe_verbs(parser)
     return parser
 
@@ -137,9 +138,6 @@ def _one_line(text: str) -> str:
 
 def main(argv=None) -> int:
     """Run ``posekit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    from ..errors import PosekitError
-    from ..io import set_limits
-
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         argv, found = _split_globals(argv)
@@ -154,6 +152,11 @@ def main(argv=None) -> int:
     except SystemExit as exc:          # argparse: usage errors exit 2, --help/--version exit 0
         return int(exc.code or 0)
     args.debug = debug or args.debug
+    from .. import _jit  # only now: --help and usage errors import no numpy, numba or scipy
+    from ..errors import PosekitError
+    from ..io import set_limits
+
+    _jit.enable_compile_notice(args.command)
     previous = None
     try:
         with warnings.catch_warnings():

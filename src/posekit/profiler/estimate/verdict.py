@@ -44,8 +44,8 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
 
+from posekit._chi2 import chi2 as _chi2
 from posekit._jit import njit
 
 from ...errors import EstimationError
