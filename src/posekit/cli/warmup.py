@@ -15,7 +15,7 @@ import tempfile
 import time
 
 from ..errors import ConfigError
-from ._flags import bounded_int
+from ._flags import bounded_int, check_flags
 
 __all__ = ["add_parser", "run", "TASKS", "SYSTEMS"]
 
@@ -70,6 +70,7 @@ def run(args) -> int:
     from .. import _jit
     from ._common import progress
 
+    check_flags(args)
     unknown = [s for s in args.systems if s not in SYSTEMS]
     if unknown:
         raise ConfigError(f"warmup: unknown system '{unknown[0][:40]}'; expected one of {', '.join(SYSTEMS)}")
