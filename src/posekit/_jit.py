@@ -189,13 +189,19 @@ def kernels() -> list:
 
 
 def cache_dir(kernel=None) -> str:
-    """The folder the compiled code of ``kernel`` (default: the first kernel imported) goes to."""
-    pool = [kernel] if kernel is not None else _KERNELS[:1]
-    for disp in pool:
-        path = getattr(disp._cache, "cache_path", None)
-        if path:
-            return os.path.dirname(path) if not path.endswith("__pycache__") else path
-    return os.environ.get(CACHE_ENV) or user_cache_dir()
+    """Where compiled kernels go: the folder of ``kernel``'s cache, or for this installation
+    the first folder of the list in the module that can be written (in the package tree:
+    ``.../posekit/**/__pycache__``)."""
+    if kernel is not None and getattr(kernel._cache, "cache_path", None):
+        path = kernel._cache.cache_path
+        return path if path.endswith("__pycache__") else os.path.dirname(path)
+    for cls in _Impl._locator_classes:
+        locator = cls.from_function(cache_dir, __file__)
+        if locator is not None:
+            if cls is _InTree:
+                return os.path.join(os.path.dirname(os.path.abspath(__file__)), "**", "__pycache__")
+            return os.path.dirname(locator.get_cache_path())
+    return "nowhere (no writable folder)"
 
 
 def _patch_shape_message() -> None:

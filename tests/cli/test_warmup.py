@@ -12,6 +12,7 @@ def test_every_task_is_a_valid_command():
     parser = build_parser()
     for name, system, commands in TASKS:
         assert system in SYSTEMS and name.startswith(system)
+        assert len(commands) >= 1
         for argv in commands:
             args = parser.parse_args([a.replace("{tmp}", "/tmp/x") for a in argv])
             assert callable(args.func)

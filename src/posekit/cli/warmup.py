@@ -19,40 +19,35 @@ from ._flags import bounded_int, check_flags
 
 __all__ = ["add_parser", "run", "TASKS", "SYSTEMS"]
 
-#: The warm-up tasks of each system: ``(name, system, commands)``, each command a ``posekit``
-#: argument list (``{tmp}`` is the task's temporary folder). Together they call every kernel a
-#: command of that system calls, with the argument types the commands pass.
+#: The warm-up tasks: ``(name, system, commands)``, each command a ``posekit`` argument list
+#: (``{tmp}`` is the task's temporary folder), run in order in one process. Together they call
+#: every kernel a command calls, with the argument types the commands pass; tasks share as
+#: few kernels as they can (two processes compiling one kernel do the work twice) and come
+#: longest first, so that the processes finish together.
 TASKS = (
     ("profiler-estimate", "profiler", (
         ["profiler", "simulate", "--gauge", "demo-5", "--count", "3", "--seed", "1", "--out", "{tmp}/sim"],
         ["profiler", "estimate", "{tmp}/sim/profiles.npz", "--gauge", "demo-5", "--out", "{tmp}/mle.jsonl"],
         ["profiler", "estimate", "{tmp}/sim/profiles.npz", "--gauge", "demo-5", "--method", "cf",
          "--out", "{tmp}/cf.csv"],
-    )),
-    ("profiler-realistic", "profiler", (
-        ["profiler", "simulate", "--gauge", "demo-5", "--count", "3", "--realistic", "--out", "{tmp}/real"],
-        ["profiler", "estimate", "{tmp}/real/profiles.npz", "--gauge", "demo-5", "--out", "{tmp}/real.jsonl"],
-    )),
-    ("profiler-loop", "profiler", (
         ["demo", "--runs", "1", "--axes", "x", "--steps-mm", "1", "--no-camera", "--out", "{tmp}/demo"],
-    )),
-    ("profiler-calibrate", "profiler", (
         ["profiler", "simulate", "--gauge", "demo-5", "--count", "60", "--seed", "2", "--out", "{tmp}/cal"],
         ["profiler", "calibrate-gauge", "{tmp}/cal/profiles.npz", "--gauge", "demo-5", "--out", "{tmp}/asbuilt.yaml"],
     )),
-    ("ceiling-demo", "ceiling", (
-        ["ceiling", "demo", "--duration-s", "1", "--out", "{tmp}/ceiling"],
-    )),
-    ("localcal-demo", "localcal", (
-        ["localcal", "demo", "--camera-hz", "1", "--plot-hz", "0"],
-    )),
-    ("seam-demo", "seam", (
+    ("seam", "seam", (
         ["seam", "demo", "--steps", "20", "--particles", "50"],
-    )),
-    ("seam-track", "seam", (
         ["seam", "simulate", "--sensors", "1", "--steps", "20", "--particles", "50", "--record-particles", "0",
          "--save-log", "{tmp}/log", "--out", "{tmp}/sim"],
         ["seam", "track", "{tmp}/log", "--out", "{tmp}/track"],
+    )),
+    ("profiler-realistic", "profiler", (
+        ["profiler", "simulate", "--gauge", "demo-5", "--count", "3", "--realistic", "--out", "{tmp}/real"],
+    )),
+    ("ceiling", "ceiling", (
+        ["ceiling", "demo", "--duration-s", "1", "--out", "{tmp}/ceiling"],
+    )),
+    ("localcal", "localcal", (
+        ["localcal", "demo", "--camera-hz", "1", "--plot-hz", "0"],
     )),
 )
 SYSTEMS = ("profiler", "ceiling", "localcal", "seam")
@@ -102,23 +97,35 @@ def _describe(res: dict) -> str:
 
 
 def _run_tasks(tasks, workers: int):
-    """Yield each task's result as it finishes, at most ``workers`` processes at a time."""
+    """Yield each task's result as it finishes, at most ``workers`` processes at a time (an
+    interrupted warm-up ends its processes)."""
     pending = list(tasks)
     running = []
-    while pending or running:
-        while pending and len(running) < workers:
-            name = pending.pop(0)[0]
-            cmd = [sys.executable, "-c", f"from posekit.cli.warmup import run_task; run_task({name!r})"]
-            running.append((name, time.perf_counter(), subprocess.Popen(
-                cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)))
-        for item in list(running):
-            name, t0, proc = item
-            if proc.poll() is None:
-                continue
-            running.remove(item)
-            out, err = proc.communicate()
-            yield _result(name, time.perf_counter() - t0, proc.returncode, out, err)
-        time.sleep(0.05)
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                name = pending.pop(0)[0]
+                cmd = [sys.executable, "-c", f"from posekit.cli.warmup import run_task; run_task({name!r})"]
+                out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")   # no pipe to fill
+                running.append((name, time.perf_counter(), subprocess.Popen(cmd, stdout=out, stderr=err), out, err))
+            for item in list(running):
+                name, t0, proc, out, err = item
+                if proc.poll() is None:
+                    continue
+                running.remove(item)
+                texts = []
+                for f in (out, err):
+                    f.seek(0)
+                    texts.append(f.read())
+                    f.close()
+                yield _result(name, time.perf_counter() - t0, proc.returncode, *texts)
+            time.sleep(0.05)
+    finally:
+        for _, _, proc, out, err in running:
+            proc.kill()
+            proc.wait()
+            out.close()
+            err.close()
 
 
 def _result(name: str, seconds: float, code: int, out: str, err: str) -> dict:
