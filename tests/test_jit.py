@@ -170,8 +170,9 @@ def test_first_compile_prints_one_line_and_counts(monkeypatch, capsys):
         assert k1(2.0) == 4.0 and k2(2.0) == 6.0
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith(
-            f"posekit: compiling numba kernels for their first use (about {_jit.FIRST_COMPILE_S['profiler']} s "
-            "for profiler on 2 cores; once per install or upgrade")
+            f"posekit: compiling the profiler numba kernels on first use (about {_jit.FIRST_COMPILE_S['profiler']} s "
+            "on an idle core, once per install or upgrade; cached in ")
+        assert err.endswith("); `posekit warmup` does it ahead of time\n")
         assert len(err) <= 300
         assert _jit.compile_count() == 2
     finally:

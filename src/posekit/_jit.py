@@ -42,10 +42,11 @@ __all__ = ["njit", "cache_dir", "user_cache_dir", "kernels", "enable_compile_not
 #: Environment variable that chooses the folder of compiled kernels.
 CACHE_ENV = "POSEKIT_CACHE_DIR"
 
-#: Seconds the first run of each system spends compiling, 2-core machine, measured with
-#: ``posekit warmup SYSTEM --workers 1`` (one process, cold cache); the first-compile note
-#: quotes them.
-FIRST_COMPILE_S = {"profiler": 40, "ceiling": 15, "localcal": 10, "seam": 45, "robots": 10, "geometry": 5}
+#: CPU seconds a system's kernels take to compile in one process (2-core machine, cold cache):
+#: CPU time of ``posekit demo`` / ``posekit seam demo`` / ``posekit warmup SYSTEM`` with an empty
+#: cache minus that of the same command with a warm one (docs/notes/issue-30-startup.md). The
+#: first-compile note quotes them; a busy machine takes longer.
+FIRST_COMPILE_S = {"profiler": 30, "seam": 25, "ceiling": 20, "localcal": 10}
 
 _KERNELS = []             # every dispatcher made by njit, in definition order
 _NOTES = set()            # one-off notes already printed
@@ -263,11 +264,11 @@ class _CompileListener(_event.Listener):
 
     def _announce(self, event):
         module = event.data["dispatcher"].py_func.__module__
-        system = self.system or module.split(".")[1]
+        system = self.system if self.system in FIRST_COMPILE_S else module.split(".")[1]
         eta = FIRST_COMPILE_S.get(system)
-        about = f"about {eta} s for {system} on 2 cores" if eta else "up to a minute per system on 2 cores"
-        print(f"posekit: compiling numba kernels for their first use ({about}; once per install or upgrade, "
-              f"stored in {cache_dir(event.data['dispatcher'])}); `posekit warmup` compiles them ahead",
+        about = f"about {eta} s on an idle core" if eta else "up to half a minute per system"
+        print(f"posekit: compiling the {system} numba kernels on first use ({about}, once per install or "
+              f"upgrade; cached in {cache_dir(event.data['dispatcher'])}); `posekit warmup` does it ahead of time",
               file=sys.stderr, flush=True)
         if sys.stderr.isatty():
             from tqdm import tqdm

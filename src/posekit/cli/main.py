@@ -156,7 +156,7 @@ def main(argv=None) -> int:
     from ..errors import PosekitError
     from ..io import set_limits
 
-    _jit.enable_compile_notice(args.command)
+    _jit.enable_compile_notice("profiler" if args.command == "demo" else args.command)
     previous = None
     try:
         with warnings.catch_warnings():
