@@ -83,14 +83,17 @@ def run(args) -> int:
     wall = time.perf_counter() - t0
     compiled = sum(r.get("compiled", 0) for r in results)
     failed = [r for r in results if r.get("error")]
-    print(f"posekit warmup: {compiled} kernels compiled in {wall:.0f} s ({len(results) - len(failed)} of "
-          f"{len(results)} tasks); later commands load them")
+    skipped = [r for r in results if r.get("skipped")]
+    print(f"posekit warmup: {compiled} kernels compiled in {wall:.0f} s ({len(results) - len(failed) - len(skipped)} "
+          f"of {len(results)} tasks warm{f', {len(skipped)} skipped' if skipped else ''}); later commands load them")
     for r in sorted(results, key=lambda r: r["task"]):
         print(f"  {_describe(r)}")
     return 1 if failed else 0
 
 
 def _describe(res: dict) -> str:
+    if res.get("skipped"):
+        return f"{res['task']}: skipped: {res['skipped']}"
     if res.get("error"):
         return f"{res['task']}: not warmed: {res['error']}"
     return f"{res['task']}: {res['compiled']} kernels compiled, {res['s']:.1f} s"
@@ -140,7 +143,8 @@ def _result(name: str, seconds: float, code: int, out: str, err: str) -> dict:
 
 
 def run_task(name: str) -> None:
-    """Run one warm-up task in this process; print ``{"task", "compiled", "error"}`` as JSON."""
+    """Run one warm-up task in this process; print ``{"task", "compiled", "error", "skipped"}`` as
+    JSON (``skipped``: the task's system needs an extra that is not installed; not a failure)."""
     import contextlib
     import io
 
@@ -160,4 +164,6 @@ def run_task(name: str) -> None:
             if code and failure:          # a batch with suspect items exits 1: that compiled all the same
                 error = failure[-1].removeprefix("posekit: error: ")[:200]
                 break
-    print(json.dumps({"task": name, "compiled": _jit.compile_count(), "error": error}))
+    skipped = error is not None and "extra: pip install" in error     # an extra not installed: nothing to warm
+    print(json.dumps({"task": name, "compiled": _jit.compile_count(), "error": None if skipped else error,
+                      "skipped": error if skipped else None}))
