@@ -267,12 +267,14 @@ class _CompileListener(_event.Listener):
         system = self.system if self.system in FIRST_COMPILE_S else module.split(".")[1]
         eta = FIRST_COMPILE_S.get(system)
         about = f"about {eta} s on an idle core" if eta else "up to half a minute per system"
-        print(f"posekit: compiling the {system} numba kernels on first use ({about}, once per install or "
-              f"upgrade; cached in {cache_dir(event.data['dispatcher'])}); `posekit warmup` does it ahead of time",
-              file=sys.stderr, flush=True)
-        if sys.stderr.isatty():
-            from tqdm import tqdm
-            self.bar = tqdm(desc="compiling", unit=" kernel", leave=False, file=sys.stderr)
+        line = (f"posekit: compiling the {system} numba kernels on first use ({about}, once per install or upgrade; "
+                f"cached in {cache_dir(event.data['dispatcher'])}); `posekit warmup` does it ahead of time")
+        if not sys.stderr.isatty():
+            print(line, file=sys.stderr, flush=True)
+            return
+        from tqdm import tqdm
+        tqdm.write(line, file=sys.stderr)        # above any progress bar the command already shows
+        self.bar = tqdm(file=sys.stderr, leave=False, bar_format="compiling kernels: {n} done [{elapsed}]")
 
     def close(self):
         if self.bar is not None:
