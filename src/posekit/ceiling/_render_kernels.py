@@ -8,7 +8,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.special import ndtri
 
 from posekit._jit import njit
 
@@ -226,6 +225,8 @@ def render_albedo(H_world_image, h, w, s, p, holes, seed, K, dist):
 @functools.lru_cache(maxsize=1)
 def noise_lut() -> np.ndarray:
     """Standard normal quantiles of 2**16 equiprobable bins (noise from 16 random bits)."""
+    from scipy.special import ndtri  # here: scipy.special costs 0.15-1.5 s at every start of `ceiling track`
+
     n = 1 << NOISE_LUT_BITS
     return ndtri((np.arange(n) + 0.5) / n).astype(np.float32)
 
