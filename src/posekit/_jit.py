@@ -43,10 +43,11 @@ __all__ = ["njit", "cache_dir", "user_cache_dir", "kernels", "enable_compile_not
 CACHE_ENV = "POSEKIT_CACHE_DIR"
 
 #: CPU seconds a system's kernels take to compile in one process (2-core machine, cold cache):
-#: CPU time of ``posekit demo`` / ``posekit seam demo`` / ``posekit warmup SYSTEM`` with an empty
-#: cache minus that of the same command with a warm one (docs/notes/issue-30-startup.md). The
-#: first-compile note quotes them; a busy machine takes longer.
-FIRST_COMPILE_S = {"profiler": 30, "seam": 25, "ceiling": 20, "localcal": 10}
+#: CPU time of ``posekit demo`` / ``posekit seam demo`` / ``posekit ceiling demo --duration-s 1``
+#: / ``posekit localcal demo --camera-hz 1 --plot-hz 0`` with an empty cache minus that of the
+#: same command with a warm one (36.1 - 7.5, 26.2 - 2.3, 8.7 - 4.7, 8.9 - 2.1 s; see
+#: docs/notes/issue-30-startup.md). The first-compile note quotes them; a busy machine takes longer.
+FIRST_COMPILE_S = {"profiler": 30, "seam": 25, "ceiling": 5, "localcal": 7}
 
 _KERNELS = []             # every dispatcher made by njit, in definition order
 _NOTES = set()            # one-off notes already printed
