@@ -96,11 +96,10 @@ def _convert(action: argparse.Action, key: str, value, source: str):
 def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     """Before parsing ``argv``: the verb's ``--config`` file into its defaults, and ``--dump-config``'s
     relaxed required flags. A verb without ``--config`` is left alone."""
-    from ..io import load_yaml
-
     leaf = _leaf(parser, argv)
     if not leaf._defaults.get("_flag_config"):
         return
+    from ..io import load_yaml  # here, not above: --help and verbs without --config import no numpy
     keys = config_keys(leaf)
     if "--dump-config" in argv:
         for action in keys.values():

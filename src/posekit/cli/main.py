@@ -90,13 +90,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    from . import bench, ceiling, demo, localcal, profiler, seam
+    from . import bench, ceiling, demo, localcal, profiler, seam, warmup
     demo.add_parser(sub)
     profiler.add_parser(sub)
     ceiling.add_parser(sub)
     localcal.add_parser(sub)
     seam.add_parser(sub)
     bench.add_parser(sub)
+    warmup.add_parser(sub)
     _describe_verbs(parser)
     return parser
 
@@ -193,9 +194,6 @@ def _one_line(text: str) -> str:
 
 def main(argv=None) -> int:
     """Run ``posekit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    from ..errors import PosekitError
-    from ..io import set_limits
-
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         argv, found = _split_globals(argv)
@@ -205,6 +203,7 @@ def main(argv=None) -> int:
     debug = bool(found.get("debug"))
     argv = _join_negative_values(argv)
     parser = build_parser()
+    from ..errors import PosekitError
     from ._config import apply_config, dump_config, wants_dump
     try:
         apply_config(parser, argv)     # a verb's --config FILE: its defaults (defaults < file < flags)
@@ -219,6 +218,10 @@ def main(argv=None) -> int:
         sys.stdout.write(dump_config(parser, argv, args))
         return 0
     args.debug = debug or args.debug
+    from .. import _jit  # only now: --help and usage errors import no numpy, numba or scipy
+    from ..io import set_limits
+
+    _jit.enable_compile_notice("profiler" if args.command == "demo" else args.command)
     previous = None
     try:
         with warnings.catch_warnings():

@@ -3,14 +3,15 @@ and the per-blob table (area, shape, colour counts, weighted centroid and moment
 
 import math
 
-import numba as nb
 import numpy as np
+
+from posekit._jit import njit
 
 __all__ = ["_AREA", "_COUNTS", "_ELONG", "_MUU", "_MUV", "_MVV", "_PEAK", "_PLAIN", "_U", "_V", "_VAR_UV",
            "_blob_table", "_lit_pixels"]
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def _lit_pixels(frame, thr, y0, y1, x0, x1, coords):
     """Pixels in rows y0:y1, columns x0:x1 where any channel of ``frame`` exceeds ``thr``.
 
@@ -46,7 +47,7 @@ def _lit_pixels(frame, thr, y0, y1, x0, x1, coords):
 _AREA, _ELONG, _U, _V, _PEAK, _PLAIN, _MUU, _MVV, _MUV, _VAR_UV, _COUNTS = range(11)
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def _blob_table(frame, bg, var, labels, stats, n, specs, core_level, margin, weight_threshold):
     """Per blob 1..n-1 of ``labels`` (a window of the frame): area, elongation, weighted
     centroid (u, v in window pixels; each pixel weighs its summed positive difference to the

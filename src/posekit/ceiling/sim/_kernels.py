@@ -7,9 +7,9 @@ World points ``X, Y`` are in mm on the ceiling plane (frame W of :mod:`posekit.c
 import functools
 import math
 
-import numba as nb
 import numpy as np
-from scipy.special import ndtri
+
+from posekit._jit import njit
 
 __all__ = ["WALL_ALBEDO", "RIM_MM", "NOISE_LUT_BITS", "albedo_params", "ceiling_albedo", "render_albedo",
            "noise_lut", "compose", "compose_shaded", "undistort_normalized",
@@ -46,7 +46,7 @@ def ceiling_albedo(config, X, Y, *, texture: bool = True) -> tuple[np.ndarray, n
     return albedo.reshape(X.shape), (flags & 1).astype(bool).reshape(X.shape), (flags & 2).astype(bool).reshape(X.shape)
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _hash01(i, j, seed):
     """A deterministic pseudo-random value in [0, 1) per integer lattice point (i, j)."""
     m = np.uint64(0xFFFFFFFF)
@@ -59,7 +59,7 @@ def _hash01(i, j, seed):
     return np.float64(h) / 4294967296.0
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _value_noise(x, y, seed):
     """Bilinearly interpolated lattice noise in [0, 1) (the fibre texture of a mineral tile)."""
     i, j = math.floor(x), math.floor(y)
@@ -70,14 +70,14 @@ def _value_noise(x, y, seed):
     return (a * (1 - fx) + b * fx) * (1 - fy) + (c * (1 - fx) + d * fx) * fy
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _texture(X, Y, seed):
     """Fibre texture: albedo offsets at two scales (25 mm and 7 mm)."""
     return (0.025 * (2.0 * _value_noise(X / 25.0, Y / 25.0, seed + np.uint32(1)) - 1.0)
             + 0.012 * (2.0 * _value_noise(X / 7.0, Y / 7.0, seed + np.uint32(2)) - 1.0))
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _albedo_at(X, Y, p, holes, seed, texture):
     """(albedo, flags) of the ceiling at (X, Y) mm; flags: 1 reflects a laser, 2 tile face."""
     sx, sy, tx, ty, half, tile, spread, tbar = p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]
@@ -101,13 +101,13 @@ def _albedo_at(X, Y, p, holes, seed, texture):
     return albedo, np.uint8(3)
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _albedo_many(X, Y, p, holes, seed, texture, albedo, flags):
     for k in range(X.size):
         albedo[k], flags[k] = _albedo_at(X[k], Y[k], p, holes, seed, texture)
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def undistort_normalized(xd, yd, dist):
     """Undistorted normalized coordinates of distorted ones (OpenCV's fixed-point iteration,
     run to 1e-12); ``dist = [k1, k2, p1, p2, k3]``."""
@@ -135,14 +135,14 @@ def undistort_normalized(xd, yd, dist):
     return x, y
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def undistort_many(xd, yd, dist, x, y):
     """:func:`undistort_normalized` of every (xd[k], yd[k]) into x[k], y[k] (NaN: no ray)."""
     for k in range(xd.shape[0]):
         x[k], y[k] = undistort_normalized(xd[k], yd[k], dist)
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def shade_board(rays, R, t, square, cols, rows, acc):
     """Add to ``acc`` (N,) the grey level of a chessboard (cols+1)×(rows+1) squares of ``square``
     mm at pose (R, t) seen along each camera ray (N, 3): squares 40/215, a one-square white
@@ -165,7 +165,7 @@ def shade_board(rays, R, t, square, cols, rows, acc):
         acc[k] += val
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _undistort_pixel(u, v, K, dist, lens):
     """Undistorted pixel (same K) of the distorted pixel (u, v); identity without a lens."""
     if not lens:
@@ -176,7 +176,7 @@ def _undistort_pixel(u, v, K, dist, lens):
     return K[0, 0] * xu + K[0, 1] * yu + K[0, 2], K[1, 1] * yu + K[1, 2]
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def render_albedo(H_world_image, h, w, s, p, holes, seed, K, dist):
     """Mean albedo over s×s samples per pixel, plus the fibre texture at the pixel centre
     weighted by the pixel's tile-face coverage; shape (h, w).
@@ -225,11 +225,13 @@ def render_albedo(H_world_image, h, w, s, p, holes, seed, K, dist):
 @functools.lru_cache(maxsize=1)
 def noise_lut() -> np.ndarray:
     """Standard normal quantiles of 2**16 equiprobable bins (noise from 16 random bits)."""
+    from scipy.special import ndtri  # here: scipy.special costs 0.15-1.5 s at every start of `ceiling track`
+
     n = 1 << NOISE_LUT_BITS
     return ndtri((np.arange(n) + 0.5) / n).astype(np.float32)
 
 
-@nb.njit(cache=True, fastmath=True, boundscheck=False)
+@njit(cache=True, fastmath=True, boundscheck=False)
 def compose(bg, gain_rows, gain_cols, offset, noise_bits, lut, sigma, out):
     """out = clip(round(bg * (gain_rows[i] + gain_cols[j]) + offset + sigma * lut[bits]))."""
     h, w, _ = bg.shape
@@ -245,7 +247,7 @@ def compose(bg, gain_rows, gain_cols, offset, noise_bits, lut, sigma, out):
     return out
 
 
-@nb.njit(cache=True, fastmath=True, boundscheck=False)
+@njit(cache=True, fastmath=True, boundscheck=False)
 def compose_shaded(bg, shade, gain_rows, gain_cols, offset, noise_bits, lut, sigma, out):
     """As :func:`compose` with a per-pixel illumination factor ``shade`` (h, w) on the ceiling
     (shadows): out = clip(round(bg * shade[i, j] * (gain_rows[i] + gain_cols[j]) + offset + noise))."""

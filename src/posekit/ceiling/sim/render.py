@@ -66,7 +66,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.special import erf
 
 from ..._extras import require
 from ...errors import ConfigError, InputFileError
@@ -523,6 +522,8 @@ class CeilingScene:
 
 def _pixel_gauss(centres: np.ndarray, mu: float, sigma: float) -> np.ndarray:
     """Integral of N(mu, sigma²) over the pixels [k - 0.5, k + 0.5] for k in ``centres``."""
+    from scipy.special import erf  # here, not at import (see noise_lut)
+
     s = sigma * math.sqrt(2.0)
     return 0.5 * (erf((centres + 0.5 - mu) / s) - erf((centres - 0.5 - mu) / s))
 

@@ -44,7 +44,8 @@ A batch adds one more test, of the gauge file against all its profiles together
 import functools
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
+
+from posekit._chi2 import chi2 as _chi2
 
 from ...errors import EstimationError
 from ..gauge.ambiguity import SEEN_FROM_BEHIND_COS, piercing_points

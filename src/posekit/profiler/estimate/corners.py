@@ -38,7 +38,8 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import ProfileError
 from ...geometry import robust_line_kernel

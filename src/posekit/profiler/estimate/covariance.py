@@ -8,7 +8,8 @@ scale (:func:`scale_covariance`), and the closed form's own linearisation
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry import matrix_from_rotation_vector, rotation_vector_from_matrix
 from ..gauge.ambiguity import piercing_points

@@ -9,7 +9,8 @@ Lines are ``(nx, nz, c)`` with ``nx x + nz z = c`` in the profiler frame F, mm.
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry._fit import FASTMATH
 

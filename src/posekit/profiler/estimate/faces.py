@@ -21,7 +21,8 @@
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from .face_fit import consensus_line, corner_covariance, edge_leans, gated_fit
 from .segments import (

@@ -26,7 +26,8 @@ chamfer or a ghost cluster is a skipped segment, a plate beside the gauge is bac
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry._fit import FASTMATH
 from ..gauge.model import Gauge

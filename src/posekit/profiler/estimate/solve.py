@@ -45,7 +45,8 @@ tolerance) and the tests are in :mod:`~posekit.profiler.estimate.consistency`.
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import EstimationError
 from ..gauge.model import MOUNTINGS

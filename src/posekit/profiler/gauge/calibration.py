@@ -63,7 +63,8 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 import yaml
-from scipy.stats import chi2 as _chi2
+
+from posekit._chi2 import chi2 as _chi2
 
 from ...errors import CalibrationError, PosekitError
 from ..estimate.corner_params import CornerParams

@@ -72,7 +72,8 @@ separates the faces best.
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
+
+from posekit._chi2 import chi2 as _chi2
 
 from ...errors import PosekitError
 from ..estimate.covariance import corner_covariance

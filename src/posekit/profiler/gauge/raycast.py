@@ -11,7 +11,8 @@ faces from behind (through the material).
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 __all__ = ["ray_in_gauge", "first_face_hit", "seen_from_behind"]
 

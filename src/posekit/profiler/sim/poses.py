@@ -9,10 +9,9 @@ Poses are ``T_G_F``, the profiler frame F in the gauge frame G, mm (frames as in
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ...errors import ConfigError
-from ...geometry import transform_from
+from ...geometry import matrix_from_rotation_vector, transform_from
 from ..gauge.model import Gauge
 from ..sensor import LJ_X8400, ProfilerModel
 
@@ -83,7 +82,7 @@ def loop_poses(gauge: Gauge, count: int, model: ProfilerModel = LJ_X8400) -> np.
     pivot_G = T0[:3, :3] @ pivot_F + T0[:3, 3]
     dt = np.stack([6 * np.sin(th), 6 * np.sin(2 * th), 20 * np.sin(3 * th)], axis=1)
     rv = np.radians(np.stack([3 * np.sin(th + 1), 3 * np.sin(2 * th + 2), 6 * np.sin(th + 3)], axis=1))
-    R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
+    R = T0[:3, :3] @ matrix_from_rotation_vector(rv)
     return transform_from(R, pivot_G - np.einsum("kij,j->ki", R, pivot_F) + dt)
 
 
@@ -175,7 +174,7 @@ def sample_poses(gauge: Gauge, count: int, rng=None, workspace: Workspace = Work
         m = max(count, 64)
         dt = rng.uniform(-1, 1, (m, 3)) * np.asarray(workspace.translation_mm)
         rv = np.radians(rng.uniform(-1, 1, (m, 3)) * np.asarray(workspace.rotation_deg))
-        R = T0[:3, :3] @ Rotation.from_rotvec(rv).as_matrix()
+        R = T0[:3, :3] @ matrix_from_rotation_vector(rv)
         # Rotate about the pivot where the laser meets the gauge, not about the sensor
         # (a 4 deg tilt about the sensor would sweep the line 30 mm over the gauge).
         Ts = transform_from(R, pivot_G - R @ pivot_F + dt)

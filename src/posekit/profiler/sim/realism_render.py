@@ -8,7 +8,8 @@ and dropouts on steep surfaces. The sensor noise is added by
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ..gauge.raycast import first_face_hit, ray_in_gauge
 

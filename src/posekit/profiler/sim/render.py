@@ -12,7 +12,8 @@ faces): see :mod:`~posekit.profiler.sim.realism`.
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import ConfigError
 from ..gauge.model import Gauge

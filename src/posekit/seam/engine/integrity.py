@@ -54,8 +54,8 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
+from posekit._chi2 import chi2
 from posekit.seam.engine import _kernels as _k
 
 _EYE3 = np.eye(3)
