@@ -46,7 +46,7 @@ def _csv(path, profile):
 def test_mistyped_command_gets_a_suggestion(capsys):
     assert _usage_error(capsys, "profilr") == (
         "posekit: error: argument COMMAND: invalid choice: 'profilr' (choose from 'demo', 'profiler', 'ceiling', "
-        "'localcal', 'seam', 'bench'); did you mean 'profiler'?")
+        "'localcal', 'seam', 'bench', 'warmup'); did you mean 'profiler'?")
 
 
 def test_mistyped_verb_gets_a_suggestion(capsys):
@@ -81,7 +81,7 @@ def test_no_suggestion_when_nothing_is_close(capsys):
         "posekit: error: unrecognized arguments: --zzz")
     assert _usage_error(capsys, "qqq") == (
         "posekit: error: argument COMMAND: invalid choice: 'qqq' (choose from 'demo', 'profiler', 'ceiling', "
-        "'localcal', 'seam', 'bench')")
+        "'localcal', 'seam', 'bench', 'warmup')")
 
 
 # ----------------------------------------------------------------------------- metres

@@ -188,18 +188,22 @@ def test_a_suspect_registration_is_counted_and_exits_1(tmp_path, capsys, monkeyp
 
 
 def test_a_small_arm_that_loses_the_markers_gets_a_hint(tmp_path, capsys):
-    """KUKA iiwa 14 (tests/data/urdf): the crane-sized scene loses the OOI after the first updates."""
+    """KUKA iiwa 14 (tests/data/urdf): the crane-sized scene loses the OOI in some runs. Which runs
+    lose it is chaotic (a 1-degree change of the start pose, or round-off, flips a run), so six
+    runs are made and the hint must count exactly the runs that failed."""
+    import re
     from pathlib import Path
 
     urdf = Path(__file__).resolve().parents[1] / "data" / "urdf" / "kuka_iiwa14_r820.urdf"
-    rc = main(["localcal", "simulate", "--method", "line", "--runs", "1", "--plot-hz", "0", "--camera-hz", "2",
+    rc = main(["localcal", "simulate", "--method", "line", "--runs", "6", "--plot-hz", "0", "--camera-hz", "2",
                "--robot", str(urdf),
-               "--start-q-deg", "0,30,0,-60,0,60,0", "--out", str(tmp_path / "o")])
+               "--start-q-deg", "0,60,0,-30,0,30,0", "--out", str(tmp_path / "o")])
     captured = capsys.readouterr()
     assert rc == 1
     assert captured.out.startswith("robot kuka_lbr_iiwa_14_r820: base_link → tool0, 7 joints (joint_a1, ")
-    hint, error = captured.err.splitlines()
-    assert hint == ("posekit: hint: 1 run(s) lost the markers from view; the scene is sized for the 5 m crane: "
-                    "bring the object closer (--ooi-distance-mm 500), start with free reach along the camera "
-                    "axis (--start-q-deg) or shrink the errors (--error-scale)")
-    assert error.startswith("posekit: error: line method: all 1 run(s) failed; run 1: EstimationError: the OOI")
+    summary = re.search(r"runs: (\d) ok, 0 suspect, (\d) failed \(of 6\)", captured.out)
+    assert summary and int(summary[2]) >= 1
+    hints = [ln for ln in captured.err.splitlines() if ln.startswith("posekit: hint:")]
+    assert hints == [f"posekit: hint: {summary[2]} run(s) lost the markers from view; the scene is sized for the 5 m "
+                     "crane: bring the object closer (--ooi-distance-mm 500), start with free reach along the camera "
+                     "axis (--start-q-deg) or shrink the errors (--error-scale)"]
