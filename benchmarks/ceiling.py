@@ -87,7 +87,7 @@ class _AbsdiffPipeline:
 
 class _Ours:
     def __init__(self, track: bool):
-        from posekit.ceiling.detect import DotDetector
+        from posekit.ceiling.detect.dots import DotDetector
         self.det = DotDetector(("red",))
         self.track = track
         self.last = None
@@ -134,9 +134,9 @@ def _realistic(n_frames):
     """Realistic frames (lens k1 = -0.2, bloom, exposure steps, a person, shadows, a steady and a
     blinking red LED, reflections), the camera (true homography on undistorted pixels + the
     lens model) and the truth."""
-    from posekit.ceiling.calibration import Calibration
-    from posekit.ceiling.render import CeilingScene, SceneConfig
-    from posekit.ceiling.track import Camera
+    from posekit.ceiling.camera.homography import Calibration
+    from posekit.ceiling.sim.render import CeilingScene, SceneConfig
+    from posekit.ceiling.track.cameras import Camera
 
     cfg = SceneConfig.realistic(duration_s=n_frames / 15.0, seed=0)
     scene = CeilingScene(cfg)
@@ -149,7 +149,7 @@ def _verified_run(frames, camera, n):
     """Per-frame processing time (ms) of the whole verified path of ``posekit ceiling track``
     (detection in the tracking window, undistortion, candidate verification, the mask of
     static lights, gating and the filter), and the rows."""
-    from posekit.ceiling.pipeline import iter_track
+    from posekit.ceiling.track.pipeline import iter_track
     timings, rows = [], []
     for row, _ in iter_track(((k, k / 15.0, f) for k, f in enumerate(frames)), [camera], ("red",), timings=timings):
         rows.append(row)
@@ -162,7 +162,7 @@ def _live_run(video, cal_json, camera_json, n):
     import io
     import json
 
-    from posekit.ceiling.pipeline import track_video
+    from posekit.ceiling.track.pipeline import track_video
     sink, stamps = io.StringIO(), []
 
     def on_row(row):
@@ -197,7 +197,7 @@ def _run_realistic(n_frames, verbose):
     frames, and live tracking end to end vs decode + MOG2."""
     import tempfile
 
-    from posekit.ceiling.render import render_video
+    from posekit.ceiling.sim.render import render_video
 
     cfg, scene, camera, truth = _realistic(n_frames)
     frames = list(scene.frames(0, n_frames))
@@ -271,7 +271,7 @@ def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     import cv2
 
-    from posekit.ceiling.render import CeilingScene, SceneConfig
+    from posekit.ceiling.sim.render import CeilingScene, SceneConfig
 
     cv2.setNumThreads(1)
     n_frames = 600 if count is None else max(int(count), 300)

@@ -36,7 +36,8 @@ SENSOR_PERIOD_MS = 1.0       # LJ-X8400 at its maximum rate, 1 kHz
 
 
 def _time_ours(profiles, gauge):
-    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked
+    from posekit.profiler.estimate.corner_params import CornerParams
+    from posekit.profiler.estimate.corners import detect_corners_unchecked
     from posekit.profiler.estimate.solve import _solve_raw  # the raw kernels, as the paper times them
 
     params = CornerParams()
@@ -62,7 +63,8 @@ def _time_ours(profiles, gauge):
 
 def _time_cd(profiles, gauge, model: bool):
     """Corner detection alone (unchecked path), per profile; ``(ms, failures)``."""
-    from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
+    from posekit.profiler.estimate.corner_params import CornerParams
+    from posekit.profiler.estimate.corners import detect_corners_unchecked, gauge_turns
 
     params = CornerParams()
     turns = gauge_turns(gauge) if model else None
@@ -92,7 +94,7 @@ def _time_server(gauge, count=1000, passes=3):
     """The pose server's per-frame pose computation (PC: pose, covariance, verdict, record; the
     ``timing_ms.PC`` of a streamed record) on a smooth closed trajectory, as at 1 kHz."""
     from posekit.profiler import NoiseModel, render_profiles
-    from posekit.profiler.estimate.sensor import loop_poses
+    from posekit.profiler.sim.poses import loop_poses
     from posekit.profiler.stream.protocol import Frame
     from posekit.profiler.stream.server import PoseServer
 
@@ -142,7 +144,7 @@ def _stats(a):
 def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-    from posekit.profiler.estimate.realism import RealismModel
+    from posekit.profiler.sim.realism import RealismModel
 
     count = 2000 if count is None else max(int(count), 100)
     gauge = bundled_gauge("demo-5")

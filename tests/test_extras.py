@@ -36,7 +36,7 @@ def test_require_returns_the_module():
 def test_require_names_the_extra_and_is_a_config_error(monkeypatch):
     _hide(monkeypatch, "statsmodels.api")
     with pytest.raises(MissingExtraError, match=r'^the OLS needs the \'studies\' extra: '
-                                                r'pip install "posekit\[studies\]" \(or do without\)$') as info:
+                                                r'pip install -e "\.\[studies\]" \(or do without\)$') as info:
         require("statsmodels.api", "studies", "the OLS", alternative="do without")
     assert isinstance(info.value, ConfigError)
 
@@ -49,7 +49,7 @@ def test_require_shows_the_failing_import_when_the_package_itself_is_there(monke
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(MissingExtraError) as info:
         require("posekit_fake_optional", "urdf", "x")
-    assert str(info.value) == ('x needs the \'urdf\' extra: pip install "posekit[urdf]"; '
+    assert str(info.value) == ('x needs the \'urdf\' extra: pip install -e ".[urdf]"; '
                                "No module named 'posekit_missing_dependency_xyz'")
 
 
@@ -57,14 +57,26 @@ def test_seam_study_without_statsmodels(monkeypatch, capsys, tmp_path):
     _hide(monkeypatch, "statsmodels.api")
     err = _one_line_error(capsys, ["seam", "study", "--runs", "2", "--scheduler", "serial",
                                    "--out", str(tmp_path / "s")])
-    assert err == 'posekit: error: posekit seam study needs the \'studies\' extra: pip install "posekit[studies]"'
+    assert err == 'posekit: error: posekit seam study needs the \'studies\' extra: pip install -e ".[studies]"'
 
 
-def test_profiler_study_without_dask(monkeypatch, capsys, tmp_path):
+def test_profiler_study_without_dask_runs_in_this_process(monkeypatch, capsys, tmp_path):
+    """The default invocation needs no Dask: without it the study runs here and says so in one line."""
     _hide(monkeypatch, "distributed")
-    err = _one_line_error(capsys, ["profiler", "study", "corners", "--out", str(tmp_path / "c")])
+    assert main(["profiler", "study", "corners", "--corners", "5", "--gauges", "1", "--count", "3",
+                 "--out", str(tmp_path / "c")]) == 0
+    err = capsys.readouterr().err
+    assert err.splitlines()[0] == ('posekit: note: running in this process; Dask would use every core '
+                                   '(pip install -e ".[studies]")')
+    assert (tmp_path / "c" / "report.html").exists()
+
+
+def test_profiler_study_local_cluster_without_dask(monkeypatch, capsys, tmp_path):
+    """Asking for the local cluster's size without Dask names the extra."""
+    _hide(monkeypatch, "distributed")
+    err = _one_line_error(capsys, ["profiler", "study", "corners", "--workers", "2", "--out", str(tmp_path / "c")])
     assert err == ('posekit: error: corners study on Dask needs the \'studies\' extra: '
-                   'pip install "posekit[studies]" (or run it in this process with --scheduler serial)')
+                   'pip install -e ".[studies]" (or run it in this process with --scheduler serial)')
     assert not (tmp_path / "c" / "report.html").exists()
 
 
@@ -87,7 +99,7 @@ def test_urdf_robot_without_the_urdf_extra(monkeypatch, capsys, tmp_path, hidden
     err = _one_line_error(capsys, ["localcal", "simulate", "--robot", "ur10", "--method", "line", "--runs", "1",
                                    "--out", str(tmp_path / "l")])
     assert err == ('posekit: error: reading the URDF file ur10.urdf needs the \'urdf\' extra: '
-                   'pip install "posekit[urdf]"')
+                   'pip install -e ".[urdf]"')
 
 
 def test_dh_robots_need_no_urdf_extra(monkeypatch):
@@ -103,7 +115,7 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
     _hide(monkeypatch, "cv2")
     import importlib
 
-    import posekit.ceiling.detect as detect
+    import posekit.ceiling.detect.dots as detect
     import posekit.localcal.sim.camera as camera
     import posekit.localcal.sim.marker_detector as marker_detector
 
@@ -118,7 +130,7 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
         (tmp_path / "frames" / "0001.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
         err = _one_line_error(capsys, ["ceiling", "track", str(tmp_path / "frames"), "--calibration", str(cal),
                                        "--out", str(tmp_path / "t.csv")])
-        assert err.endswith("needs the 'vision' extra: pip install \"posekit[vision]\""), err
+        assert err.endswith("needs the 'vision' extra: pip install -e \".[vision]\""), err
         err = _one_line_error(capsys, ["localcal", "simulate", "--method", "line", "--runs", "1",
                                        "--out", str(tmp_path / "l")])
         assert "needs the 'vision' extra" in err, err
@@ -127,3 +139,16 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
         importlib.reload(detect)
         importlib.reload(camera)
         importlib.reload(marker_detector)
+
+
+def test_install_hint_fits_how_posekit_was_installed(monkeypatch):
+    """A checkout (these tests run in one) gets the editable form; an installed package the index form."""
+    import posekit._extras as extras
+
+    assert extras.install_hint("vision") == 'pip install -e ".[vision]"'
+    monkeypatch.setattr(extras, "_checkout", lambda: False)
+    assert extras.install_hint("vision") == 'pip install "posekit[vision]"'
+    _hide(monkeypatch, "statsmodels.api")
+    with pytest.raises(MissingExtraError) as info:
+        require("statsmodels.api", "studies", "posekit seam study")
+    assert str(info.value) == 'posekit seam study needs the \'studies\' extra: pip install "posekit[studies]"'

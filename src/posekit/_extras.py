@@ -11,7 +11,33 @@ import importlib
 
 from .errors import MissingExtraError
 
-__all__ = ["lazy", "require"]
+__all__ = ["install_hint", "lazy", "require"]
+
+
+def _checkout() -> bool:
+    """True when posekit runs from a source checkout (``pip install -e .`` or ``PYTHONPATH=src``):
+    its package folder sits in ``src/`` beside the project's pyproject.toml."""
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    try:
+        return pyproject.is_file() and 'name = "posekit"' in pyproject.read_text(encoding="utf-8")
+    except OSError:
+        return False
+
+
+def install_hint(extra: str) -> str:
+    """The pip command that installs ``extra`` the way posekit was installed.
+
+    ``pip install -e ".[extra]"`` in a source checkout (run from its root), ``pip install
+    "posekit[extra]"`` for an installed package.
+
+    Examples
+    --------
+    >>> install_hint("vision") in ('pip install -e ".[vision]"', 'pip install "posekit[vision]"')
+    True
+    """
+    return f'pip install -e ".[{extra}]"' if _checkout() else f'pip install "posekit[{extra}]"'
 
 
 def require(module: str, extra: str, what: str, *, alternative: str = ""):
@@ -35,8 +61,8 @@ def require(module: str, extra: str, what: str, *, alternative: str = ""):
     Raises
     ------
     MissingExtraError
-        ``<what> needs the '<extra>' extra: pip install "posekit[<extra>]"`` on one line; when
-        the package is there but one of its own imports fails, the import error follows.
+        ``<what> needs the '<extra>' extra: <install_hint(extra)>`` on one line; when the
+        package is there but one of its own imports fails, the import error follows.
 
     Examples
     --------
@@ -46,7 +72,7 @@ def require(module: str, extra: str, what: str, *, alternative: str = ""):
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        msg = f"{what} needs the '{extra}' extra: pip install \"posekit[{extra}]\""
+        msg = f"{what} needs the '{extra}' extra: {install_hint(extra)}"
         if alternative:
             msg += f" (or {alternative})"
         missing = getattr(exc, "name", None) or ""

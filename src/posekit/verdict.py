@@ -6,20 +6,20 @@ component — in one shape, :class:`Verdict`, that the CSV/JSON writers and the 
 read. Each system keeps its own status words (users and files rely on them), and every word
 belongs to one of three :class:`Level` s:
 
-======================  ==========  ==============================================================
-word (system)           level       meaning
-======================  ==========  ==============================================================
-``ok`` (estimators,     OK          an estimate exists and the data agree with the model within
-ceiling)                            the system's consistency test
-``tracking`` (seam)     OK          the filter's measurements agree with its prediction
-``suspect``             SUSPECT     an estimate exists but a consistency test failed; the numbers
-(estimators)                        are kept and ``reasons`` says why
-``predicted`` (ceiling) SUSPECT     no measurement this frame: the motion model's prediction
-``degraded`` (seam)     SUSPECT     the measurements only partly agree (integrity monitor)
-``error`` (estimators)  FAILED      no estimate: ``reasons`` says why (scikit-image's
-                                    ``FailedEstimation``)
-``lost`` (trackers)     FAILED      no trustworthy estimate this step
-======================  ==========  ==============================================================
+=======================  ==========  ==============================================================
+word (system)            level       meaning
+=======================  ==========  ==============================================================
+``ok`` (estimators,      OK          an estimate exists and the data agree with the model within
+ceiling)                             the system's consistency test
+``tracking`` (seam)      OK          the filter's measurements agree with its prediction
+``suspect``              SUSPECT     an estimate exists but a consistency test failed; the numbers
+(estimators)                         are kept and ``reasons`` says why
+``predicted`` (ceiling)  SUSPECT     no measurement this frame: the motion model's prediction
+``degraded`` (seam)      SUSPECT     the measurements only partly agree (integrity monitor)
+``error`` (estimators)   FAILED      no estimate: ``reasons`` says why (scikit-image's
+                                     ``FailedEstimation``)
+``lost`` (trackers)      FAILED      no trustworthy estimate this step
+=======================  ==========  ==============================================================
 
 Exit rule (DESIGN.md): a batch command exits 0 only if every item's level is OK
 (:func:`batch_exit_code`); a track command exits 0 when its input was read whole, whatever the

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from posekit.ceiling.accuracy import (
+from posekit.ceiling.studies.accuracy import (
     PAPER_DOT_DISTANCE_MM,
     PAPER_HEADING_STD_DEG,
     PAPER_MEAN_ERROR_MM,
@@ -122,11 +122,11 @@ def test_36_known_points_on_rendered_frames():
     """§V-B on the renderer: the dot at a 6×6 grid over the robot's rectangle, calibration from
     the grid corners found in the dot-free reference image; three of the points lie in
     air-conditioning vents (no dot: the paper's future work)."""
-    render = pytest.importorskip("posekit.ceiling.render", reason="the renderer (posekit.ceiling.render) is missing")
-    pytest.importorskip("posekit.ceiling.detect", reason="the dot detector (posekit.ceiling.detect) is missing")
-    from posekit.ceiling.accuracy import known_points_assessment
-    from posekit.ceiling.calibration import calibrate
-    from posekit.ceiling.grid import CeilingGrid, find_grid_corners
+    render = pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
+    pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
+    from posekit.ceiling.camera.grid import CeilingGrid, find_grid_corners
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.studies.accuracy import known_points_assessment
 
     cfg = render.SceneConfig()
     scene = render.CeilingScene(cfg)
@@ -147,9 +147,9 @@ def test_known_points_through_a_lens_and_with_stray_lights():
     """A distorting lens with stray lights and people in the scene: with the lens model the known
     points are as accurate as with a pinhole; without it the dots land centimetres off. The
     calibration is the true homography (undistorted pixels), so only the lens is tested."""
-    render = pytest.importorskip("posekit.ceiling.render")
-    from posekit.ceiling.accuracy import known_points_assessment
-    from posekit.ceiling.calibration import Calibration
+    render = pytest.importorskip("posekit.ceiling.sim.render")
+    from posekit.ceiling.camera.homography import Calibration
+    from posekit.ceiling.studies.accuracy import known_points_assessment
 
     cfg = render.SceneConfig(dist=render.REALISTIC["dist"], stray_lights=1, reflections=2, occluders=1,
                              width_px=432, height_px=240, focal_px=185.0, holes=False)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.camera import CameraModel, calibrate_camera, load_camera, save_camera
-from posekit.ceiling.render_chessboard import board_corners, chessboard_poses, render_board_view
+from posekit.ceiling.camera.lens import CameraModel, calibrate_camera, load_camera, save_camera
+from posekit.ceiling.sim.chessboard import board_corners, chessboard_poses, render_board_view
 from posekit.cli.ceiling_camera import add_camera_parser, parse_board
 from posekit.errors import CalibrationError, ConfigError
 from tests.ceiling.cli_harness import run_verb
@@ -188,14 +188,25 @@ def test_cli_too_few_views(tmp_path, views):
                               "and that the whole board is in view")
 
 
-def test_cli_different_sizes(tmp_path, views):
+def test_cli_folder_a_view_of_another_size_and_a_board_larger_than_given(tmp_path, views, capsys):
+    # a folder argument is expanded; the view of another size sorts first and is the one named and
+    # skipped (the resolution is that of most views); --board 8x6 on a 9x6 board is warned about
     _, images = views
-    a, b = tmp_path / "a.png", tmp_path / "b.png"
-    cv2.imwrite(str(a), images[0][1])
-    cv2.imwrite(str(b), images[1][1][:300, :400])
-    with pytest.raises(CalibrationError) as exc:
-        run_cli(["camera", str(a), str(b), "--board", "9x6", "--square-mm", "25", "--out", str(tmp_path / "c.json")])
-    assert str(exc.value) == f"{b}: image of 400x300 px; expected 480x360 like the other views (one camera, one resolution)"
+    folder = tmp_path / "views"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "a_small.png"), cv2.resize(images[0][1], (400, 300), interpolation=cv2.INTER_AREA))
+    for name, img in images[1:5]:
+        cv2.imwrite(str(folder / name), img)
+    (folder / "notes.txt").write_text("not an image")
+    out = tmp_path / "c.json"
+    assert run_cli(["camera", str(folder), "--board", "9x6", "--square-mm", "25", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    assert (f"posekit: warning: {folder / 'a_small.png'}: image of 400x300 px; the other views are 480x360 "
+            "(one camera, one resolution); view skipped") in cap.err
+    assert "calibrated the lens from 4 of 5 views" in cap.out and load_camera(out).image_size == (480, 360)
+    with pytest.raises(CalibrationError, match=r"check --board \(inner corners, COLSxROWS\) \(a_small.png shows "
+                                               r"a 9x6 board\)"):
+        run_cli(["camera", str(folder), "--board", "8x6", "--square-mm", "25", "--out", str(out)])
 
 
 @pytest.mark.parametrize("text", ["9", "1x6", "9x6x2", "ax6", ""])

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.calibration import calibrate, radial_pattern, undistort_calibration_points
-from posekit.ceiling.camera import CameraModel, save_camera
+from posekit.ceiling.camera.homography import calibrate, radial_pattern, undistort_calibration_points
+from posekit.ceiling.camera.lens import CameraModel, save_camera
 from posekit.cli.ceiling_calibrate import add_calibrate_parser
 from posekit.errors import CalibrationError
 from tests.ceiling.cli_harness import look_at, run_verb
@@ -110,7 +110,7 @@ def test_cli_with_camera_keeps_all_and_finds_the_misclicks(tmp_path, capsys):
     data = json.loads((tmp_path / "cal.json").read_text())
     assert data["undistorted"] is True
     assert_allclose(data["camera"]["dist"], DIST)
-    from posekit.ceiling.calibration import load_calibration
+    from posekit.ceiling.camera.homography import load_calibration
     assert_allclose(load_calibration(tmp_path / "cal.json").camera.dist, DIST)   # read back with the file
 
 
@@ -131,8 +131,8 @@ def test_cli_from_image_through_the_lens(tmp_path, capsys):
     """--from-image with --camera: the distorted reference image is undistorted before the grid
     finder; every crossing found lies on the lens's projection of its world point (truth of the
     renderer's calibration points, which are OpenCV-checked in test_render_realistic)."""
-    from posekit.ceiling.calibration import load_calibration, read_points_csv
-    from posekit.ceiling.render import SceneConfig, render_video
+    from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+    from posekit.ceiling.sim.render import SceneConfig, render_video
 
     cfg = SceneConfig(dist=DIST, duration_s=0.2, width_px=432, height_px=240, focal_px=185.0)
     paths = render_video(cfg, tmp_path / "sim")

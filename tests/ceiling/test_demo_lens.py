@@ -3,8 +3,8 @@ views (as a user would with ``posekit ceiling camera``), then the grid and the d
 
 import re
 
-from posekit.ceiling.demo import run_demo
-from posekit.ceiling.render import REALISTIC, SceneConfig
+from posekit.ceiling.sim.render import REALISTIC, SceneConfig
+from posekit.ceiling.studies.demo import run_demo
 
 
 def test_demo_with_a_distorting_lens_calibrates_it_from_chessboards(tmp_path):

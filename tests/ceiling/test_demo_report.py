@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.demo import run_demo
-from posekit.ceiling.linetrack import DottedLineDetector, dots_to_line
-from posekit.ceiling.render import CeilingScene, SceneConfig
+from posekit.ceiling.sim.render import CeilingScene, SceneConfig
+from posekit.ceiling.studies.demo import run_demo
+from posekit.ceiling.track.linetrack import DottedLineDetector, dots_to_line
 
 
 def test_dots_to_line_picks_the_row():

@@ -5,14 +5,15 @@ import argparse
 import numpy as np
 import pytest
 
-from posekit.ceiling.linetrack import (
+from posekit.ceiling.track.cameras import Camera
+from posekit.ceiling.track.linetrack import (
     LineTracker,
     LineTrackerConfig,
     line_world_measurement,
     wrap_half,
 )
-from posekit.ceiling.pipeline import parse_dots, read_track_csv, track_frames
-from posekit.ceiling.track import Camera, TrackerConfig
+from posekit.ceiling.track.pipeline import parse_dots, read_track_csv, track_frames
+from posekit.ceiling.track.types import TrackerConfig
 from posekit.errors import ConfigError
 
 FPS = 15.0
@@ -105,8 +106,8 @@ def test_never_ok_without_a_line_and_heading_forgotten_when_lost():
 # --- rendered video (renderer + LineDetector + calibration) ----------------------------------
 
 def scene_and_camera(cfg):
-    render = pytest.importorskip("posekit.ceiling.render")
-    from posekit.ceiling.calibration import calibrate
+    render = pytest.importorskip("posekit.ceiling.sim.render")
+    from posekit.ceiling.camera.homography import calibrate
     scene = render.CeilingScene(cfg)
     pts = scene.calibration_points()
     return scene, Camera(calibrate(pts[:, :2], pts[:, 2:]), (cfg.width_px, cfg.height_px))
@@ -116,7 +117,7 @@ class RecordingDetector:
     """LineDetector that records whether it found a segment in each frame."""
 
     def __init__(self):
-        from posekit.ceiling.detect import LineDetector
+        from posekit.ceiling.detect.lines import LineDetector
         self.det, self.found = LineDetector(), []
         self.colors = self.det.colors
 
@@ -129,7 +130,7 @@ class RecordingDetector:
 @pytest.mark.parametrize("phase_s, seconds", [(12.0, 6.0), (0.0, 4.0)])
 def test_rendered_line_clip(phase_s, seconds):
     """12 s: drive, stop, turn 90° on the spot, drive on; 0 s: the line crosses a vent."""
-    render = pytest.importorskip("posekit.ceiling.render")
+    render = pytest.importorskip("posekit.ceiling.sim.render")
     cfg = render.SceneConfig(dots=("line",), duration_s=seconds, path_phase_s=phase_s, noise_std=2.0)
     scene, cam = scene_and_camera(cfg)
     det = RecordingDetector()
@@ -152,9 +153,9 @@ def test_rendered_line_clip(phase_s, seconds):
 
 @pytest.mark.parametrize("method", ["moments", "hough"])
 def test_cli_track_line(capsys, tmp_path, method):
-    render = pytest.importorskip("posekit.ceiling.render")
-    from posekit.ceiling.calibration import calibrate, read_points_csv
-    from posekit.ceiling.demo import read_truth_csv
+    render = pytest.importorskip("posekit.ceiling.sim.render")
+    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.studies.demo import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=2.0, path_phase_s=12.0)
     paths = render.render_video(cfg, tmp_path)
@@ -168,7 +169,7 @@ def test_cli_track_line(capsys, tmp_path, method):
     assert args.func(args) == 0
     assert "30 frames: 30 ok" in capsys.readouterr().out
     t, truth = read_track_csv(out), read_truth_csv(paths.truth)
-    assert out.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm"   # DESIGN: std_mm added
+    assert out.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason"
     known = np.isfinite(t["heading_deg"])
     assert known.sum() >= 25
     assert np.abs(dh_deg(t["heading_deg"][known], np.radians(truth.heading_deg[known]))).max() < 3.0
@@ -178,9 +179,9 @@ def test_cli_track_line(capsys, tmp_path, method):
 def test_cli_track_dotted_line(capsys, tmp_path):
     """§III-C: `track --dots line --line-method dotted` on the dotted line `simulate` renders; the
     solid-line measurement finds no segment in it (so the method must be chosen)."""
-    render = pytest.importorskip("posekit.ceiling.render")
-    from posekit.ceiling.calibration import calibrate, read_points_csv
-    from posekit.ceiling.demo import read_truth_csv
+    render = pytest.importorskip("posekit.ceiling.sim.render")
+    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.studies.demo import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=4.0, path_phase_s=12.0, line_pattern="dotted")
     paths = render.render_video(cfg, tmp_path)

@@ -18,11 +18,12 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.live import TrackOutputs, parse_udp_target
-from posekit.ceiling.pipeline import read_track_csv
-from posekit.ceiling.track import TrackRow
-from posekit.ceiling.video_io import is_live_source, open_live
+from posekit.ceiling.track.outputs import TrackOutputs, parse_udp_target
+from posekit.ceiling.track.pipeline import read_track_csv
+from posekit.ceiling.track.sources import is_live_source, open_live
+from posekit.ceiling.track.types import TrackRow
 from posekit.errors import ConfigError
+from tests.ceiling.test_pipeline import ACQUIRE
 from tests.ceiling.test_track_scene import FPS, H_IMAGE_WORLD, H, Scene, W
 from tests.cli_helpers import assert_one_line_error, run_cli
 
@@ -60,7 +61,7 @@ def test_looped_video_through_the_live_path_jsonl_and_csv(capsys, clip):
     assert rc == 0, err
     recs = [json.loads(line) for line in stdout.splitlines()]
     assert [r["frame"] for r in recs] == list(range(2 * N))
-    assert list(recs[0]) == ["frame", "time_s", "x", "y", "heading_deg", "status", "std_mm"]
+    assert list(recs[0]) == ["frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg", "reason"]
     t = np.array([r["time_s"] for r in recs])
     np.testing.assert_allclose(t, np.arange(2 * N) / FPS)       # media time, continued over the loop
     assert f"{2 * N} frames: " in err and "wrote" in err        # the summary goes to stderr with --jsonl -
@@ -69,7 +70,9 @@ def test_looped_video_through_the_live_path_jsonl_and_csv(capsys, clip):
     ok = csv["status"] == "ok"
     truth = np.tile(sc.truth, (2, 1))
     err_mm = np.hypot(csv["x"] - truth[:, 0], csv["y"] - truth[:, 1])
-    assert np.count_nonzero(ok) >= 0.8 * 2 * N and err_mm[ok].max() < 5.0     # the loop wrap is a jump: re-acquired
+    # the loop wrap is a jump: re-acquired once the static-light test has seen the dot move
+    # (ACQUIRE frames at the start and after the wrap; measured 66 of 90)
+    assert np.count_nonzero(ok) >= 2 * N - 2 * ACQUIRE - 14 and err_mm[ok].max() < 5.0
     assert np.mean(err_mm[ok] <= 2.5 * csv["std_mm"][ok]) >= 0.9
     np.testing.assert_allclose([r["std_mm"] for r in recs if r["status"] == "ok"], csv["std_mm"][ok], atol=1e-3)
 
@@ -99,7 +102,7 @@ def test_mjpeg_stream_over_http_from_a_local_server(clip):
     th = threading.Thread(target=srv.serve_forever, daemon=True)
     th.start()
     try:
-        from posekit.ceiling.pipeline import track_video
+        from posekit.ceiling.track.pipeline import track_video
         url = f"http://127.0.0.1:{srv.server_address[1]}/stream.mjpg"
         rows = []
         res = track_video(url, out / "cal.json", on_row=rows.append)
@@ -125,14 +128,15 @@ def test_outputs_are_flushed_per_row_and_udp_is_loopback_only(tmp_path):
     outs.write(row)
     # readable before the run ends: the JSON line is flushed, the CSV grows in its temporary file
     assert json.loads((tmp_path / "t.jsonl").read_text()) == {"frame": 0, "time_s": 0.0, "x": 1.0, "y": 2.0,
-                                                              "heading_deg": None, "status": "ok", "std_mm": 0.5}
+                                                              "heading_deg": None, "status": "ok", "std_mm": 0.5,
+                                                              "std_heading_deg": None, "reason": None}
     assert json.loads(rx.recv(65536)) ["std_mm"] == 0.5
     assert not (tmp_path / "t.csv").exists()
     partial = [p for p in tmp_path.iterdir() if p.name.startswith(".t.csv.")]
-    assert len(partial) == 1 and partial[0].read_text().splitlines()[1] == "0,0.000000,1.000,2.000,,ok,0.500"
+    assert len(partial) == 1 and partial[0].read_text().splitlines()[1] == "0,0.000000,1.000,2.000,,ok,0.500,,"
     outs.close()
-    assert (tmp_path / "t.csv").read_text().splitlines() == ["frame,time_s,x,y,heading_deg,status,std_mm",
-                                                             "0,0.000000,1.000,2.000,,ok,0.500"]
+    assert (tmp_path / "t.csv").read_text().splitlines() == [
+        "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason", "0,0.000000,1.000,2.000,,ok,0.500,,"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".t.csv.")]
     rx.close()
     assert parse_udp_target("localhost:5005")[1] == 5005
@@ -199,8 +203,10 @@ def test_folder_with_undecodable_frames_gets_lost_rows(capsys, clip, tmp_path):
     t = read_track_csv(tmp_path / "t.csv")
     assert list(t["frame"]) == list(range(20))
     assert t["status"][7] == "lost" and t["status"][12] == "lost" and np.isnan(t["x"][7])
+    assert t["reason"][7].endswith("f007.png: cannot decode this file as an image") and "f012.png" in t["reason"][12]
+    assert "libpng" not in err and "error" not in err.lower()       # the decoder's own words stay in the row
     ok = t["status"] == "ok"
-    assert np.count_nonzero(ok) >= 15
+    assert np.count_nonzero(ok) >= 20 - ACQUIRE - 2          # measured 14: the start and two lost frames
     assert np.hypot(t["x"] - sc.truth[:20, 0], t["y"] - sc.truth[:20, 1])[ok].max() < 5.0
 
 

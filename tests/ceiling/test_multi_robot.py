@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.multitrack import MultiRobotTracker, track_robots_frames
-from posekit.ceiling.pipeline import read_track_csv
+from posekit.ceiling.track.multitrack import MultiRobotTracker, track_robots_frames
+from posekit.ceiling.track.pipeline import read_track_csv
 from posekit.errors import ConfigError
 from tests.ceiling.test_track_scene import FPS, H_IMAGE_WORLD, H, Scene, W
 from tests.cli_helpers import assert_one_line_error, run_cli
@@ -85,7 +85,7 @@ def test_cli_two_robots_robot_column(capsys, tmp_path):
         assert rc == 0, err
         assert f"{N} frames x 2 robots: " in out
         lines = (tmp_path / "t.csv").read_text().splitlines()
-        assert lines[0] == "frame,time_s,x,y,heading_deg,status,std_mm,robot"
+        assert lines[0] == "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason,robot"
         t = read_track_csv(tmp_path / "t.csv")
         assert list(t["robot"][:4]) == [0, 1, 0, 1] and list(t["frame"][:4]) == [0, 0, 1, 1]
         for i in range(2):

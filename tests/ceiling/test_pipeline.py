@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from posekit.ceiling.accuracy import error_stats
-from posekit.ceiling.pipeline import (
+from posekit.ceiling.studies.accuracy import error_stats
+from posekit.ceiling.track.cameras import Camera
+from posekit.ceiling.track.pipeline import (
     TRACK_COLUMNS,
     parse_dots,
     read_track_csv,
@@ -17,8 +18,8 @@ from posekit.ceiling.pipeline import (
     track_video,
     write_track_csv,
 )
-from posekit.ceiling.track import Camera, TrackRow
-from posekit.ceiling.video_io import DEFAULT_FPS, open_frames
+from posekit.ceiling.track.sources import DEFAULT_FPS, open_frames
+from posekit.ceiling.track.types import TrackRow
 from posekit.errors import CalibrationError, ConfigError, InputFileError, PosekitError
 
 
@@ -104,10 +105,24 @@ def test_bad_frame_input_is_one_line_naming_the_path(tmp_path):
     one_line(e)
     sizes = write_images(tmp_path / "sizes")
     cv2.imwrite(str(sizes / "f009.png"), np.zeros((10, 10, 3), np.uint8))
-    with pytest.raises(InputFileError, match="f009.png is 10x10 px but the first frame is 64x48 px"):
-        list(open_frames(sizes))
+    frames = list(open_frames(sizes))                    # a frame of another size: a frame without image
+    assert frames[-1].image is None and frames[-1].error == ("f009.png is 10x10 px but the first frame is 64x48 px "
+                                                             "(skipped)")
+    assert all(f.image is not None for f in frames[:-1])
+    assert len(list(open_frames(sizes, max_frames=2))) == 2
     with pytest.raises(ConfigError, match="--fps must be a positive number"):
         open_frames(sizes, fps=0.0)
+
+
+#: Frames a moving dot needs before it is verified as the laser (the static-light test over its
+#: first sightings and four steady steps): at 15 frames/s a third of a second.
+ACQUIRE = 5
+
+
+def first_ok(status) -> int:
+    """Index of the first ``ok`` row (len when none)."""
+    ok = np.asarray(status) == "ok"
+    return int(np.argmax(ok)) if ok.any() else len(ok)
 
 
 # --- the track CSV ------------------------------------------------------------------------------
@@ -118,16 +133,19 @@ def test_track_csv_round_trip(tmp_path):
             TrackRow(2, 2 / 15, float("nan"), float("nan"), float("nan"), "lost")]
     path = write_track_csv(rows, tmp_path / "t.csv")
     lines = path.read_text().splitlines()
-    assert lines[0] == ",".join(TRACK_COLUMNS) == "frame,time_s,x,y,heading_deg,status,std_mm"
-    assert lines[1] == "0,0.000000,1.000,2.000,,ok,"
-    assert lines[3] == "2,0.133333,,,,lost,"
+    assert lines[0] == ",".join(TRACK_COLUMNS) == "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason"
+    assert lines[1] == "0,0.000000,1.000,2.000,,ok,,,"
+    assert lines[3] == "2,0.133333,,,,lost,,,"
     back = read_track_csv(path)
     np.testing.assert_array_equal(back["frame"], [0, 1, 2])
     np.testing.assert_allclose(back["x"], [1.0, 1.5, np.nan])
     assert list(back["status"]) == ["ok", "predicted", "lost"]
     rows[0].std_mm = 0.25
+    rows[1].std_heading_deg, rows[1].reasons = 1.5, ("no dot seen this frame", "a, b")
     lines = write_track_csv(rows, tmp_path / "t.csv").read_text().splitlines()
-    assert lines[1] == "0,0.000000,1.000,2.000,,ok,0.250"
+    assert lines[1] == "0,0.000000,1.000,2.000,,ok,0.250,,"
+    assert lines[2] == '1,0.066667,1.500,2.500,90.000,predicted,,1.500,"no dot seen this frame; a, b"'
+    assert list(read_track_csv(tmp_path / "t.csv")["reason"]) == ["", "no dot seen this frame; a, b", ""]
     np.testing.assert_allclose(read_track_csv(tmp_path / "t.csv")["std_mm"], [0.25, np.nan, np.nan])
     # the six-column file of earlier versions still reads (std_mm NaN); a short line is one error line
     old = tmp_path / "old.csv"
@@ -162,12 +180,12 @@ def test_bad_dots_and_calibrations(tmp_path):
 
 def needs_renderer():
     """The renderer and the detector (helper B), or skip the test that needs them."""
-    pytest.importorskip("posekit.ceiling.detect", reason="the dot detector (posekit.ceiling.detect) is missing")
-    return pytest.importorskip("posekit.ceiling.render", reason="the renderer (posekit.ceiling.render) is missing")
+    pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
+    return pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
 
 
 def scene_and_camera(cfg):
-    from posekit.ceiling.calibration import calibrate
+    from posekit.ceiling.camera.homography import calibrate
     scene = needs_renderer().CeilingScene(cfg)
     pts = scene.calibration_points()
     cal = calibrate(pts[:, :2], pts[:, 2:])
@@ -188,12 +206,13 @@ def test_noiseless_render_sub_millimetre_and_the_vent_dropout():
     status, xy = res.status(), res.xy()
     vis = truth.visible[:, 0]
     ok = status == "ok"
-    # ok exactly when the dot is there, except the first frame and the first one after the vent:
-    # a dot seen once is not yet known to be the laser (a lamp looks the same in one frame);
-    # seen moving in the next frame, it is
+    # ok exactly when the dot is there, except the first frames and the first ones after the vent:
+    # a dot is known to be the laser once a test over several frames has seen it move steadily
+    # (a lamp looks the same in one frame): at most ACQUIRE frames
     back = np.flatnonzero(vis[1:] & ~vis[:-1]) + 1
     assert np.all(ok <= vis)
-    assert set(np.flatnonzero(vis & ~ok)) == {0, *back.tolist()}
+    missed = set(np.flatnonzero(vis & ~ok))
+    assert missed <= {*range(ACQUIRE), *(b + k for b in back for k in range(ACQUIRE))} and 0 in missed
     s = error_stats(xy[ok], truth.xy_red[ok])
     assert s.n > 80 and s.mean_mm < 0.5 and s.p95_mm < 1.0 and s.max_mm < 2.0
     # in the vent: predicted for max_predict_s, then lost (x, y empty), then ok again
@@ -213,11 +232,11 @@ def test_noisy_render_two_dots_corner_and_turn():
     cfg = render.SceneConfig(noise_std=6.0, duration_s=8.0, dots=("red", "green"), path_phase_s=10.0)
     truth, res = track_scene(cfg)
     status, xy = res.status(), res.xy()
-    assert status[0] == "lost" and np.all(status[1:] == "ok")
-    status[0], xy[0] = "ok", truth.xy_red[0]
-    s = error_stats(xy, truth.xy_red)
+    a = first_ok(status)
+    assert a <= ACQUIRE and np.all(status[a:] == "ok")
+    s = error_stats(xy[a:], truth.xy_red[a:])
     assert s.mean_mm < 3.0 and s.max_mm < 6.0
-    dh = ((res.heading_deg() - np.degrees(truth.heading_rad) + 180.0) % 360.0 - 180.0)[1:]
+    dh = ((res.heading_deg() - np.degrees(truth.heading_rad) + 180.0) % 360.0 - 180.0)[a:]
     assert np.all(np.isfinite(dh))
     assert np.sqrt(np.mean(dh ** 2)) < 0.5 and np.abs(dh).max() < 2.0
 
@@ -234,11 +253,12 @@ def test_two_cameras_hand_over_the_track():
     res = track_frames(frames, [ca, cb], ("red",))
     ta, tb = sa.truth(), sb.truth()
     assert not ta.visible[-1, 0] and not tb.visible[0, 0]       # neither camera sees it all
-    assert res.status()[0] == "lost" and np.all(res.status()[1:] == "ok")
-    used = np.array([r.camera for r in res.rows])[1:]
+    a = first_ok(res.status())
+    assert a <= ACQUIRE and np.all(res.status()[a:] == "ok")
+    used = np.array([r.camera for r in res.rows])[a:]
     assert used[0] == 0 and used[-1] == 1 and np.count_nonzero(np.diff(used)) == 1
-    assert np.all(ta.visible[1:][used == 0, 0]) and np.all(tb.visible[1:][used == 1, 0])
-    assert error_stats(res.xy()[1:], ta.xy_red[1:]).max_mm < 3.0
+    assert np.all(ta.visible[a:][used == 0, 0]) and np.all(tb.visible[a:][used == 1, 0])
+    assert error_stats(res.xy()[a:], ta.xy_red[a:]).max_mm < 3.0
 
 
 # --- the CLI (a local harness: the lead wires these parsers into cli/ceiling.py) -----------------
@@ -267,7 +287,7 @@ def cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def short_render(tmp_path_factory):
-    from posekit.ceiling.calibration import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate, read_points_csv
     render = needs_renderer()
     out = tmp_path_factory.mktemp("render")
     cfg = render.SceneConfig(duration_s=3.0, dots=("red", "green"), path_phase_s=12.0)
@@ -279,21 +299,24 @@ def short_render(tmp_path_factory):
 
 def test_cli_track_video_and_image_folder(capsys, short_render):
     out, paths = short_render
-    from posekit.ceiling.demo import read_truth_csv
+    from posekit.ceiling.studies.demo import read_truth_csv
     truth = read_truth_csv(paths.truth)
     for source, extra in ((paths.video, []), (paths.frames_dir, ["--fps", "15"])):
         csv_path = out / f"track_{source.name}.csv"
         rc, stdout, err = cli(capsys, "track", source, "--calibration", out / "cal.json", "--dots", "red,green",
                               "--out", csv_path, *extra)
         assert rc == 0, err
-        assert "45 frames: 44 ok, 0 predicted, 1 lost" in stdout and "frames/s" in stdout
-        assert csv_path.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm"
         t = read_track_csv(csv_path)
-        xy = np.column_stack([t["x"], t["y"]])[1:]
-        assert error_stats(xy, truth.xy[1:]).mean_mm < 3.0
-        dh = ((t["heading_deg"] - truth.heading_deg + 180.0) % 360.0 - 180.0)[1:]
-        assert np.abs(dh).max() < 2.0
-        assert np.all(t["std_mm"][1:] > 0) and np.all(np.hypot(*(xy - truth.xy[1:]).T) <= 2.5 * t["std_mm"][1:])
+        a = first_ok(t["status"])
+        assert f"45 frames: {45 - a} ok, 0 suspect, 0 predicted, {a} lost" in stdout and "frames/s" in stdout
+        assert "background: 0 rebuild(s)" in stdout and "learned online" in stdout
+        assert csv_path.read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason"
+        assert 1 <= a <= ACQUIRE and all(r for r in t["reason"][:a]) and not any(t["reason"][a:])
+        xy = np.column_stack([t["x"], t["y"]])[a:]
+        assert error_stats(xy, truth.xy[a:]).mean_mm < 3.0
+        dh = ((t["heading_deg"] - truth.heading_deg + 180.0) % 360.0 - 180.0)[a:]
+        assert np.abs(dh).max() < 2.0 and np.all(t["std_heading_deg"][a:] > 0)
+        assert np.all(t["std_mm"][a:] > 0) and np.all(np.hypot(*(xy - truth.xy[a:]).T) <= 2.5 * t["std_mm"][a:])
         assert t["time_s"][1] == pytest.approx(1 / 15, abs=1e-6)
 
 

@@ -1,4 +1,4 @@
-"""Synthetic ceiling videos (posekit.ceiling.render): determinism, geometry, truth, files, CLI."""
+"""Synthetic ceiling videos (posekit.ceiling.sim.render): determinism, geometry, truth, files, CLI."""
 
 import csv
 import math
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from posekit.ceiling.render import (
+from posekit.ceiling.sim.render import (
     TRUTH_HEADER,
     CeilingScene,
     SceneConfig,
@@ -88,7 +88,7 @@ def test_homography_maps_calibration_points(video):
 
 
 def test_homography_is_the_pinhole_camera_on_the_ceiling_plane():
-    from posekit.ceiling.render import _camera
+    from posekit.ceiling.sim.render import _camera
 
     config = SceneConfig()
     K, R, t = _camera(config)
@@ -127,7 +127,7 @@ def test_truth_heading_and_spacing():
 def test_dot_appears_where_the_truth_says():
     """Noiseless, drift-free frames: the centroid of frame − reference is the projected laser
     position within 0.3 px wherever the dot lies on a plain tile (0.1 px on average)."""
-    from posekit.ceiling.render import _ceiling_albedo
+    from posekit.ceiling.sim.render import _ceiling_albedo
 
     config = SceneConfig(dots=("red", "green"), duration_s=60.0, **CLEAN)
     scene = CeilingScene(config)

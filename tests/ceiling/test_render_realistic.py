@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.camera import load_camera
-from posekit.ceiling.render import REALISTIC, CeilingScene, SceneConfig, lens_camera, render_video, true_homography
-from posekit.ceiling.render import _camera as scene_camera
+from posekit.ceiling.camera.lens import load_camera
+from posekit.ceiling.sim.render import REALISTIC, CeilingScene, SceneConfig, lens_camera, render_video, true_homography
+from posekit.ceiling.sim.render import _camera as scene_camera
 from posekit.cli.ceiling_simulate import add_simulate_parser
 from posekit.errors import ConfigError
 from tests.ceiling.cli_harness import run_verb

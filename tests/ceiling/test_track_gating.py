@@ -4,7 +4,8 @@ and unambiguous re-acquisition, motion consistency, honest std_mm (world measure
 import numpy as np
 import pytest
 
-from posekit.ceiling.track import Tracker, TrackerConfig
+from posekit.ceiling.track.tracker import Tracker
+from posekit.ceiling.track.types import TrackerConfig
 from posekit.errors import ConfigError, GeometryError
 
 FPS = 15.0

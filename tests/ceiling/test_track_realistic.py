@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-render = pytest.importorskip("posekit.ceiling.render")
+render = pytest.importorskip("posekit.ceiling.sim.render")
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +27,7 @@ def realistic(tmp_path_factory):
 
 
 def test_realistic_video_never_ok_off_the_dot_and_honest_std(realistic):
-    from posekit.ceiling.pipeline import track_video
+    from posekit.ceiling.track.pipeline import track_video
     out, paths, truth = realistic
     res = track_video(paths.video, out / "cal.json", camera=paths.camera)
     n = min(len(res), len(truth.frame))
@@ -43,7 +43,7 @@ def test_realistic_video_never_ok_off_the_dot_and_honest_std(realistic):
 
 
 def test_cli_track_with_the_camera_model(capsys, realistic, tmp_path):
-    from posekit.ceiling.pipeline import read_track_csv
+    from posekit.ceiling.track.pipeline import read_track_csv
     from tests.cli_helpers import assert_one_line_error, run_cli
     out, paths, truth = realistic
     rc, stdout, err = run_cli(capsys, "ceiling", "track", paths.video, "--calibration", out / "cal.json", "--camera",

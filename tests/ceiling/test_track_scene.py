@@ -1,5 +1,5 @@
 """A small independent frame generator for the ceiling tracker's tests (NumPy only; shares
-no code with ``posekit.ceiling.render``), and checks of the generator itself.
+no code with ``posekit.ceiling.sim.render``), and checks of the generator itself.
 
 The scene: a grey ceiling with darker T-bars, a mild perspective homography (world mm ↔
 image px), optional radial lens distortion (OpenCV's k1, k2 model written out here), sensor
@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from posekit.ceiling.calibration import Calibration
-from posekit.ceiling.track import Camera
+from posekit.ceiling.camera.homography import Calibration
+from posekit.ceiling.track.cameras import Camera
 
 W, H = 432, 240
 FPS = 15.0
@@ -145,7 +145,7 @@ class Scene:
         return Camera(cal, (W, H), name="gen", lens=lens)
 
     def lens(self):
-        from posekit.ceiling.camera import CameraModel
+        from posekit.ceiling.camera.lens import CameraModel
         return CameraModel(K=self.K, dist=np.asarray(self.dist, float), image_size=(W, H), rms_px=0.1)
 
 

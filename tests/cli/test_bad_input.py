@@ -13,9 +13,11 @@ import yaml
 from posekit.cli.main import main
 from posekit.errors import GaugeError, InputFileError, PosekitError, ProfileError
 from posekit.profiler.estimate.corners import detect_corners
-from posekit.profiler.estimate.gauge import load_gauge
-from posekit.profiler.estimate.io import read_profiles
-from posekit.profiler.estimate.sensor import NoiseModel, render_profiles, sample_poses
+from posekit.profiler.gauge.model import load_gauge
+from posekit.profiler.sensor import NoiseModel
+from posekit.profiler.sim.poses import sample_poses
+from posekit.profiler.sim.render import render_profiles
+from posekit.profiler.stream.reading import read_profiles
 
 GAUGE_DIR = Path(__file__).resolve().parents[2] / "examples" / "gauges"
 DEMO5 = GAUGE_DIR / "demo-5.yaml"

@@ -118,14 +118,15 @@ def test_camera_file_encoding_and_size(capsys, scene):
 
 def test_four_coefficients_are_the_opencv_model_with_k3_zero(capsys, scene):
     """OpenCV's 4-coefficient model [k1, k2, p1, p2] is accepted as k3 = 0 (not an error)."""
-    from posekit.ceiling.camera import load_camera
+    from posekit.ceiling.camera.lens import load_camera
 
     tmp, frames, cal = scene
     cam = _camera(tmp, "d4.json", dist=[0.01, -0.002, 0.0, 0.0])
     assert load_camera(cam).dist.tolist() == [0.01, -0.002, 0.0, 0.0, 0.0]
     rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--camera", cam, "--fps", 15)
     assert rc == 0, e
-    assert (tmp / "t.csv").read_text().splitlines()[0] == "frame,time_s,x,y,heading_deg,status,std_mm"
+    assert (tmp / "t.csv").read_text().splitlines()[0] == ("frame,time_s,x,y,heading_deg,status,std_mm,"
+                                                            "std_heading_deg,reason")
 
 
 def test_camera_of_another_resolution(capsys, scene):
@@ -219,7 +220,7 @@ def test_remote_udp_with_allow_remote_runs(capsys, scene):
     tmp, frames, cal = scene
     rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--udp", "192.0.2.1:5005", "--allow-remote", "--fps", 15)
     assert rc == 0, e
-    assert o.startswith("3 frames: 0 ok, 0 predicted, 3 lost;")
+    assert o.startswith("3 frames: 0 ok, 0 suspect, 0 predicted, 3 lost;")
 
 
 def test_track_outputs_and_flags(capsys, scene):
@@ -278,9 +279,14 @@ def test_bad_frames_and_folders(capsys, scene):
     rc, o, e = _track(capsys, frames, cal, out, "--fps", 10)
     assert rc == 0, e
     rows = out.read_text().splitlines()
-    assert rows[1:] == ["0,0.000000,,,,lost,", "1,0.100000,,,,lost,", "2,0.200000,,,,lost,"]
-    # a frame of another size, a folder with nothing that decodes, an empty folder, a broken video
+    assert [r.split(",")[:7] for r in rows[1:]] == [[str(k), f"0.{k}00000", "", "", "", "lost", ""] for k in range(3)]
+    assert rows[2].endswith("001.png: cannot decode this file as an image")   # the reason column
+    # a frame of another size: a 'lost' row with the reason, the run goes on
     cv2.imwrite(str(frames / "001.png"), np.zeros((40, 30, 3), np.uint8))
+    rc, o, e = _track(capsys, frames, cal, out, "--fps", 10)
+    assert rc == 0, e
+    assert out.read_text().splitlines()[2].endswith(",001.png is 30x40 px but the first frame is 64x48 px (skipped)")
+    # a folder with nothing that decodes, an empty folder, a broken video
     bad = tmp / "nothing"
     bad.mkdir()
     (bad / "a.png").write_bytes(b"x")
@@ -289,8 +295,6 @@ def test_bad_frames_and_folders(capsys, scene):
     video = _raw(tmp, "v.mp4", b"\0" * 4000)
     out.unlink()
     for src, message in [
-        (frames, f"{frames}: 001.png is 30x40 px but the first frame is 64x48 px; every frame must have the same "
-                 "size"),
         (bad, f"{bad}: none of the 1 image file(s) decodes ({bad / 'a.png'}: cannot decode this file as an image); "
               "expected a folder of images"),
         (empty, f"{empty}: empty folder; expected images (.png, .jpg, .jpeg, .bmp, .tif, .tiff, .pgm, .ppm, .webp) "

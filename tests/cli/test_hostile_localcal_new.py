@@ -83,8 +83,9 @@ def _tum_cases():
         # fixed here: 1e300 m was read, overflowed to inf/NaN and came out as a NaN message or a JSON of inf
         ("absurd_position", _replace(L, 3, " ".join(L[3].split()[:1] + ["1e300", "0", "0"] + L[3].split()[4:]) + "\n"),
          "4: position 1e+300 m is implausible; expected metres"),
-        ("kitti_as_tum", None, f"1: expected 8 numbers {TUM_LAYOUT}, found 12 fields; 12 numbers per line look like "
-                               "a KITTI pose file: give --format kitti --rate HZ"),
+        # the rows decide the format (issue 30): a .txt of KITTI rows is KITTI, which needs a rate
+        ("kitti_as_tum", None, "rows of 12 numbers, a KITTI pose file, which carries no time: give its frame rate "
+                               "with --rate HZ"),
     ]
 
 
@@ -115,8 +116,8 @@ def test_tum_encoding_size_and_kind(capsys, pair):
           message=f"{huge}: 2.22 MiB, above the 1 MiB limit for {TUM_WHAT} (raise it with --max-input-mb)")
     missing = tmp / "missing.tum"
     _both(capsys, tmp, missing, kin, message=f"{missing}: no such file; expected {TUM_WHAT}")
-    odd = tmp / "poses.xyz"
-    shutil.copy(cam, odd)
+    odd = tmp / "poses.xyz"                                  # rows that are no format, an unknown suffix
+    odd.write_text(cam.read_text().replace(" ", " 1 ", 1))
     _both(capsys, tmp, odd, kin, message=f"{odd}: cannot tell the trajectory format from the suffix '.xyz'; "
                                          "expected .tum/.txt (TUM), .csv (EuRoC), .bag/.db3/.mcap or a bag folder "
                                          "(ROS), or give --format tum|kitti|euroc|rosbag")

@@ -144,6 +144,7 @@ def test_huge_files_are_refused_by_the_size_limit(capsys, episode, tmp_path):
                                  "with --max-input-mb)", global_args=("--max-input-mb", 1))
 
 
+@pytest.mark.slow
 def test_track_outputs(capsys, episode, tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("x")

@@ -349,3 +349,19 @@ def test_quaternion_product_reference_and_composition():
     np.testing.assert_allclose(matrix_from_quaternion(quaternion_product(qa, qb)), (a * b).as_matrix(), atol=1e-14)
     with pytest.raises(GeometryError, match=r"q2_wxyz: expected an array of shape \(\.\.\., 4\), got shape \(3,\)"):
         quaternion_product([1, 0, 0, 0], [1, 0, 0])
+
+
+def test_numpy_conversions_match_scipy_near_zero_and_pi():
+    """matrix_from_rotation_vector / matrix_from_quaternion (NumPy, no scipy at import) against
+    scipy's Rotation, with angles near 0 (the series branch) and near pi."""
+    rng = np.random.default_rng(7)
+    axes = rng.normal(size=(60, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([[0.0, 1e-12, 1e-5, 9.99e-5, 1.01e-4, 0.3, 1.0, 2.5, np.pi - 1e-9, np.pi],
+                             rng.uniform(-2 * np.pi, 2 * np.pi, 50)])
+    rv = axes * angles[:, None]
+    np.testing.assert_allclose(matrix_from_rotation_vector(rv), Rotation.from_rotvec(rv).as_matrix(), atol=2e-15)
+    q = rng.normal(size=(40, 4)) * rng.uniform(1e-3, 1e3, (40, 1))
+    np.testing.assert_allclose(matrix_from_quaternion(q), Rotation.from_quat(q, scalar_first=True).as_matrix(),
+                               atol=2e-15)
+    assert matrix_from_rotation_vector(np.zeros(3)).shape == (3, 3) and matrix_from_quaternion(q.reshape(2, 20, 4)).shape == (2, 20, 3, 3)

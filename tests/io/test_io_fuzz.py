@@ -15,11 +15,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from posekit.ceiling.calibration import load_calibration, read_points_csv
+from posekit.ceiling.camera.homography import load_calibration, read_points_csv
 from posekit.errors import PosekitError
 from posekit.localcal.registration.tum import read_tum
-from posekit.profiler.estimate.gauge import bundled_gauge_path, load_gauge
-from posekit.profiler.estimate.io import read_profiles
+from posekit.profiler.gauge.model import bundled_gauge_path, load_gauge
+from posekit.profiler.stream.reading import read_profiles
 from posekit.robots import bundled_robot_path, load_urdf
 from posekit.seam import config_from_dict, load_config
 

@@ -160,7 +160,7 @@ def test_unreadable_profile_csv(tmp_path, capsys, monkeypatch):
 # --------------------------------------------------------------------------- text encodings, YAML, JSON
 
 def test_gauge_yaml_in_latin1_and_utf16(tmp_path, capsys):
-    from posekit.profiler.estimate.gauge import bundled_gauge_path
+    from posekit.profiler.gauge.model import bundled_gauge_path
 
     text = bundled_gauge_path(GAUGE).read_text().replace("name: demo-5", "name: jauge-à-5")
     latin = tmp_path / "latin.yaml"

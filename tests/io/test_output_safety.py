@@ -5,7 +5,7 @@ import argparse
 
 import pytest
 
-from posekit.cli._common import _overwrite
+from posekit.cli._common import overwrite_flag
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.io import atomic_file, staged_folder, write_text_atomic
@@ -110,9 +110,9 @@ def test_profiler_simulate_does_not_overwrite_silently(tmp_path, capsys):
 
 def test_a_verbs_own_default_folder_is_replaced_each_run():
     ns = argparse.Namespace
-    assert _overwrite(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
-    assert not _overwrite(ns(out="mine", overwrite=False, out_default="posekit-demo"))
-    assert _overwrite(ns(out="mine", overwrite=True, out_default=None))
+    assert overwrite_flag(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
+    assert not overwrite_flag(ns(out="mine", overwrite=False, out_default="posekit-demo"))
+    assert overwrite_flag(ns(out="mine", overwrite=True, out_default=None))
 
 
 @pytest.mark.parametrize("verb", [["profiler", "simulate", "--gauge", "demo-5", "--count", "1"],

@@ -356,10 +356,41 @@ def test_sizes_are_bounded_by_the_io_limits(tmp_path, pair):
 def test_a_kitti_file_read_as_tum_says_so(tmp_path, pair):
     k = tmp_path / "poses.txt"
     write_kitti(k, pair[0])
-    with pytest.raises(InputFileError) as exc:
+    with pytest.raises(TrajectoryError) as exc:            # the rows say KITTI, whatever the suffix says
         read_trajectory(k)
+    assert str(exc.value) == (f"{k}: rows of 12 numbers, a KITTI pose file, which carries no time: give its "
+                              "frame rate with --rate HZ")
+    with pytest.raises(InputFileError) as exc:              # forced to TUM: the TUM reader names the line
+        read_trajectory(k, fmt="tum")
     assert str(exc.value) == (f"{k}:1: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', found 12 fields; "
                               "12 numbers per line look like a KITTI pose file: give --format kitti --rate HZ")
+
+
+def test_the_rows_decide_the_format_and_a_note_says_so(tmp_path, pair):
+    """A .csv of TUM rows is TUM; EuRoC rows in a .txt are EuRoC; KITTI rows are KITTI whatever the
+    suffix: the content wins over the suffix, and one line says so."""
+    cam = pair[0]
+    tum_csv = tmp_path / "cam.csv"
+    write_tum(tum_csv, cam)
+    euroc_txt = tmp_path / "gt.txt"
+    write_euroc(euroc_txt, cam)
+    kitti_tum = tmp_path / "poses.tum"
+    write_kitti(kitti_tum, cam)
+    comma_tum = tmp_path / "commas.dat"
+    rows = np.loadtxt(tum_csv)
+    comma_tum.write_text("\n".join(",".join(f"{v:.9f}" for v in r) for r in rows) + "\n")
+    for path, fmt, kw in ((tum_csv, "TUM", {}), (euroc_txt, "EuRoC", {}), (kitti_tum, "KITTI", {"rate_hz": RATE_HZ}),
+                          (comma_tum, "TUM", {})):
+        notes = []
+        traj = read_trajectory(path, notes=notes, **kw)
+        np.testing.assert_allclose(traj.positions, cam.positions, atol=1e-5)
+        if path.suffix == ".dat":
+            assert notes == []                              # an unknown suffix: nothing to contradict
+        else:
+            assert notes == [f"{path}: {fmt} rows, though the suffix '{path.suffix}' suggests "
+                             f"{dict(csv='EuRoC', txt='TUM', tum='TUM')[path.suffix[1:]]}: read as {fmt} "
+                             "(give --format to choose)"]
+    assert detect_format(tmp_path / "missing.csv") == "euroc"   # no rows to read: the suffix
 
 
 def test_handeye_cli_reads_two_topics_of_one_bag_like_two_tum_files(tmp_path):

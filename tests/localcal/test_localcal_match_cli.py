@@ -39,7 +39,8 @@ def test_match_real_tum_pair_writes_the_contract(tmp_path, capsys):
     assert res["rmse_mm"] == pytest.approx(13.47, abs=0.01)
     assert res["n_pairs"] == 785
     text = capsys.readouterr().out
-    assert "matched 785 pose pairs within 0.01 s" in text and f"wrote {out}" in text
+    assert "matched 785 pose pairs (nearest stamps within 0.01 s) at a clock offset of +0.0 ms; 785 used, 0 dropped" \
+        in text and f"wrote {out}" in text
 
 
 @pytest.mark.parametrize("flags", [[], ["--no-timestamps"]])
@@ -186,3 +187,87 @@ def test_matcher_option_without_timestamps(tmp_path, matcher):
     assert res["matcher"] == matcher and res["mode"] == "no-timestamps"
     assert rotation_error_deg(np.array(res["R"]), T[:3, :3]) < 0.3
     assert np.linalg.norm(np.array(res["t_mm"]) - T[:3, 3]) < 3.0
+
+
+# --------------------------------------------------------------------------- what match says and writes
+def test_residuals_plot_and_the_new_json_keys(tmp_path, capsys):
+    """fr2/desk ORB-SLAM2 (real): one residual row per pair, figures, and the counts in the JSON."""
+    from matplotlib.image import imread
+
+    out, res, plots = tmp_path / "r.json", tmp_path / "pairs.csv", tmp_path / "plots"
+    cam, gt = DATA / "fr2_desk_ORB.txt", DATA / "fr2_desk_groundtruth.txt"
+    rc = main(["localcal", "match", str(cam), str(gt), "--out", str(out), "--residuals", str(res), "--plot", str(plots)])
+    assert rc == 0
+    r = json.loads(out.read_text())
+    for key in ("pairs_used", "pairs_dropped", "rmse_all_mm", "rmse_kept_mm", "duplicate_stamps", "notes",
+                "time_offset_std_s", "time_offset_source", "pairing", "dropped"):
+        assert key in r, key
+    assert "std_scale" not in r and "scale_drift" not in r          # a rigid match
+    assert r["pairs_used"] + r["pairs_dropped"] == r["n_pairs"] and r["rmse_kept_mm"] == r["rmse_mm"]
+    assert r["time_offset_source"] == "zero" and r["time_offset_s"] == 0.0
+    assert r["duplicate_stamps"] == 1                                # the ground truth repeats one stamp
+    rows = np.genfromtxt(res, delimiter=",", names=True)
+    assert len(rows) == r["n_pairs"] and int(rows["kept"].sum()) == r["pairs_used"]
+    kept = rows["kept"] == 1
+    assert np.sqrt(np.mean(rows["error_mm"][kept] ** 2)) == pytest.approx(r["rmse_kept_mm"], rel=1e-5)
+    assert np.sqrt(np.mean(rows["error_mm"] ** 2)) == pytest.approx(r["rmse_all_mm"], rel=1e-5)
+    np.testing.assert_allclose(np.sqrt(rows["ex_mm"] ** 2 + rows["ey_mm"] ** 2 + rows["ez_mm"] ** 2),
+                               rows["error_mm"], atol=2e-4)
+    src, dst = read_tum(cam), read_tum(gt)
+    assert np.all(np.abs(src.t_s[rows["i_src"].astype(int)] - rows["t_src_s"]) < 1e-6)
+    assert np.all(np.abs(dst.t_s[rows["i_dst"].astype(int)] - rows["t_dst_s"]) < 1e-6)
+    for name in ("trajectories.png", "error.png"):
+        img = imread(plots / name)
+        assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 500
+    text = capsys.readouterr().out
+    assert f"wrote {res} ({r['n_pairs']} rows)" in text and f"wrote trajectories.png and error.png to {plots}" in text
+    assert "note: fr2_desk_groundtruth.txt" in text or "note: " in text
+    # the plot folder is not replaced without --overwrite, and the check comes before the work
+    rc = main(["localcal", "match", str(cam), str(gt), "--out", str(out), "--plot", str(plots)])
+    assert rc == 1 and "--plot" in capsys.readouterr().err
+    assert main(["localcal", "match", str(cam), str(gt), "--out", str(out), "--plot", str(plots), "--overwrite"]) == 0
+
+
+def test_streams_at_one_rate_with_an_offset_are_interpolated(tmp_path, capsys):
+    """Camera and robot both at 10 Hz, the camera's frames halfway between the robot's (a 50 ms clock
+    offset): no robot stamp lies within 20 ms of a camera stamp, so the robot poses are interpolated
+    at the camera stamps, and a note says so."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(2)
+    pose, dur = asymmetric_planar_path(rng)
+    T = random_transform(rng, pose(np.zeros(1))[0][0])
+    t_kin, t_cam = np.arange(0.0, dur, 0.1), np.arange(0.05, dur - 0.1, 0.1)
+
+    def poses(t):
+        p, R = pose(t)
+        R = R @ Rotation.from_rotvec(0.2 * np.sin(t[:, None] * [0.3, 0.5, 0.7])).as_matrix()
+        out = np.zeros((len(t), 4, 4))
+        out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = R, p + rng.normal(0, 0.2, p.shape), 1.0
+        return out
+
+    write_tum(tmp_path / "cam.tum", Trajectory(t_cam, np.linalg.inv(T) @ poses(t_cam)))
+    write_tum(tmp_path / "kin.tum", Trajectory(t_kin, poses(t_kin)))
+    out = tmp_path / "r.json"
+    rc = main(["localcal", "match", str(tmp_path / "cam.tum"), str(tmp_path / "kin.tum"), "--time-offset", "0",
+               "--out", str(out)])
+    r = json.loads(out.read_text())
+    assert r["pairing"] == "interpolated" and r["n_pairs"] == len(t_cam)
+    assert any(n.startswith(f"only 0 of the {len(t_cam)} ") and "interpolated at the" in n for n in r["notes"])
+    # linear interpolation between 0.1 s samples of a curved path costs a few mm: within the reported std
+    assert np.all(np.abs(np.array(r["t_mm"]) - T[:3, 3]) <= 3 * np.array(r["std_t_mm"]))
+    assert rotation_error_deg(np.array(r["R"]), T[:3, :3]) < 0.5
+    assert rc in (0, 1)
+    capsys.readouterr()
+
+
+def test_a_csv_of_tum_rows_is_read_as_tum_and_said(tmp_path, capsys):
+    shutil_src = DATA / "freiburg1_xyz-rgbdslam.txt"
+    cam = tmp_path / "cam.csv"
+    cam.write_text(shutil_src.read_text())
+    out = tmp_path / "r.json"
+    rc = main(["localcal", "match", str(cam), str(DATA / "freiburg1_xyz-groundtruth.txt"), "--out", str(out)])
+    assert rc == 0
+    note = f"{cam}: TUM rows, though the suffix '.csv' suggests EuRoC: read as TUM (give --format to choose)"
+    assert note in json.loads(out.read_text())["notes"]
+    assert f"note: {note}" in capsys.readouterr().out

@@ -85,7 +85,7 @@ def test_simulate_on_a_urdf_arm_reproduces_the_bundled_crane(crane, tmp_path, ca
         (["--robot", "kuka"], "unknown robot 'kuka': expected a bundled model (puma560, hiab033, abb_irb6640, ur10) "
                               "or a URDF file path"),
         (["--robot", "ur10"], "--start-q-deg: required for --robot ur10 (the crane's start pose fits only the crane); "
-                              "give the arm's start joint values in deg"),
+                              "give its 6 start joint values in deg (chain base_link → ee_link)"),
         (["--robot", "ur10", "--start-q-deg", "1,2"], "--start-q-deg: expected 6 values for ur10, got 2"),
         (["--robot", "ur10", "--start-q-deg", "1,a,3"], "--start-q-deg: expected comma-separated numbers, got '1,a,3'"),
         (["--robot", "ur10", "--start-q-deg", "1,2,3,4,5,nan"], "--start-q-deg: expected finite values, got '1,2,3,4,5,nan'"),

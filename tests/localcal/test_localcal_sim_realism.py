@@ -12,11 +12,11 @@ from posekit.geometry import invert_transform, matrix_from_rotation_vector
 from posekit.localcal.sim.camera import (
     ZED2_720P_DISTORTION,
     CameraIntrinsics,
-    MarkerDetector,
     _ideal_pixel_map,
     render_markers,
     zed2_720p,
 )
+from posekit.localcal.sim.marker_detector import MarkerDetector
 from posekit.localcal.sim.vo import StereoNoise, depth_along_axis, simulate_vo
 
 cv2 = pytest.importorskip("cv2")

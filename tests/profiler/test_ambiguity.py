@@ -22,10 +22,11 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.estimate.design import random_gauge
-from posekit.profiler.estimate.evaluate import pose_errors
-from posekit.profiler.estimate.gauge import AMBIGUITY_MIN_MISS_UM, gauge_ambiguity, gauge_to_yaml
 from posekit.profiler.estimate.pipeline import estimate_batch
+from posekit.profiler.gauge.ambiguity import AMBIGUITY_MIN_MISS_UM, gauge_ambiguity
+from posekit.profiler.gauge.design import random_gauge
+from posekit.profiler.gauge.model import gauge_to_yaml
+from posekit.profiler.studies.evaluate import pose_errors
 
 SYMMETRIC = ("its cross-section is symmetric under a 180° turn about the vertical: the corners read in reverse "
              "order fit the ridges exactly at another pose, so the mounting cannot be told from the profile")
@@ -150,7 +151,7 @@ def test_a_reading_from_below_the_gauge_does_not_count():
     """This gauge's cross-section is point-symmetric in the laser plane: the reversed reading fits exactly
     with the sensor under the gauge, looking up through the material. That pose is impossible, so the
     gauge is not ambiguous and 'auto' keeps the real pose."""
-    from posekit.profiler.estimate.gauge import pose_is_possible
+    from posekit.profiler.gauge.ambiguity import pose_is_possible
 
     g = gauge_from_design("steep", [-30, -10, 10, 30], [0.2, -0.2, 1.2, -0.2, 0.2], [0.1, -0.1, 0.1, -0.1],
                           extent=((-45, 45), (-20, 20)))

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from posekit.profiler.loop import camera_peer as camera
+from posekit.profiler.loop import chessboard as board
 
 INNER = (3, 4)
 SQUARE_MM = 20.0
@@ -52,14 +53,14 @@ def _facing_pose(spin_deg: float, tilt_deg: float, depth_mm: float):
 
 
 def test_default_intrinsics_is_the_table_iii_camera():
-    K = camera.default_intrinsics()
+    K = board.default_intrinsics()
     f_px = 16.0 / 2.2e-3
     np.testing.assert_allclose(K, [[f_px, 0, 1294.5], [0, f_px, 970.5], [0, 0, 1]])
     assert K[0, 0] == pytest.approx(7272.727, abs=1e-3)
 
 
 def test_board_object_points_layout():
-    points = camera.board_object_points(INNER, SQUARE_MM)
+    points = board.board_object_points(INNER, SQUARE_MM)
     assert points.shape == (12, 3) and points.dtype == np.float32
     np.testing.assert_array_equal(points[0], [0, 0, 0])
     np.testing.assert_array_equal(points[1], [20, 0, 0])  # along the row of 3 corners
@@ -70,20 +71,20 @@ def test_board_object_points_layout():
 @pytest.mark.parametrize("inner", [(3, 3), (4, 4), (3, 5), (4, 6)])
 def test_board_object_points_rejects_symmetric_boards(inner):
     with pytest.raises(ValueError, match="ambiguous"):
-        camera.board_object_points(inner, SQUARE_MM)
+        board.board_object_points(inner, SQUARE_MM)
 
 
 def test_render_values_and_determinism():
     # A small camera keeps this fast; the geometry code is the same at full size.
-    K = camera.default_intrinsics(640, 480, focal_mm=4.0)
+    K = board.default_intrinsics(640, 480, focal_mm=4.0)
     rvec, tvec = _facing_pose(0.0, 0.0, 600.0)
     kwargs = {"width": 640, "height": 480, "K": K}
-    a = camera.render_chessboard(rvec, tvec, rng=7, **kwargs)
-    b = camera.render_chessboard(rvec, tvec, rng=7, **kwargs)
+    a = board.render_chessboard(rvec, tvec, rng=7, **kwargs)
+    b = board.render_chessboard(rvec, tvec, rng=7, **kwargs)
     assert a.shape == (480, 640) and a.dtype == np.uint8
     np.testing.assert_array_equal(a, b)
 
-    clean = camera.render_chessboard(rvec, tvec, noise_dn=0.0, **kwargs)
+    clean = board.render_chessboard(rvec, tvec, noise_dn=0.0, **kwargs)
     centres_B = SQUARE_MM * np.array(
         [[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0]]
     )  # black, white square
@@ -98,12 +99,12 @@ def test_render_values_and_determinism():
 
 @pytest.mark.parametrize("spin_deg", [0.0, 90.0, 180.0, 270.0, 135.0])
 def test_object_point_order_matches_detected_corners(spin_deg):
-    K = camera.default_intrinsics()
+    K = board.default_intrinsics()
     rvec, tvec = _facing_pose(spin_deg, 20.0, 700.0)
-    image = camera.render_chessboard(rvec, tvec, rng=1)
+    image = board.render_chessboard(rvec, tvec, rng=1)
     corners = _detect(image)
     expected = cv2.projectPoints(
-        camera.board_object_points(INNER, SQUARE_MM), rvec, tvec, K, None
+        board.board_object_points(INNER, SQUARE_MM), rvec, tvec, K, None
     )[0]
     rms = np.sqrt(np.mean(np.sum((corners - expected.reshape(-1, 2)) ** 2, axis=1)))
     assert rms < RMS_TOL_PX
@@ -111,11 +112,11 @@ def test_object_point_order_matches_detected_corners(spin_deg):
 
 @pytest.mark.parametrize("method", ["sqpnp", "ippe"])
 def test_pipeline_recovers_the_rendered_pose(method):
-    K = camera.default_intrinsics()
-    points_B = camera.board_object_points(INNER, SQUARE_MM)
+    K = board.default_intrinsics()
+    points_B = board.board_object_points(INNER, SQUARE_MM)
     rng = np.random.default_rng(2024)
-    for rvec_true, tvec_true in camera.random_board_poses(3, rng):
-        image = camera.render_chessboard(rvec_true, tvec_true, rng=rng)
+    for rvec_true, tvec_true in board.random_board_poses(3, rng):
+        image = board.render_chessboard(rvec_true, tvec_true, rng=rng)
         rvec, tvec, cd_ms, pc_ms = camera.camera_pipeline(
             image, K, None, points_B, INNER, method=method
         )
@@ -131,9 +132,9 @@ def test_pipeline_recovers_the_rendered_pose(method):
 
 
 def test_random_board_poses_ranges_and_seed():
-    K = camera.default_intrinsics()
-    poses = camera.random_board_poses(200, 5)
-    again = camera.random_board_poses(200, 5)
+    K = board.default_intrinsics()
+    poses = board.random_board_poses(200, 5)
+    again = board.random_board_poses(200, 5)
     for (r, t), (r2, t2) in zip(poses, again):
         np.testing.assert_array_equal(r, r2)
         np.testing.assert_array_equal(t, t2)
@@ -150,8 +151,8 @@ def test_random_board_poses_ranges_and_seed():
 
 
 def test_camera_pipeline_bad_input():
-    K = camera.default_intrinsics(320, 240)
-    points_B = camera.board_object_points(INNER, SQUARE_MM)
+    K = board.default_intrinsics(320, 240)
+    points_B = board.board_object_points(INNER, SQUARE_MM)
     blank = np.full(
         (240, 320), 128, np.uint8
     )  # tiny and uniform: the detector gives up at once

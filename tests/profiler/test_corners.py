@@ -6,7 +6,8 @@ import pytest
 from posekit.errors import ProfileError
 from posekit.geometry import rdp
 from posekit.profiler import NoiseModel, detect_corners, nominal_pose, render_profiles, sample_poses
-from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners_unchecked
 
 NOISELESS = NoiseModel(sigma_x_um=0.0, sigma_z_um=0.0)
 

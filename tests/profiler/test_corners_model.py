@@ -18,9 +18,11 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.estimate.corners import CornerParams, detect_corners_unchecked, gauge_turns
-from posekit.profiler.estimate.realism import RealismModel, true_corners
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners_unchecked, gauge_turns
 from posekit.profiler.estimate.segments import expected_turns
+from posekit.profiler.sim.realism import RealismModel
+from posekit.profiler.sim.realism_render import true_corners
 
 NOISELESS = NoiseModel(0.0, 0.0)
 

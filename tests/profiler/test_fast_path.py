@@ -7,11 +7,12 @@ import pytest
 import yaml
 
 from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-from posekit.profiler.estimate.corners import CornerParams, gauge_turns
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import gauge_turns
 from posekit.profiler.estimate.fast import estimate_profile_unchecked, warm_gate
-from posekit.profiler.estimate.gauge import gauge_to_yaml, load_gauge
 from posekit.profiler.estimate.pipeline import estimate_pose
-from posekit.profiler.estimate.solve import METHODS, MOUNTINGS
+from posekit.profiler.estimate.solve import METHODS
+from posekit.profiler.gauge.model import MOUNTINGS, gauge_to_yaml, load_gauge
 from posekit.profiler.stream.server import PoseServer
 from posekit.profiler.stream.stream_client import SensorClient
 

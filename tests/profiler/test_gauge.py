@@ -5,7 +5,7 @@ import pytest
 
 from posekit.errors import GaugeError
 from posekit.profiler import BUNDLED_GAUGES, bundled_gauge, gauge_from_design, load_gauge
-from posekit.profiler.estimate.gauge import gauge_to_yaml
+from posekit.profiler.gauge.model import gauge_to_yaml
 
 
 @pytest.mark.parametrize("name", BUNDLED_GAUGES)

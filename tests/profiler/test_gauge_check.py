@@ -1,4 +1,4 @@
-"""The gauge file tested across a batch (:mod:`posekit.profiler.estimate.gauge_check`).
+"""The gauge file tested across a batch (:mod:`posekit.profiler.gauge.check`).
 
 One profile cannot see a face machined off its drawing on demo-5's faces 1, 3, 5 (the offset is
 a pose shift along the weakly observable y); a batch at varied poses can. The profiles here come
@@ -15,8 +15,8 @@ import pytest
 
 from posekit.cli.main import main
 from posekit.profiler import bundled_gauge, pose_errors
-from posekit.profiler.estimate.gauge_check import MIN_CHECK_PROFILES, check_gauge_file
 from posekit.profiler.estimate.pipeline import estimate_batch, estimate_profiles
+from posekit.profiler.gauge.check import MIN_CHECK_PROFILES, check_gauge_file
 from tests.profiler.test_realistic_generator import ALL, generate, random_pose
 
 #: Every defect of the independent generator but machining (the gauge's faces are set per test).
@@ -195,7 +195,7 @@ def test_tilted_faces_are_outside_the_tolerance_model():
     only): a nominal file declaring a generous 20 µm fails the batch, rightly — without the batch test
     the poses left 'ok' are off by more than their std says (p95 |err|/std > 3 on some component;
     ``gauge_check_rates tilts``: 69-91 % within 2σ) — and the reason names tilts among the causes."""
-    from posekit.profiler.estimate.sensor import NoiseModel
+    from posekit.profiler.sensor import NoiseModel
     from posekit.profiler.studies.gauge_check_rates import batch as sim_batch
 
     d5 = bundled_gauge("demo-5")

@@ -8,8 +8,8 @@ import pytest
 from posekit.errors import ConfigError
 from posekit.geometry import rotation_vector_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
+from posekit.profiler.stream.lines import encode_command
 from posekit.profiler.stream.pose_filter import ConstantVelocityFilter, WindowFusion, make_filter
-from posekit.profiler.stream.protocol import encode_command
 
 PERIOD_S = 0.012
 COUNT = 300

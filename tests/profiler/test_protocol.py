@@ -10,6 +10,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from posekit.errors import ConfigError, ProfileError
+from posekit.profiler.stream.lines import LineDecoder, encode_command
 from posekit.profiler.stream.protocol import (
     BAD_MAGIC,
     HEADER,
@@ -23,8 +24,6 @@ from posekit.profiler.stream.protocol import (
     Frame,
     FrameDecoder,
     FrameError,
-    LineDecoder,
-    encode_command,
     encode_frame,
 )
 

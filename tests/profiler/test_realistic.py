@@ -1,6 +1,6 @@
 """The model-based corner detector on the simulator's realistic profiles, defect by defect.
 
-Each defect of :class:`~posekit.profiler.estimate.realism.RealismModel` (its realistic magnitude,
+Each defect of :class:`~posekit.profiler.sim.realism.RealismModel` (its realistic magnitude,
 alone) and all of them together, over the bundled gauges and random ones: the share of
 profiles estimated, the corners' errors against the as-built truth in units of their own
 standard deviation, and the pose errors in units of the solver's predicted standard
@@ -16,9 +16,11 @@ import pytest
 
 from posekit.errors import PosekitError
 from posekit.profiler import NoiseModel, render_profiles, sample_poses, solve_pose
-from posekit.profiler.estimate.corners import CornerParams, detect_corners
-from posekit.profiler.estimate.evaluate import pose_errors
-from posekit.profiler.estimate.realism import DEFECTS, RealismModel, build_as_built, true_corners
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners
+from posekit.profiler.sim.realism import DEFECTS, RealismModel, build_as_built
+from posekit.profiler.sim.realism_render import true_corners
+from posekit.profiler.studies.evaluate import pose_errors
 from tests.profiler.test_realistic_generator import measurement_gauges
 
 REALISTIC = RealismModel.realistic()

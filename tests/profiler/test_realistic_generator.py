@@ -1,6 +1,6 @@
 """A second, simpler profile generator, independent of posekit's simulator, and its own checks.
 
-posekit's simulator (:mod:`posekit.profiler.estimate.realism`) casts the LJ-X8400's fan of rays at
+posekit's simulator (:mod:`posekit.profiler.sim.realism`) casts the LJ-X8400's fan of rays at
 a 3D as-built gauge with cylindrical fillets. This generator shares none of that code: it
 cuts the gauge's planes with the laser plane analytically (a polyline in F's x–z plane),
 samples it at a uniform x spacing (a different sampling than the fan's), and adds its own
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from posekit.profiler import bundled_gauge
-from posekit.profiler.estimate.design import random_gauge
+from posekit.profiler.gauge.design import random_gauge
 
 Z_CENTER_MM = 442.5          # the depth about which the scale error acts (LJ-X8400 mid-range)
 
@@ -210,7 +210,7 @@ def measurement_gauges():
 
 def test_section_corners_agree_with_the_simulators_truth(gauge5):
     """Analytic corners here == where the simulator's ridges pierce the laser plane."""
-    from posekit.profiler.estimate.realism import true_corners
+    from posekit.profiler.sim.realism_render import true_corners
 
     rng = np.random.default_rng(1)
     for _ in range(5):

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from posekit.errors import PosekitError
-from posekit.profiler.estimate.corners import CornerParams, detect_corners
+from posekit.profiler.estimate.corner_params import CornerParams
+from posekit.profiler.estimate.corners import detect_corners
 from tests.profiler.test_realistic import Measured, estimate_one, in_scan_order
 from tests.profiler.test_realistic_generator import (
     ONE_EACH,
@@ -102,8 +103,8 @@ def test_verdict_on_the_independent_generator():
     from posekit.errors import PosekitError
     from posekit.geometry import rotation_vector_from_matrix
     from posekit.profiler import estimate_pose
-    from posekit.profiler.estimate.design import random_gauge
-    from posekit.profiler.estimate.sensor import NoiseModel
+    from posekit.profiler.gauge.design import random_gauge
+    from posekit.profiler.sensor import NoiseModel
     from tests.profiler.test_realistic_generator import Defects, as_built, generate, measurement_gauges, random_pose
 
     rng = np.random.default_rng(7)

@@ -17,7 +17,7 @@ from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_quaternion, rotation_vector_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, nominal_pose, render_profiles
-from posekit.profiler.estimate.io import read_truth_csv
+from posekit.profiler.sim.simulate import read_truth_csv
 from posekit.profiler.stream.pose_filter import ConstantVelocityFilter
 from posekit.profiler.stream.server import PoseServer
 from posekit.profiler.stream.server_records import SERVE_CSV_COLUMNS
@@ -36,7 +36,7 @@ def _serve(argv):
     result = {}
 
     def target():
-        result["rc"] = main(["profiler", "serve", "--gauge", "demo-5", "--duration-s", CAP_S, "--status-every", "30",
+        result["rc"] = main(["profiler", "serve", "--gauge", "demo-5", "--duration-s", CAP_S, "--status-every-s", "30",
                              "--queue", "256", *map(str, argv)])
 
     t = threading.Thread(target=target, daemon=True)
@@ -64,7 +64,7 @@ def test_replay_to_serve_with_the_controller_token_and_records(tmp_path, capsys)
     out_csv = tmp_path / "records.csv"
     thread, result = _serve(["--listen", f"127.0.0.1:{port}", "--count", 40, "--out", out_csv, "--jsonl", "-",
                              "--controller", "pd", "--token-file", tmp_path / "token"])
-    replay = ["profiler", "replay", str(sim / "profiles.npz"), "--to", f"127.0.0.1:{port}", "--rate", "300",
+    replay = ["profiler", "replay", str(sim / "profiles.npz"), "--to", f"127.0.0.1:{port}", "--rate-hz", "300",
               "--wait-s", "30"]
     # A sensor with the wrong token: refused at once, and told so.
     assert main([*replay, "--token-file", str(tmp_path / "wrong")]) == 1
@@ -120,7 +120,7 @@ def test_filter_on_a_static_pose_through_the_stream(tmp_path, capsys):
     port = _free_port()
     out = tmp_path / "rec.jsonl"
     thread, result = _serve(["--listen", f"127.0.0.1:{port}", "--count", 200, "--jsonl", out, "--filter", "cv"])
-    assert main(["profiler", "replay", str(sim / "profiles.npz"), "--to", f"127.0.0.1:{port}", "--rate", "500",
+    assert main(["profiler", "replay", str(sim / "profiles.npz"), "--to", f"127.0.0.1:{port}", "--rate-hz", "500",
                  "--wait-s", "30"]) == 0
     thread.join(30.0)
     assert not thread.is_alive() and result["rc"] == 0
@@ -183,7 +183,7 @@ def test_serve_bad_out_leaves_nothing(capsys, tmp_path):
 @pytest.mark.parametrize("flags, message", [
     (["--to", "localhost"], "--to 'localhost': expected HOST:PORT, e.g. 127.0.0.1:5000"),
     (["--to", "127.0.0.1:0"], "--to '127.0.0.1:0': expected the server's port, 1..65535, got 0"),
-    (["--to", "127.0.0.1:9", "--rate", "0"], "--rate: expected a number in 0.01..20000 Hz, got 0"),
+    (["--to", "127.0.0.1:9", "--rate-hz", "0"], "--rate-hz: expected a number in 0.01..20000 Hz, got 0"),
     (["--to", "127.0.0.1:9", "--count", "0"], "--count: expected an integer in 1..1000000000 frames, got 0"),
     (["--to", "127.0.0.1:9", "--roi-x", "3:1"], "--roi-x: expected A:B in mm with A < B (e.g. -40:40), got '3:1'"),
 ])

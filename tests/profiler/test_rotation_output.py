@@ -12,11 +12,11 @@ from scipy.spatial.transform import Rotation
 
 from posekit.cli.main import main
 from posekit.errors import EstimationError
-from posekit.geometry import quaternion_from_matrix
+from posekit.geometry import euler_zyx_from_matrix, quaternion_from_matrix
 from posekit.profiler import NoiseModel, bundled_gauge, render_profiles, sample_poses
-from posekit.profiler.estimate.io import RECORD_CSV_COLUMNS
-from posekit.profiler.estimate.pipeline import ROTATIONS, estimate_batch, euler_zyx_from_matrix, rotation_fields
-from posekit.profiler.estimate.sensor import Workspace
+from posekit.profiler.estimate.pipeline import ROTATIONS, estimate_batch, rotation_fields
+from posekit.profiler.sim.poses import Workspace
+from posekit.profiler.stream.records import RECORD_CSV_COLUMNS
 
 #: A sensor looking straight down at the gauge: 180° about x.
 DOWN = np.diag([1.0, -1.0, -1.0])

@@ -13,9 +13,9 @@ import pytest
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.profiler import bundled_gauge, pose_errors
+from posekit.profiler.estimate.covariance import SCALE_Z_CENTER_MM, scale_covariance
 from posekit.profiler.estimate.pipeline import estimate_profiles
-from posekit.profiler.estimate.sensor import DEFAULT_SCALE_SIGMA_PPM, LJ_X8400, NoiseModel
-from posekit.profiler.estimate.verdict import SCALE_Z_CENTER_MM, scale_covariance
+from posekit.profiler.sensor import DEFAULT_SCALE_SIGMA_PPM, LJ_X8400, NoiseModel
 from tests.profiler.test_gauge_check import batch
 from tests.profiler.test_realistic_generator import Z_CENTER_MM
 

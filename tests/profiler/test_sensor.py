@@ -15,7 +15,7 @@ from posekit.profiler import (
     render_profiles,
     sample_poses,
 )
-from posekit.profiler.estimate.sensor import visible_mask
+from posekit.profiler.sim.poses import visible_mask
 
 
 def test_lj_x8400_trapezoid():

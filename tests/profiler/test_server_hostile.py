@@ -345,8 +345,8 @@ def _serve_args(*argv):
 
 
 @pytest.mark.parametrize("argv, error, needle", [
-    (["--status-every", "0.01"], ConfigError, "--status-every must be between 0.1 and 86400 seconds, got 0.01"),
-    (["--status-every", "nan"], ConfigError, "--status-every must be between 0.1 and 86400 seconds, got nan"),
+    (["--status-every-s", "0.01"], ConfigError, "--status-every-s must be between 0.1 and 86400 seconds, got 0.01"),
+    (["--status-every-s", "nan"], ConfigError, "--status-every-s must be between 0.1 and 86400 seconds, got nan"),
     (["--idle-timeout-s", "0"], ConfigError, "--idle-timeout-s must be between 0.05 and 86400 seconds, got 0"),
     (["--read-timeout-s", "-1"], ConfigError, "--read-timeout-s must be between 0.05 and 86400 seconds, got -1"),
     (["--allow-remote"], ConfigError, "--allow-remote needs --token-file FILE"),
@@ -364,7 +364,7 @@ def test_cli_serve_with_a_token_file(profiles, stub, tmp_path, capsys):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    args = _serve_args("--token-file", str(tmp_path / "token"), "--duration", "1.5", "--status-every", "0.5",
+    args = _serve_args("--token-file", str(tmp_path / "token"), "--duration-s", "1.5", "--status-every-s", "0.5",
                        "--robot", f"{stub.address[0]}:{stub.address[1]}", "--idle-timeout-s", "5", "--queue", "64")
     args.listen = f"127.0.0.1:{port}"
 

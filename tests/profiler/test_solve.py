@@ -17,8 +17,8 @@ from posekit.profiler import (
     sample_poses,
     solve_pose,
 )
-from posekit.profiler.estimate.evaluate import pose_errors
 from posekit.profiler.estimate.refine import normal_equations as _normal_equations
+from posekit.profiler.studies.evaluate import pose_errors
 
 NOISELESS = NoiseModel(sigma_x_um=0.0, sigma_z_um=0.0)
 

@@ -10,13 +10,8 @@ import pytest
 from posekit.cli.main import main
 from posekit.errors import ConfigError, InputFileError, ProfileError
 from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, nominal_pose, render_profiles
-from posekit.profiler.stream.sources import (
-    ArraySource,
-    FileSource,
-    ProfileSource,
+from posekit.profiler.stream.reading import (
     ReadOptions,
-    SimulatedSource,
-    SocketSource,
     apply_roi,
     check_units,
     parse_columns,
@@ -25,6 +20,8 @@ from posekit.profiler.stream.sources import (
     read_profile_file,
     units_hint,
 )
+from posekit.profiler.stream.socket_source import SocketSource
+from posekit.profiler.stream.sources import ArraySource, FileSource, ProfileSource, SimulatedSource
 from posekit.profiler.stream.stream_client import SensorClient
 
 

@@ -7,10 +7,10 @@ import pytest
 
 from posekit.cli.main import main
 from posekit.geometry import transform_from_quaternion
-from posekit.profiler.estimate.design import random_gauge
-from posekit.profiler.estimate.evaluate import pose_errors
-from posekit.profiler.estimate.gauge import gauge_to_yaml, load_gauge
-from posekit.profiler.estimate.io import read_truth_csv
+from posekit.profiler.gauge.design import random_gauge
+from posekit.profiler.gauge.model import gauge_to_yaml, load_gauge
+from posekit.profiler.sim.simulate import read_truth_csv
+from posekit.profiler.studies.evaluate import pose_errors
 
 
 @pytest.mark.parametrize("n, seed", [(4, 101), (5, 102), (7, 103), (10, 104)])

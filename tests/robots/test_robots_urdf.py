@@ -18,6 +18,7 @@ from posekit.robots import (
     puma560,
     robot_model,
 )
+from tests.robots.pinocchio_reference import PinocchioChain, random_q
 
 pin = pytest.importorskip("pinocchio")
 
@@ -103,44 +104,8 @@ def reference_fk(q) -> np.ndarray:
     return T
 
 
-class PinocchioChain:
-    """The same chain through Pinocchio (metres): T in mm, J rows [v mm/rad; w] in the base
-    frame. Joints of the pinocchio model that posekit's chain does not have stay at 0."""
-
-    def __init__(self, path, chain):
-        self.model = pin.buildModelFromUrdf(str(path))
-        self.data = self.model.createData()
-        self.fid = self.model.getFrameId(chain.tip_link)
-        self.base = self.model.getFrameId(chain.base_link)
-        joints = [self.model.joints[self.model.getJointId(name)] for name in chain.joint_names]
-        self.idx_q = [j.idx_q for j in joints]
-        self.unbounded = [j.nq == 2 for j in joints]  # continuous joints: q = (cos, sin)
-        self.idx_v = [self.model.joints[self.model.getJointId(name)].idx_v for name in chain.joint_names]
-        self.prismatic = np.array([t == PRISMATIC for t in chain.joint_types])
-
-    def __call__(self, q):
-        qp = pin.neutral(self.model)
-        for k, (i, value) in enumerate(zip(self.idx_q, np.where(self.prismatic, q / 1000.0, q))):
-            if self.unbounded[k]:
-                qp[i:i + 2] = math.cos(value), math.sin(value)
-            else:
-                qp[i] = value
-        pin.forwardKinematics(self.model, self.data, qp)
-        pin.updateFramePlacements(self.model, self.data)
-        J = pin.computeFrameJacobian(self.model, self.data, qp, self.fid, pin.LOCAL_WORLD_ALIGNED)[:, self.idx_v]
-        T_world_base = self.data.oMf[self.base].homogeneous
-        T = np.linalg.inv(T_world_base) @ self.data.oMf[self.fid].homogeneous
-        T[:3, 3] *= 1000.0
-        R = T_world_base[:3, :3].T  # the base link is the root in every test file: R = I
-        J = np.vstack([R @ J[:3], R @ J[3:]])
-        J[:3, ~self.prismatic] *= 1000.0  # m/rad -> mm/rad; prismatic columns are unitless
-        return T, J
-
-
 def _random_q(chain, rng, n):
-    lo = np.clip(chain.q_min, -math.pi, math.pi)
-    hi = np.clip(chain.q_max, -math.pi, math.pi)
-    return rng.uniform(lo, hi, (n, chain.n_joints))
+    return random_q(chain, rng, n)
 
 
 def test_skewed_chain_structure(skewed_path):
@@ -150,11 +115,26 @@ def test_skewed_chain_structure(skewed_path):
     np.testing.assert_allclose(chain.q_min, [-3, -2, -50, -np.inf, -2.5, -6])
     np.testing.assert_allclose(chain.q_max, [3, 2, 200, np.inf, 2.5, 6])
     assert (chain.base_link, chain.tip_link) == ("world", "tcp")
-    # the default base is the root; the default tip is the leaf with the most moving joints,
-    # and here the gripper finger's path has as many as the tool's
-    with pytest.raises(ConfigError, match=r"tip_link is ambiguous: \['tcp', 'finger'\] each end a path of 6 moving"):
-        load_urdf(skewed_path)
+    # the default base is the root. Its default tip: at l5 two branches move, j6 (-> flange -> tcp)
+    # and the slide 'grip' (-> finger), each with one joint, fewer than the five arm joints above:
+    # a hand, by the rule (what a gripper whose fingers hang before the last joint gives)
+    chain = load_urdf(skewed_path)
+    assert (chain.base_link, chain.tip_link, chain.joint_names) == ("world", "l5", ("j1", "j2", "slide", "j4", "j5"))
+    assert chain.notes == ("default tip: the gripper's link; left out: j6, grip",)
+    assert repr(chain) == "<SerialChain skewed: world → l5, 5 joints (j1, j2, slide, j4, j5)>"
     assert load_urdf(skewed_path, tip_link="tcp").base_link == "world"
+
+
+def test_default_tip_follows_the_arm_past_a_named_finger(tmp_path):
+    """A finger named as one, on the flange, has no arm joint: the walk goes on to the flange and
+    stops there (the finger moves, and the tcp and a camera hang from it)."""
+    text = SKEWED_URDF.replace('name="grip" type="prismatic"><parent link="l5"/>',
+                               'name="finger_joint" type="prismatic"><parent link="flange"/>').replace(
+        "</robot>", '<link name="flange_cam"/><joint name="fcam" type="fixed"><parent link="flange"/>'
+                    '<child link="flange_cam"/></joint></robot>')
+    chain = load_urdf(_write(tmp_path, text, "named.urdf"))
+    assert (chain.tip_link, chain.n_joints) == ("flange", 6)
+    assert chain.notes == ("default tip: the arm's end; left out: finger_joint",)
 
 
 @pytest.mark.parametrize("name", ["skewed", "ur10", "abb_irb6640"])
@@ -295,13 +275,28 @@ def _arm(axis1='<axis xyz="0 0 1"/>', type2="revolute", extra2='<axis xyz="0 1 0
         ('<!DOCTYPE r [<!ENTITY a "aaaa">]><robot name="x"><link name="&a;"/></robot>', {},
          r"bad\.urdf: unsupported URDF: DTD entities"),
         ('<robot name="x" xmlns:xacro="http://ros.org/wiki/xacro"><xacro:property name="a" value="1"/></robot>', {},
-         r"bad\.urdf: a xacro file; expected plain URDF"),
+         r"bad\.urdf: a xacro file \(element <property> of the xacro namespace\); expected plain URDF \(run xacro first\)$"),
+        ('<robot name="x"><xacro:include filename="arm.xacro"/></robot>', {},      # prefix never declared
+         r"bad\.urdf: a xacro file \(element <xacro:include> of the xacro namespace\)"),
+        (_arm(extra2='<axis xyz="0 1 0"/><origin xyz="0 0 ${l2}"/>'), {},
+         r"bad\.urdf: a xacro file \(joint 'j2' has the expression '0 0 \$\{l2\}'\); expected plain URDF"),
+        (_arm(extra2='<axis xyz="0 1 0"/><origin xyz="$(arg x) 0 0"/>'), {},
+         r"bad\.urdf: a xacro file \(joint 'j2' has the expression '\$\(arg x\) 0 0'\)"),
+        ('<robot name="x"><link name="a"/><link/></robot>', {},
+         r"bad\.urdf: <link> number 2 of <robot> has no name attribute; expected name=\"\.\.\.\"$"),
+        (_arm(extra2='<axis xyz="0 1 0"/><origin xyz="1e300 0 0"/>'), {},
+         r"bad\.urdf: joint 'j2': origin xyz 1e\+300 m from its parent; expected metres within 10000 m$"),
+        (_arm(extra2='<axis xyz="0 1 0"/><limit lower="nan" upper="1" effort="1" velocity="1"/>'), {},
+         r"bad\.urdf: joint 'j2': limit lower nan > upper 1 \(or NaN\); expected lower <= upper$"),
+        (_arm(extra2='<axis xyz="0 1 0"/><limit lower="2" upper="1" effort="1" velocity="1"/>'), {},
+         r"bad\.urdf: joint 'j2': limit lower 2 > upper 1"),
         (_arm(extra2='<axis xyz="0 1 0"/><origin xyz="1 2"/>'), {},
          r"bad\.urdf: malformed URDF \(ValueError"),
         (_arm(extra2='<axis xyz="0 1 0"/><origin xyz="nan 0 0"/>'), {},
          r"bad\.urdf: joint 'j2': origin xyz/rpy must be 3 finite numbers each"),
         ('<robot name="x"><link name="a"/><link name="b"/><joint name="f" type="fixed"><parent link="a"/>'
-         '<child link="b"/></joint></robot>', {}, r"bad\.urdf: no moving joint below base_link 'a'"),
+         '<child link="b"/></joint></robot>', {}, r"bad\.urdf: no arm joint below base_link 'a' \(mimic and "
+                                                  r"gripper joints do not count\); expected a serial arm, or pass tip_link"),
     ],
 )
 def test_bad_urdf(tmp_path, text, kwargs, match):
@@ -343,6 +338,59 @@ def test_bad_q(q, match):
 def test_ambiguous_default_tip(tmp_path):
     text = _arm(more='<link name="c"/><joint name="j3" type="revolute"><parent link="a"/><child link="c"/>'
                      '<axis xyz="1 0 0"/></joint>')
-    with pytest.raises(ConfigError, match=r"tip_link is ambiguous: \['b', 'c'\] each end a path of 2 moving joints"):
+    with pytest.raises(ConfigError, match=r"the default tip is ambiguous: the tree branches at 'a' into 2 chains of "
+                                          r"1 moving joints; candidate tips 'b', 'c'; pass tip_link \(--tip-link\)$"):
         load_urdf(_write(tmp_path, text))
     assert load_urdf(_write(tmp_path, text), tip_link="c").joint_names == ("j1", "j3")
+
+
+# --------------------------------------------------------------------------- the world's URDF
+
+def test_what_pinocchio_reads_loads(tmp_path):
+    """xacro leftovers in comments, unnamed joints inside <gazebo>, plugins, transmissions and an
+    undeclared namespace prefix inside a gazebo block are outside the kinematic tree."""
+    more = ('<!-- origin was ${pi/2} in the xacro --><gazebo><plugin name="p" filename="x.so"><joint>j1</joint>'
+            '</plugin><sensor:camera name="c"/></gazebo>'
+            '<transmission name="t"><joint name="j1"/><actuator name="m"/></transmission>'
+            '<gazebo reference="a"><joint/></gazebo>')
+    path = _write(tmp_path, _arm(extra2='<axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/>',
+                                 more=more), "world.urdf")
+    chain = load_urdf(path)
+    assert (chain.base_link, chain.tip_link, chain.joint_names) == ("base", "b", ("j1", "j2"))
+    pin.buildModelFromUrdf(str(path))                          # the reference reads it too
+    q = np.array([0.3, -0.4])
+    T_pin, J_pin = PinocchioChain(path, chain)(q)
+    np.testing.assert_allclose(chain.forward_kinematics(q), T_pin, atol=1e-9)
+    np.testing.assert_allclose(chain.geometric_jacobian(q), J_pin, atol=1e-9)
+
+
+def test_infinite_limits_are_unbounded_and_said(tmp_path):
+    text = _arm(extra2='<axis xyz="0 1 0"/><limit lower="-inf" upper="inf" effort="1" velocity="1"/>')
+    chain = load_urdf(_write(tmp_path, text), tip_link="b")
+    assert chain.q_min[1] == -np.inf and chain.q_max[1] == np.inf
+    assert chain.notes == ("joint 'j2': limit -inf..inf read as unbounded",)
+    assert chain.within_limits([0.0, 1e6])
+
+
+def test_huge_axis_components_do_not_overflow(tmp_path):
+    chain = load_urdf(_write(tmp_path, _arm(extra2='<axis xyz="1e300 1e300 0"/>')), tip_link="b")
+    np.testing.assert_allclose(chain.axes[1], [2 ** -0.5, 2 ** -0.5, 0.0])
+
+
+def test_default_tip_is_linear_on_a_long_chain():
+    """45,000 links (the most a 16 MB file holds): a chain with a side link per joint. A search per
+    leaf is quadratic (37 s at 16,000 links before); the walk is one pass, and never recursion."""
+    from types import SimpleNamespace
+
+    from posekit.robots._urdf_tree import JointTree
+
+    n = 22_500
+    joints = []
+    for i in range(1, n):
+        joints.append(SimpleNamespace(name=f"j{i}", type="revolute", parent=f"l{i - 1}", child=f"l{i}", mimic=None))
+        joints.append(SimpleNamespace(name=f"f{i}", type="fixed", parent=f"l{i - 1}", child=f"s{i}", mimic=None))
+    links = [f"l{i}" for i in range(n)] + [f"s{i}" for i in range(1, n)]
+    tree = JointTree("big.urdf", links, joints)
+    found = tree.default_tip(tree.root())
+    assert (found.tip, found.how) == (f"l{n - 1}", "end")
+    assert len(tree.path_joints("l0", found.tip)) == n - 1

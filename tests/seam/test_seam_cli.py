@@ -6,6 +6,7 @@ metrics.json contract and that its numbers are those of estimates.csv, not track
 """
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -206,14 +207,21 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     rc = main(["seam", "demo", "--particles", "30", "--steps", "60"])
     out = capsys.readouterr().out
     assert rc == 0
-    rows = {line[:24].strip(): [float(v) for v in line[24:].split()] for line in out.splitlines()
-            if line.startswith(("xy,", "yz,"))}
+    lines = [line for line in out.splitlines() if line.startswith(("xy,", "yz,"))]
+    rows = {line[:24].strip(): [float(v) for v in line[24:].split()[:6]] for line in lines}
     assert list(rows) == ["xy, 0 sensors", "xy, 1 sensor", "xy, 2 sensors", "yz, 0 sensors", "yz, 1 sensor",
                           "yz, 2 sensors", "xy, FK only"]
     assert all(len(v) == 6 and all(x >= 0 for x in v) for v in rows.values())
     # fixed decimals (mm and deg to 3 places), never a mix of significant-digit widths
-    numbers = [t for line in out.splitlines() if line.startswith(("xy,", "yz,")) for t in line[24:].split()]
+    numbers = [t for line in lines for t in line[24:].split()[:6]]
     assert len(numbers) == 42 and all(len(t.split(".")[1]) == 3 for t in numbers)
+    # each configuration's steps tracking/degraded/lost (60 steps, one run), their total, and the verdict line
+    status = [line[24:].split()[6] for line in lines[:6]]
+    assert all(sum(map(int, s.split("/"))) == 60 for s in status), status
+    totals = [int(n) for n in re.findall(r"(?:tracking|degraded|lost) (\d+)",
+                                         next(x for x in out.splitlines() if x.startswith("status over all")))]
+    assert totals == [sum(int(s.split("/")[k]) for s in status) for k in range(3)]
+    assert re.search(r"^verdict: two sensors beat the kinematics on xy [0-6]/6, yz [0-6]/6 axes ", out, re.MULTILINE)
     assert out.startswith("seam demo: 1 run(s) × 60 steps, 30 particles")
     step = [line for line in out.splitlines() if line.startswith("filter step median: ")]
     assert len(step) == 1 and step[0].endswith(" ms (xy, 2 sensors, 30 particles; the paper's sensor period is 10 ms)")

@@ -1,35 +1,27 @@
 """Ceiling system: x, y and heading of a ground robot from laser dots on the ceiling seen by a
-fixed camera (homography calibration, dot detection, tracking, synthetic ceiling videos)."""
+fixed camera.
 
-from .accuracy import (
-    heading_std_closed_form,
-    known_points_assessment,
-    simulate_heading_error,
-)
-from .calibration import (
-    Calibration,
-    calibrate,
-    load_calibration,
-    read_points_csv,
-    write_points_csv,
-)
-from .cameras import Camera, MultiCameraTracker
-from .demo import run_demo
-from .detect import Dot, DotDetector, DotSignature
-from .detect_line import Line, LineDetector
-from .grid import CeilingGrid, find_grid_corners
-from .live import TrackOutputs
-from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
-from .pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
-from .render import (
-    CeilingScene,
-    SceneConfig,
-    iter_frames,
-    render_video,
-    true_homography,
-)
-from .track import Tracker, TrackerConfig
-from .video_io import open_frames, open_live
+Parts: :mod:`~posekit.ceiling.camera` (lens, homography calibration),
+:mod:`~posekit.ceiling.detect` (dots, lines, static lights), :mod:`~posekit.ceiling.track`
+(tracker, several cameras or robots, sources and outputs), :mod:`~posekit.ceiling.sim` (the
+renderer) and :mod:`~posekit.ceiling.studies`.
+"""
+
+from .camera.grid import CeilingGrid, find_grid_corners
+from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
+from .detect.dots import Dot, DotDetector, DotSignature
+from .detect.lines import Line, LineDetector
+from .sim.config import SceneConfig
+from .sim.render import CeilingScene, iter_frames, render_video, true_homography
+from .studies.accuracy import heading_std_closed_form, known_points_assessment, simulate_heading_error
+from .studies.demo import run_demo
+from .track.cameras import Camera, MultiCameraTracker
+from .track.multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
+from .track.outputs import TrackOutputs
+from .track.pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
+from .track.sources import open_frames, open_live
+from .track.tracker import Tracker
+from .track.types import TrackerConfig
 
 __all__ = [
     "Calibration",

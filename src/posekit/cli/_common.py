@@ -6,8 +6,12 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
-           "add_dask_args", "check_dask_args"]
+__all__ = ["overwrite_flag", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged",
+           "add_deprecated", "add_dask_args", "check_dask_args", "check_workspace", "local_scheduler", "SCHEDULER_HELP"]
+
+#: Help of ``--scheduler`` on the verbs that run their episodes through :func:`posekit.sweep.run_tasks`.
+SCHEDULER_HELP = ("where to run: a Dask scheduler address tcp://HOST:PORT, or 'serial' (this process); default "
+                  "local: a Dask cluster on this machine's cores, or this process without Dask")
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
 OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
@@ -19,15 +23,6 @@ def add_overwrite(parser, out_default: str | None = None) -> None:
     folder (``out_default``) replaces that one on every run."""
     parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(out_default=out_default)
-
-
-def resolve_gauge(arg: str):
-    """Load a gauge from a path, or a bundled one by name (``demo-5``)."""
-    from ..profiler.estimate.gauge import BUNDLED_GAUGES, bundled_gauge, load_gauge
-    path = Path(arg)
-    if not path.exists() and arg in BUNDLED_GAUGES:
-        return bundled_gauge(arg)
-    return load_gauge(path)
 
 
 def progress(iterable, total=None, desc=None, unit: str = "profile"):
@@ -55,10 +50,10 @@ def out_folder(args) -> Path:
     :func:`posekit.io.staged_folder`, so the folder appears whole or not at all."""
     from ..io import check_out_folder
 
-    return check_out_folder(args.out, overwrite=_overwrite(args))
+    return check_out_folder(args.out, overwrite=overwrite_flag(args))
 
 
-def _overwrite(args) -> bool:
+def overwrite_flag(args) -> bool:
     """``--overwrite``, or the verb's own default folder (a demo's ``posekit-demo``), which each run
     replaces."""
     default = getattr(args, "out_default", None)
@@ -70,7 +65,7 @@ def staged(args):
     that becomes ``--out`` when the block succeeds."""
     from ..io import staged_folder
 
-    return staged_folder(args.out, overwrite=_overwrite(args))
+    return staged_folder(args.out, overwrite=overwrite_flag(args))
 
 
 class _Deprecated(argparse.Action):
@@ -96,8 +91,7 @@ def add_dask_args(parser) -> None:
     (processes of that local cluster) to a verb that runs its episodes on Dask."""
     from ._flags import workers
 
-    parser.add_argument("--scheduler", default=None,
-                        help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    parser.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     parser.add_argument("--workers", type=workers, default=None,
                         help="worker processes of the local cluster, 1..256 (default: one per core)")
 
@@ -106,3 +100,29 @@ def check_dask_args(args) -> None:
     """One-line :class:`ConfigError` when ``--workers`` (the local cluster's size) comes with ``--scheduler``."""
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+
+
+def local_scheduler(args):
+    """The scheduler for :func:`posekit.sweep.run_tasks`: ``--scheduler`` when given; by default a
+    local Dask cluster, or this process (``'serial'``, with a one-line note) when Dask (the
+    'studies' extra) is not installed, so the default invocation needs no Dask."""
+    if args.scheduler is not None or getattr(args, "workers", None) is not None:
+        return args.scheduler
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        from .._extras import install_hint
+        print(f"posekit: note: running in this process; Dask would use every core ({install_hint('studies')})",
+              file=sys.stderr)
+        return "serial"
+    return None
+
+
+def check_workspace(ws, args) -> None:
+    """The workspace half-ranges within 0..1000 mm and 0..180 deg (``Workspace`` checks >= 0)."""
+    from ._flags import check_range
+
+    for flag, text, values, hi, unit in (("--translation-mm", args.translation_mm, ws.translation_mm, 1e3, "mm"),
+                                         ("--rotation-deg", args.rotation_deg, ws.rotation_deg, 180.0, "deg")):
+        for v in values:
+            check_range(flag, v, 0.0, hi, unit, what="three numbers", shown=repr(text))

@@ -15,7 +15,9 @@ def add_calibrate_parser(verbs):
         "calibrate", help="homography between the ceiling and the image from corresponding points",
         description="Calibrate the fixed camera: the homography from ceiling (X, Y) to image (u, v). "
                     "With --from-image, POINTS.csv holds 4 or more approximate grid corners and every "
-                    "T-bar crossing in the reference image is found and used.")
+                    "T-bar crossing in the reference image is found and used. Exit 1 (the file written, marked "
+                    "suspect) when the points contradict the --camera lens model or RANSAC keeps fewer than half "
+                    "of them: track never marks a row ok with it.")
     c.add_argument("points", metavar="POINTS.csv",
                    help="CSV 'X,Y,u,v': world points on the ceiling (mm) and their pixels")
     c.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
@@ -23,6 +25,10 @@ def add_calibrate_parser(verbs):
                    help="lens of the camera (posekit ceiling camera): the points' pixels are undistorted first and "
                         "the homography maps undistorted pixels (pass the same file to track); without it the "
                         "camera is taken as distortion-free")
+    c.add_argument("--image-size", metavar="WxH", default=None,
+                   help="size of the images the points were clicked in (default: the --camera's or the "
+                        "--from-image's); track then refuses frames of another shape and scales for another "
+                        "resolution")
     c.add_argument("--residuals", choices=("all", "worst", "none"), default="all",
                    help="print the residual of every point (all, default), the 10 worst, or none")
     c.add_argument("--no-refine", dest="refine", action="store_false",
@@ -70,8 +76,8 @@ def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
     cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
     import numpy as np
 
-    from ..ceiling.calibration import write_points_csv
-    from ..ceiling.grid import CeilingGrid, find_grid_corners
+    from ..ceiling.camera.grid import CeilingGrid, find_grid_corners
+    from ..ceiling.camera.homography import write_points_csv
     from ..errors import CalibrationError
     from ..io import read_image
 
@@ -81,7 +87,7 @@ def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
     grid = CeilingGrid(grid_mm, origin_mm, args.bar_mm)
     seed_uv = seeds.image_uv
     if camera is not None:
-        from ..ceiling.calibration import undistort_calibration_points
+        from ..ceiling.camera.homography import undistort_calibration_points
         img = cv2.undistort(img, camera.K, camera.dist, None, camera.K)
         seed_uv = undistort_calibration_points(camera, seed_uv, seeds.lines)
     corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seed_uv,
@@ -100,7 +106,7 @@ def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
     """Per-point residuals (px in the image, mm on the ceiling) and why RANSAC rejected each point."""
     import numpy as np
 
-    from ..ceiling.calibration import point_residuals
+    from ..ceiling.camera.homography import point_residuals
 
     e_px, e_mm = point_residuals(cal, world, image)
     n = len(world)
@@ -133,10 +139,11 @@ def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
 
 
 def run_calibrate(args) -> int:
-    """Run ``posekit ceiling calibrate``; returns the exit code (0)."""
+    """Run ``posekit ceiling calibrate``; returns the exit code (0; 1 when the calibration is
+    suspect, after writing it)."""
     import numpy as np
 
-    from ..ceiling.calibration import calibrate, read_points_csv
+    from ..ceiling.camera.homography import calibrate_points, read_points_csv
     from ..errors import ConfigError
 
     if not (np.isfinite(args.threshold_px) and args.threshold_px > 0):
@@ -144,24 +151,23 @@ def run_calibrate(args) -> int:
     check_flags(args)
     grid_mm = _pair(args.grid, "--grid", 10.0, 1e5)
     origin_mm = _pair(args.grid_origin, "--grid-origin", -1e6, 1e6)
+    size = _image_size(args.image_size) if args.image_size else None
     pts = read_points_csv(args.points)
     camera = None
     if args.camera:
-        from ..ceiling.camera import load_camera
+        from ..ceiling.camera.lens import load_camera
         camera = load_camera(args.camera)
     if args.from_image:
-        world, image, lines = _points_from_image(args, pts, grid_mm, origin_mm, camera)
+        world, seen, lines = _points_from_image(args, pts, grid_mm, origin_mm, camera)
+        if size is None:
+            size = _reference_size(args.from_image)
     else:
         if args.write_points:
             raise ConfigError("--write-points needs --from-image")
-        world, image, lines = pts.world_xy, pts.image_uv, pts.lines
-    seen = image
-    if camera is not None:
-        from ..ceiling.calibration import undistort_calibration_points
-        image = undistort_calibration_points(camera, seen, lines)
-    cal = calibrate(world, image, refine=args.refine, ransac=args.ransac,
-                    threshold_px=args.threshold_px, rng=args.seed)
-    cal.camera = camera
+        world, seen, lines = pts.world_xy, pts.image_uv, pts.lines
+    cal, radial = calibrate_points(world, seen, camera=camera, lines=lines, image_size=size, refine=args.refine,
+                                   ransac=args.ransac, threshold_px=args.threshold_px, rng=args.seed)
+    image = seen if camera is None else np.asarray(cal.camera.undistort_points(seen))
     n, n_in = cal.n_points, int(cal.inliers.sum())
     ransac_used = args.ransac if args.ransac is not None else n >= 6
     how = f"RANSAC at {args.threshold_px:g} px, " if ransac_used else ""
@@ -169,12 +175,8 @@ def run_calibrate(args) -> int:
     how += f", pixels undistorted with {args.camera}" if camera is not None else ", no lens model"
     print(f"calibrated from {n_in} of {n} points ({how}): rms {cal.rms_px:.3f} px in the image, "
           f"{cal.rms_world:.3f} world units (mm) on the ceiling")
-    radial = None
-    if camera is None:
-        from ..ceiling.calibration import radial_pattern
-        radial = radial_pattern(world, image)
-    _print_residuals(args, cal, world, image, seen, lines, radial)
-    if radial is not None and radial.detected:
+    _print_residuals(args, cal, world, image, seen, lines, None if camera is not None else radial)
+    if camera is None and radial is not None and radial.detected:
         print(f"posekit: warning: looks like lens distortion: calibrate the camera (posekit ceiling camera) and "
               f"pass --camera; a plain homography leaves {radial.rms_px:.1f} px rms that grows with the distance "
               f"from the image centre (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}, "
@@ -182,4 +184,25 @@ def run_calibrate(args) -> int:
     out = Path(args.out)
     cal.to_json(out)
     print(f"wrote {out}", file=sys.stdout)
+    if cal.status == "suspect":
+        print(f"posekit: suspect: {'; '.join(cal.reasons)}"[:600], file=sys.stderr)
+        return 1
     return 0
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    """'864x480' -> (864, 480); a one-line ConfigError naming --image-size."""
+    import re
+
+    from ..errors import ConfigError
+    m = re.fullmatch(r"\s*(\d{1,6})\s*[xX]\s*(\d{1,6})\s*", text or "")
+    if not m or not all(1 <= int(g) <= 100_000 for g in m.groups()):
+        raise ConfigError(f"--image-size: expected WIDTHxHEIGHT in px (e.g. 864x480), got '{str(text)[:40]}'")
+    return int(m.group(1)), int(m.group(2))
+
+
+def _reference_size(path) -> tuple[int, int] | None:
+    cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
+    from ..io import read_image
+    img = read_image(path, cv2.IMREAD_GRAYSCALE)
+    return None if img is None else (int(img.shape[1]), int(img.shape[0]))

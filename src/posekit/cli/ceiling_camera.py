@@ -24,7 +24,9 @@ def add_camera_parser(verbs):
                     "named and skipped; at least 3 must remain. Hold the board close to the image corners "
                     "too: the summary reports how much of the image the corners cover. Use the result with "
                     "--camera on 'calibrate', 'track' and 'demo'.")
-    c.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (one camera, one resolution)")
+    c.add_argument("images", nargs="+", metavar="IMAGE",
+                   help="chessboard images or folders of them (one camera, one resolution; a view of another "
+                        "size is named and skipped)")
     c.add_argument("--board", required=True, metavar="COLSxROWS",
                    help="inner corners of the chessboard, e.g. 9x6 (a board of 10x7 squares)")
     c.add_argument("--square-mm", required=True, type=bounded_float(0.1, 1e4, "mm"),
@@ -44,6 +46,16 @@ def parse_board(text: str) -> tuple[int, int]:
         raise ConfigError(f"--board: expected the inner corners as COLSxROWS, each 2..100 (e.g. 9x6), "
                           f"got '{str(text)[:40]}'")
     return int(m.group(1)), int(m.group(2))
+
+
+def expand_images(paths) -> list:
+    """The image paths of ``paths``, a folder replaced by its images sorted by name."""
+    from ..ceiling.track.sources import list_images
+
+    out = []
+    for p in paths:
+        out.extend(list_images(Path(p)) if Path(p).is_dir() else [p])
+    return out
 
 
 def _views(paths):
@@ -66,18 +78,19 @@ def _views(paths):
 
 def run_camera(args) -> int:
     """Run ``posekit ceiling camera``; returns the exit code (0)."""
-    from ..ceiling.camera import calibrate_camera, save_camera
+    from ..ceiling.camera.lens import calibrate_camera, save_camera
 
     check_flags(args)
     board = parse_board(args.board)
     if Path(args.out).is_dir():              # before the calibration, not after it
         raise ConfigError(f"--out {args.out}: is a folder; expected a CAMERA.json file name")
-    if len(args.images) > MAX_VIEWS:
-        raise ConfigError(f"{len(args.images)} images; expected at most {MAX_VIEWS}")
+    images = expand_images(args.images)
+    if len(images) > MAX_VIEWS:
+        raise ConfigError(f"{len(images)} images; expected at most {MAX_VIEWS}")
     unreadable = []
 
     def views():
-        for name, img, bad in _views(args.images):
+        for name, img, bad in _views(images):
             if bad:
                 unreadable.append(name)
                 continue
@@ -86,6 +99,8 @@ def run_camera(args) -> int:
     result = calibrate_camera(views(), board, args.square_mm, fix_k3=not args.k3)
     for name, why in result.skipped:
         print(f"posekit: warning: {name}: {why}; view skipped", file=sys.stderr)
+    for w in result.warnings:
+        print(f"posekit: warning: {w}", file=sys.stderr)
     cam = result.camera
     K, d = cam.K, cam.dist
     n_all = len(result.used) + len(result.skipped) + len(unreadable)

@@ -31,8 +31,8 @@ def add_demo_parser(verbs):
 
 
 def run_demo(args) -> int:
-    from ..ceiling.demo import run_demo as demo
-    from ..ceiling.pipeline import parse_dots
+    from ..ceiling.studies.demo import run_demo as demo
+    from ..ceiling.track.pipeline import parse_dots
 
     dots = parse_dots(args.dots)
     check_flags(args)
@@ -49,8 +49,8 @@ def run_demo(args) -> int:
 
 def _check_lens(args) -> None:
     """Read the ``--camera`` model and check it against the demo's frame size, before anything is rendered."""
-    from ..ceiling.camera import load_camera
-    from ..ceiling.render import SceneConfig
+    from ..ceiling.camera.lens import load_camera
+    from ..ceiling.sim.render import SceneConfig
     from ..errors import ConfigError
 
     lens = load_camera(args.camera)

@@ -104,7 +104,7 @@ def scene_config(args, dots):
     """The SceneConfig of the flags: defaults, then --realistic, then --config, then the flags given."""
     import dataclasses
 
-    from ..ceiling.render import REALISTIC, SceneConfig
+    from ..ceiling.sim.render import REALISTIC, SceneConfig
     from ..io import load_yaml
 
     values = dict(REALISTIC) if args.realistic else {}
@@ -133,7 +133,7 @@ def scene_config(args, dots):
 
 
 def run_simulate(args) -> int:
-    from ..ceiling.render import render_video
+    from ..ceiling.sim.render import render_video
 
     dots = DOT_CHOICES.get(args.dots.replace(" ", "").lower())
     if dots is None:

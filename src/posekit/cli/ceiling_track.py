@@ -8,7 +8,7 @@ from ._flags import bounded_float, bounded_int, check_flags
 __all__ = ["add_track_parser", "run_track"]
 
 #: ``--duration-s`` of the demo: at most an hour (54,000 frames at 15 fps); > 0 is checked by
-#: ``posekit.ceiling.demo.run_demo`` with its own message.
+#: ``posekit.ceiling.studies.demo.run_demo`` with its own message.
 _DURATION = bounded_float(None, 3600.0, "s", flag="--duration-s")
 
 
@@ -52,11 +52,13 @@ def add_track_parser(verbs):
     t.add_argument("--max-predict-s", type=bounded_float(0.0, 3600.0, "s"), default=1.0,
                    help="predict through a dropout for at most this long, then 'lost', 0..3600 s (default 1 s)")
     t.add_argument("--out", default=None, metavar="TRACK.csv",
-                   help="output CSV frame,time_s,x,y,heading_deg,status,std_mm (mm, s, degrees), written row by "
-                        "row and renamed into place at the end or on Ctrl-C; required unless --jsonl or --udp")
+                   help="output CSV frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason (mm, s, "
+                        "degrees), written row by row and renamed into place at the end or on Ctrl-C; required unless "
+                        "--jsonl or --udp")
     t.add_argument("--jsonl", default=None, metavar="FILE|-",
-                   help="also write one JSON object per frame {frame,time_s,x,y,heading_deg,status,std_mm}, "
-                        "flushed as soon as the frame is done ('-': stdout)")
+                   help="also write one JSON object per frame {frame,time_s,x,y,heading_deg,status,std_mm,"
+                        "std_heading_deg,reason}, flushed as soon as the frame is done ('-': stdout; the run stops "
+                        "when its reader closes)")
     t.add_argument("--udp", default=None, metavar="HOST:PORT",
                    help="also send each frame's JSON object as a UDP datagram (loopback only unless --allow-remote)")
     t.add_argument("--allow-remote", action="store_true", help="allow a --udp host that is not this machine")
@@ -65,18 +67,23 @@ def add_track_parser(verbs):
     t.add_argument("--loop", type=bounded_int(1, 1_000_000), default=1,
                    help="with --live and a video file: play it this many times (default 1)")
     t.add_argument("--max-frames", type=bounded_int(1, 10**9), default=None,
-                   help="stop after this many frames (a camera never ends by itself; Ctrl-C stops too)")
+                   help="stop after this many frames, for every kind of input (a camera never ends by itself; "
+                        "Ctrl-C stops too)")
+    t.add_argument("--scene", action="append", default=None, metavar="SCENE.json",
+                   help="static lights of the empty scene (`posekit ceiling learn-scene`): never taken for the laser "
+                        "from the first frame on; once for all inputs or once per input (default: learned online)")
     t.set_defaults(func=run_track)
 
 
 def run_track(args) -> int:
     import signal
 
-    from ..ceiling.live import TrackOutputs
-    from ..ceiling.pipeline import parse_dots, track_video
-    from ..ceiling.track import TrackerConfig
-    from ..ceiling.video_io import DEFAULT_FPS, is_live_source
+    from ..ceiling.track.outputs import ReaderGone, TrackOutputs
+    from ..ceiling.track.pipeline import parse_dots, track_video
+    from ..ceiling.track.sources import DEFAULT_FPS, is_live_source
+    from ..ceiling.track.types import TrackerConfig
     from ..errors import ConfigError
+    from ..verdict import track_exit_code
 
     inputs = [args.input, *args.input2]
     if len(args.calibration) != len(inputs):
@@ -102,6 +109,9 @@ def run_track(args) -> int:
     out = None if args.out is None else Path(args.out)
     if out is not None and out.is_dir():
         raise ConfigError(f"--out {out}: is a folder; expected a CSV file name")
+    if args.scene is not None and len(args.scene) not in (1, len(inputs)):
+        raise ConfigError(f"--scene given {len(args.scene)} time(s) for {len(inputs)} input(s); give it once for "
+                          "all inputs or once per input")
     if args.camera is not None and len(args.camera) not in (1, len(inputs)):
         raise ConfigError(f"--camera given {len(args.camera)} time(s) for {len(inputs)} input(s); give it once for "
                           "all inputs or once per input")
@@ -110,7 +120,7 @@ def run_track(args) -> int:
     options = {"method": args.line_method} if dots == ("line",) and args.line_method != "moments" else None
     outputs = TrackOutputs(out, args.jsonl, args.udp, allow_remote=args.allow_remote, robots=robots)
     say = sys.stderr if outputs.to_stdout else sys.stdout
-    interrupted, result = False, None
+    interrupted, gone, result = False, None, None
     old_term = None
     try:
         old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -120,14 +130,18 @@ def run_track(args) -> int:
         common = dict(fps=args.fps, camera=lenses, loop=args.loop, max_frames=args.max_frames, live=args.live,
                       progress=None if live else _frame_progress())
         if robots > 1:
-            from ..ceiling.multitrack import track_robots_video
+            from ..ceiling.track.multitrack import track_robots_video
             result = track_robots_video(inputs[0], args.calibration[0], robots, config=config,
                                         on_row=outputs.write, **common)
         else:
+            scenes = None if args.scene is None else (args.scene if len(args.scene) > 1 else args.scene[0])
             result = track_video(inputs, args.calibration, dots, config=config, detector_options=options,
-                                 on_row=outputs.write, **common)
+                                 on_row=outputs.write, scene=scenes, **common)
     except KeyboardInterrupt:
         interrupted = True
+    except ReaderGone as exc:
+        gone = str(exc)
+        _silence_stdout()
     except BaseException:
         outputs.close(discard=True)
         raise
@@ -148,11 +162,30 @@ def run_track(args) -> int:
                                       "without decoding)")
     what = f"{outputs.frames} frames" if robots == 1 else f"{outputs.frames // robots} frames x {robots} robots"
     stop = "interrupted after " if interrupted else ""
-    print(f"{stop}{what}: {c['ok']} ok, {c['predicted']} predicted, {c['lost']} lost{speed}; wrote {where}",
-          file=say)
+    if gone:
+        print(f"posekit: stopped: {gone}", file=sys.stderr)
+        return track_exit_code(False)        # the input was not read whole
+    print(f"{stop}{what}: {c['ok']} ok, {c['suspect']} suspect, {c['predicted']} predicted, {c['lost']} lost{speed}; "
+          f"wrote {where}", file=say)
+    if result is not None and getattr(result, "stats", None):
+        s = result.stats
+        print(f"background: {s.get('rebuilds', 0)} rebuild(s), {s.get('relights', 0)} exposure step(s); static lights: "
+              f"{s.get('static_lights', 0)} held, {s.get('scene', 'learned online')}", file=say)
     if interrupted and not live:
         return 130                           # a file not read whole
     return 0
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null once its reader is gone, so that the interpreter's last flush
+    does not print "Broken pipe" (stderr stays)."""
+    import os
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 def _raise_interrupt(signum, frame):

@@ -25,25 +25,20 @@ def add_accuracy_arguments(p):
 
 def run_accuracy(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.estimate.evaluate import accuracy_table, evaluate
-    from ..profiler.estimate.sensor import NoiseModel
-    from ._common import resolve_gauge
+    from ..profiler.gauge.model import resolve_gauge
+    from ..profiler.sensor import NoiseModel
+    from ..profiler.studies.evaluate import accuracy, accuracy_table
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
     check_flags(args)
     gauge = resolve_gauge(args.gauge)
-    noise = NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um)
+    noise = NoiseModel.from_z_um(args.noise_um)
     print(f"posekit profiler accuracy: {args.count} simulated LJ-X8400-like profiles of gauge '{gauge.name}' "
-          f"({gauge.n_corners} corners), noise {args.noise_um:g} µm in z / {2 * args.noise_um:g} µm in x, "
+          f"({gauge.n_corners} corners), noise {noise.sigma_z_um:g} µm in z / {noise.sigma_x_um:g} µm in x, "
           f"seed {args.seed}")
-    rows = []
-    for method in ("cf", "mle"):
-        if method == "cf" and gauge.n_corners < 5:
-            continue
-        ev = evaluate(gauge, args.count, noise, seed=args.seed, method=method,
-                      progress=lambda it, m=method: progress(it, total=args.count, desc=m))
-        rows.append((method, ev))
+    rows = accuracy(gauge, args.count, noise_um=args.noise_um, seed=args.seed,
+                    progress=lambda it, method: progress(it, total=args.count, desc=method))
     print()
     print(accuracy_table(rows, args.count))
     return 0

@@ -49,15 +49,20 @@ def run_handeye(args) -> int:
                             max_offset_s=args.max_offset, noise_mm=args.noise_mm, noise_deg=args.noise_deg,
                             max_std_t_mm=args.max_std_mm, max_std_rot_deg=args.max_std_deg,
                             names=(str(args.camera), str(args.kinematic)))
+    from dataclasses import replace
+
+    res = replace(res, notes=list(getattr(args, "_input_notes", ())) + list(res.notes))
     X, Z = res.T_tool_camera, res.T_base_world
     ax = np.rad2deg(float(rotation_angle_between(np.eye(3), X[:3, :3], check=False)))
     az = np.rad2deg(float(rotation_angle_between(np.eye(3), Z[:3, :3], check=False)))
+    offset = ("a clock offset the data do not determine (paired at 0)" if res.time_offset_source == "undetermined"
+              else f"a clock offset of {res.time_offset_s * 1000:+.1f} ms")
     return finish_result(args.out, res, [
-        f"hand-eye from {res.n_pairs} pose pairs ({int(res.inliers.sum())} inliers) at a clock offset of "
-        f"{res.time_offset_s * 1000:+.1f} ms",
+        f"hand-eye from {res.n_pairs} pose pairs ({int(res.inliers.sum())} inliers) at {offset}",
         f"camera in tool: {ax:.3f} deg rotation, t [{X[0, 3]:.2f}, {X[1, 3]:.2f}, {X[2, 3]:.2f}] mm "
         f"(|t| {np.linalg.norm(X[:3, 3]):.2f} mm); std " + ", ".join(f"{v:.3g}" for v in res.std_rot_deg)
         + " deg, " + ", ".join(f"{v:.3g}" for v in res.std_t_mm) + " mm",
         f"world in base: {az:.3f} deg rotation, t [{Z[0, 3]:.2f}, {Z[1, 3]:.2f}, {Z[2, 3]:.2f}] mm; "
         f"rmse {res.rmse_mm:.2f} mm, {res.rms_rot_deg:.3f} deg",
+        *[f"note: {n}" for n in res.notes],
     ], "hand-eye")

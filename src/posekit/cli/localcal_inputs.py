@@ -1,9 +1,12 @@
 """Trajectory input flags shared by the ``localcal`` verbs that read two trajectories.
 
-``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC`` and ``--rate HZ`` apply to both inputs;
-``--camera-format``/``--kinematic-format``, ``--camera-topic``/``--kinematic-topic`` and
-``--camera-rate``/``--kinematic-rate`` override them for one input (e.g. two topics of the same
-bag, or a KITTI camera file beside a TUM kinematic log). The format defaults to the suffix.
+``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC``, ``--rate HZ`` and ``--tf-parent`` /
+``--tf-child`` apply to both inputs; ``--camera-format``/``--kinematic-format``,
+``--camera-topic``/``--kinematic-topic``, ``--camera-rate``/``--kinematic-rate`` and
+``--camera-tf-parent``/``--kinematic-tf-parent`` (``-tf-child`` likewise) override them for one
+input (e.g. two topics of the same bag, or a KITTI camera file beside a TUM kinematic log). The
+format defaults to the file's content (TUM, KITTI and EuRoC rows tell themselves apart) and its
+suffix.
 """
 
 from ._flags import bounded_float, check_flags
@@ -36,11 +39,17 @@ def add_trajectory_args(parser, roles=ROLES) -> None:
                         "(default: the bag's only pose topic)")
     g.add_argument("--rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None, metavar="HZ",
                    help="frame rate of a KITTI input (which carries no time), (0, 1e6] Hz")
+    g.add_argument("--tf-parent", default=None, metavar="FRAME",
+                   help="bag input: read the transform FRAME -> --tf-child from /tf and /tf_static "
+                        "(composed along the frame tree at each stamp) instead of a pose topic")
+    g.add_argument("--tf-child", default=None, metavar="FRAME", help="bag input: the child frame (with --tf-parent)")
     for role in roles:
         g.add_argument(f"--{role}-format", choices=_FORMATS, default=None, help=f"format of {role.upper()} only")
         g.add_argument(f"--{role}-topic", default=None, metavar="TOPIC", help=f"bag topic of {role.upper()} only")
         g.add_argument(f"--{role}-rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None,
                        metavar="HZ", help=f"KITTI frame rate of {role.upper()} only")
+        g.add_argument(f"--{role}-tf-parent", default=None, metavar="FRAME", help=f"tf parent frame of {role.upper()} only")
+        g.add_argument(f"--{role}-tf-child", default=None, metavar="FRAME", help=f"tf child frame of {role.upper()} only")
 
 
 def _role(args, path, role):
@@ -71,7 +80,8 @@ def read_trajectory_args(args, path, role: str | None = None):
     Returns
     -------
     posekit.localcal.registration.tum.Trajectory
-        Timestamps in s, poses in mm.
+        Timestamps in s, poses in mm. What the reader decided for the user (a format the rows
+        chose against the suffix) is appended to ``args._input_notes``.
     """
     from ..localcal.registration.formats import read_trajectory
 
@@ -82,7 +92,10 @@ def read_trajectory_args(args, path, role: str | None = None):
         own = getattr(args, f"{role}_{name}", None) if role else None
         return own if own is not None else getattr(args, name, None)
 
-    traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"))
+    notes = []
+    traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"),
+                           tf_parent=pick("tf_parent"), tf_child=pick("tf_child"), notes=notes)
+    args._input_notes = getattr(args, "_input_notes", []) + notes
     if role is not None:
         args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
     return traj
@@ -141,12 +154,13 @@ def finish_result(out, result, summary: list[str], what: str) -> int:
     import sys
 
     from ..io import write_text_atomic
+    from ..verdict import batch_exit_code
 
     path = write_text_atomic(out, json.dumps(result.to_json(), indent=2) + "\n")
     for line in summary:
         print(line)
     print(f"wrote {path}")
-    if result.status != "ok":
+    code = batch_exit_code([result.status])
+    if code:
         print(f"posekit: suspect {what}: {'; '.join(result.reasons)}", file=sys.stderr)
-        return 1
-    return 0
+    return code

@@ -31,6 +31,12 @@ def add_match_parser(verbs):
     p.add_argument("--matcher", choices=("cpd", "hybrid"), default="cpd",
                    help="fine matcher with --no-timestamps: cpd (positions) or hybrid (positions and "
                         "orientations, hybrid-mixture style) (default cpd)")
+    p.add_argument("--residuals", default=None, metavar="FILE.csv",
+                   help="also write every pose pair's residual (stamps, indices, ex ey ez and their norm in mm, kept)")
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="also write the figures (trajectories.png: both paths in the base frame; error.png: "
+                        "the error of every pair over time) to the folder DIR")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --plot folder")
     add_trajectory_args(p)
     p.set_defaults(func=run_match)
     return p
@@ -38,26 +44,50 @@ def add_match_parser(verbs):
 
 def run_match(args) -> int:
     """Run ``posekit localcal match``; returns the exit code (0 ok, 1 suspect)."""
+    from dataclasses import replace
+
     import numpy as np
 
     from ..geometry import rotation_angle_between
+    from ..io import check_out_folder
     from ..localcal.registration.match import match_trajectories
 
+    if args.plot is not None:                      # before the work: a plot folder we may not write is one line
+        check_out_folder(args.plot, overwrite=args.overwrite, flag="--plot")
     src, dst = read_pair_args(args)
+    names = (str(args.camera), str(args.kinematic))
     reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
                              time_offset_s=args.time_offset, max_offset_s=args.max_offset,
                              with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
-                             matcher=args.matcher, names=(str(args.camera), str(args.kinematic)))
+                             matcher=args.matcher, names=names)
+    reg = replace(reg, notes=tuple(getattr(args, "_input_notes", ())) + tuple(reg.notes))
     angle = np.rad2deg(float(rotation_angle_between(np.eye(3), reg.R, check=False)))
-    how = (f"{reg.n_pairs} pose pairs within {args.max_dt:g} s at a clock offset of "
+    how = (f"{reg.n_pairs} pose pairs ({reg.pairing} stamps within {args.max_dt:g} s) at a clock offset of "
            f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps
            else f"{len(src)} camera poses against {len(dst)} kinematic poses without timestamps")
-    return finish_result(args.out, reg, [
-        f"matched {how}; {int(reg.inliers.sum())} inliers",
+    lines = [
+        f"matched {how}; {reg.pairs_used} used, {reg.pairs_dropped} dropped as outliers",
         f"R: {angle:.3f} deg rotation, t_mm: [{reg.t_mm[0]:.2f}, {reg.t_mm[1]:.2f}, {reg.t_mm[2]:.2f}]"
-        + (f", scale {reg.scale:.5f}" if args.with_scale else ""),
-        f"rmse {reg.rmse_mm:.2f} mm; mean |e| x,y,z " + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
+        + (f", scale {reg.scale:.5f} (1 sigma {reg.std_scale:.2g})" if args.with_scale else ""),
+        f"rmse {reg.rmse_mm:.2f} mm over the pairs used ({reg.rmse_all_mm:.2f} mm over all); mean |e| x,y,z "
+        + ", ".join(f"{v:.2f}" for v in reg.mean_abs_err_mm)
         + " mm; max |e| " + ", ".join(f"{v:.2f}" for v in reg.max_abs_err_mm) + " mm",
         "std (1 sigma, base axes): rotation " + ", ".join(f"{v:.3g}" for v in reg.std_rot_deg)
         + " deg; t " + ", ".join(f"{v:.3g}" for v in reg.std_t_mm) + " mm",
-    ], "match")
+    ]
+    if reg.scale_drift is not None:
+        d = reg.scale_drift
+        lines.append(f"scale drift along the path {d.relative:+.2%} (1 sigma {d.std:.2%}, {d.segments} segments)")
+    lines += [f"note: {n}" for n in reg.notes]
+    if args.residuals is not None:
+        from ..localcal.match_report import write_residuals
+
+        lines.append(f"wrote {write_residuals(reg, args.residuals)} ({reg.n_pairs} rows)")
+    if args.plot is not None:
+        from ..io import staged_folder
+        from ..localcal.match_report import plot_match
+
+        with staged_folder(args.plot, overwrite=args.overwrite, flag="--plot") as tmp:
+            plot_match(reg, src, dst, tmp, names=names)
+        lines.append(f"wrote trajectories.png and error.png to {args.plot}")
+    return finish_result(args.out, reg, lines, "match")

@@ -6,6 +6,7 @@ import shlex
 import sys
 
 from ..errors import ConfigError, EstimationError
+from ..verdict import batch_exit_code
 from ._common import add_overwrite, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed, workers
 
@@ -59,10 +60,15 @@ def add_simulate_parser(verbs):
                         "URDF file of your own arm")
     s.add_argument("--base-link", default=None, help="URDF robot: the chain's base link (default: the root)")
     s.add_argument("--tip-link", default=None,
-                   help="URDF robot: the TCP link the camera is mounted on (default: the deepest leaf)")
+                   help="URDF robot: the TCP link the camera is mounted on (default: the arm's tip, fingers left out)")
     s.add_argument("--start-q-deg", default=None,
                    help="start joint values, comma-separated, deg (mm for prismatic joints); required "
                         "for any robot but hiab033")
+    s.add_argument("--ooi-distance-mm", type=bounded_float(500.0, 2000.0, "mm"), default=760.0, metavar="MM",
+                   help="distance of the object of interest in front of the camera at the start, 500..2000 mm "
+                        "(default 760: sized for the 5 m crane; a smaller arm reaches a closer one)")
+    s.add_argument("--error-scale", type=bounded_float(0.0, 10.0), default=1.0, metavar="F",
+                   help="scale of the simulated non-kinematic errors, 0..10 (default 1: the crane's 2-6 cm at the tip)")
     s.add_argument("--truth", action="store_true", help="also print the simulator's true errors")
     s.add_argument("--out", required=True, help="output folder")
     add_overwrite(s)
@@ -148,7 +154,10 @@ def _robot_options(args) -> dict:
         options["start_q"] = tuple(rad)
     elif args.robot != "hiab033":
         raise ConfigError(f"--start-q-deg: required for --robot {args.robot} (the crane's start pose fits only "
-                          "the crane); give the arm's start joint values in deg")
+                          f"the crane); give its {model.n_joints} start joint values in deg (chain "
+                          f"{getattr(model, 'base_link', 'base')} → {getattr(model, 'tip_link', 'flange')})")
+    if args.robot != "hiab033":
+        print(f"robot {model.summary}" + "".join(f"; {note}" for note in getattr(model, "notes", ())))
     return options
 
 
@@ -209,8 +218,8 @@ def run_simulate(args) -> int:
         raise ConfigError("--registration handeye needs timestamps; drop --no-timestamps")
     config = _config(args, use_timestamps=not args.no_timestamps, occlude_ooi=args.occlude_ooi,
                      matcher=args.matcher, calibration_tilt_deg=args.calibration_tilt_deg,
-                     registration=args.registration,
-                     **_robot_options(args))
+                     registration=args.registration, ooi_distance_mm=args.ooi_distance_mm,
+                     error_scale=args.error_scale, **_robot_options(args))
     out_folder(args)
     result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
                             scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty(),
@@ -219,12 +228,27 @@ def run_simulate(args) -> int:
         shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
     with staged(args) as tmp:
         files = _write(result, tmp, command)       # every run has its row, failed ones with status=error
+    hint = _view_hint(args, result)
+    if hint and all(ep is None for ep in result.episodes):
+        print(hint, file=sys.stderr)
     _all_failed(result)
     print(tables_text(result, truth=args.truth))
-    failed = sum(ep is None for ep in result.episodes)
-    print(f"\n{len(result.episodes) - failed}/{len(result.episodes)} runs ok in {result.wall_s:.1f} s; "
-          f"wrote {len(files)} files to {args.out} (report.html)")
-    return 0 if failed == 0 else 1
+    counts = result.status_counts
+    print(f"\nruns: {counts['ok']} ok, {counts['suspect']} suspect, {counts['error']} failed (of "
+          f"{len(result.episodes)}) in {result.wall_s:.1f} s; wrote {len(files)} files to {args.out} (report.html)")
+    if hint:
+        print(hint, file=sys.stderr)
+    return batch_exit_code(result.statuses)
+
+
+def _view_hint(args, result) -> str:
+    """One line for a robot whose runs lost the markers from view: which flags move them."""
+    lost = [f for f in result.failures if f and "not seen by the camera" in f]
+    if not lost or args.robot == "hiab033":
+        return ""
+    return (f"posekit: hint: {len(lost)} run(s) lost the markers from view; the scene is sized for the 5 m crane: "
+            "bring the object closer (--ooi-distance-mm 500), start with free reach along the camera axis "
+            "(--start-q-deg) or shrink the errors (--error-scale)")
 
 
 def run_demo(args) -> int:

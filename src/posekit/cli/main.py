@@ -20,8 +20,64 @@ from .. import __version__
 __all__ = ["main", "build_parser"]
 
 
+_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with "did you mean" for a mistyped sub-command or flag (Python 3.11's argparse has
+    no ``suggest_on_error``). Sub-command parsers inherit the class (``add_subparsers``)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def error(self, message):
+        super().error(message + _suggestion(self, message))
+
+
+def _suggestion(parser: argparse.ArgumentParser, message: str) -> str:
+    """``"; did you mean 'X'?"`` for an invalid choice or an unknown ``--flag``, or ``""``."""
+    m = _CHOICE.search(message)
+    if m:
+        choices = [c.strip().strip("'") for c in m.group(2).split(",")]
+        close = _close(m.group(1), choices)
+        return f"; did you mean '{close}'?" if close else ""
+    if message.startswith("unrecognized arguments: "):
+        flags = _flags_of_command(parser, getattr(parser, "_argv", []))
+        unknown = [a.split("=", 1)[0] for a in message.split(": ", 1)[1].split() if a.startswith("--")]
+        hints = [(a, close) for a in unknown if (close := _close(a, flags))]
+        if len(hints) == 1:
+            return f"; did you mean {hints[0][1]}?"
+        return ("; did you mean " + ", ".join(f"{good} (for {bad})" for bad, good in hints) + "?") if hints else ""
+    return ""
+
+
+def _close(word: str, candidates: list[str]) -> str | None:
+    """The candidate closest to ``word`` (difflib ratio >= 0.6) that starts with the same letter
+    (a typo rarely changes the first one: 'icp' is not 'cpd'), or None."""
+    import difflib
+
+    first = word.lstrip("-")[:1]
+    same = [c for c in candidates if c.lstrip("-")[:1] == first]
+    close = difflib.get_close_matches(word, same, n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+def _flags_of_command(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """Every ``--flag`` of the (sub-)command that ``argv`` selects, and the global ones."""
+    flags = []
+    while True:
+        flags += [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        word = next((w for w in argv if subs and w in subs[0].choices), None)
+        if word is None:
+            return flags
+        parser = subs[0].choices[word]
+        argv = argv[argv.index(word) + 1:]
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="posekit", description="Precise robot pose from laser and vision sensors.")
     parser.add_argument("--version", action="version", version=f"posekit {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks of errors and warnings (anywhere on "
@@ -34,13 +90,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    from . import bench, ceiling, demo, localcal, profiler, seam
+    from . import bench, ceiling, demo, localcal, profiler, seam, warmup
     demo.add_parser(sub)
     profiler.add_parser(sub)
     ceiling.add_parser(sub)
     localcal.add_parser(sub)
     seam.add_parser(sub)
     bench.add_parser(sub)
+    warmup.add_parser(sub)
     _describe_verbs(parser)
     return parser
 
@@ -137,9 +194,6 @@ def _one_line(text: str) -> str:
 
 def main(argv=None) -> int:
     """Run ``posekit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    from ..errors import PosekitError
-    from ..io import set_limits
-
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         argv, found = _split_globals(argv)
@@ -149,11 +203,25 @@ def main(argv=None) -> int:
     debug = bool(found.get("debug"))
     argv = _join_negative_values(argv)
     parser = build_parser()
+    from ..errors import PosekitError
+    from ._config import apply_config, dump_config, wants_dump
+    try:
+        apply_config(parser, argv)     # a verb's --config FILE: its defaults (defaults < file < flags)
+    except PosekitError as exc:
+        print(f"posekit: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:          # argparse: usage errors exit 2, --help/--version exit 0
         return int(exc.code or 0)
+    if wants_dump(args):
+        sys.stdout.write(dump_config(parser, argv, args))
+        return 0
     args.debug = debug or args.debug
+    from .. import _jit  # only now: --help and usage errors import no numpy, numba or scipy
+    from ..io import set_limits
+
+    _jit.enable_compile_notice("profiler" if args.command == "demo" else args.command)
     previous = None
     try:
         with warnings.catch_warnings():

@@ -4,8 +4,9 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_overwrite, out_folder, parse_triplet, progress, resolve_gauge, staged
-from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed
+from ._common import add_overwrite, check_workspace, parse_triplet, progress
+from ._config import add_config_arguments
+from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_parser"]
 
@@ -42,6 +43,7 @@ def add_parser(sub):
     e.add_argument("--out", help="FILE.jsonl or FILE.csv (default: JSON lines on stdout)")
     from .profiler_replay import add_read_arguments
     add_read_arguments(e)               # --columns, --delimiter, --roi-x, --roi-z (shared with replay)
+    add_config_arguments(e)
     e.set_defaults(func=run_estimate)
 
     s = verbs.add_parser("simulate", help="simulate profiles of a gauge at random poses")
@@ -69,6 +71,7 @@ def add_parser(sub):
     s.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same profiles)")
     s.add_argument("--out", required=True, help="output folder: profiles.npz and truth.csv")
     add_overwrite(s)
+    add_config_arguments(s)
     s.set_defaults(func=run_simulate)
 
     cg = verbs.add_parser("calibrate-gauge", help="the as-built gauge (every face plane) from profiles taken at "
@@ -97,85 +100,48 @@ def add_parser(sub):
 
 
 def run_estimate(args) -> int:
-    from ..profiler.estimate.io import RecordWriter
-    from ..profiler.estimate.pipeline import estimate_profiles
-    from ..profiler.stream.sources import read_profile_file
+    from ..profiler.gauge.check import MIN_CHECK_PROFILES
+    from ..profiler.stream.files import assumed_noise, estimate_file
     from .profiler_replay import read_options
 
     if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
         raise ConfigError(f"--out {args.out}: unknown suffix '{Path(args.out).suffix[:20]}'; expected FILE.jsonl "
                           "(JSON lines) or FILE.csv")
     check_flags(args)
-    noise, significance = _estimator_noise(args)
-    gauge = _estimate_gauge(args)        # the mounting goes to the load: an ambiguous gauge needs it
-    profiles = read_profile_file(args.input, read_options(args))
-    res = estimate_profiles(profiles, gauge, args.method, args.mounting, noise=noise, significance=significance,
-                            rotation=args.rotation,
-                            progress=lambda it: progress(it, total=len(profiles), desc="estimate"))
-    counts = {"ok": 0, "suspect": 0, "error": 0}
-    reversed_count = 0
-    with RecordWriter(args.out, stream=sys.stdout, rotation=args.rotation) as writer:
-        for rec, est in zip(res.records, res.estimates):
-            writer.write(rec)
-            counts[rec["status"]] += 1
-            reversed_count += bool(est is not None and est.reversed and rec["status"] == "ok")
+    noise = assumed_noise(args.noise_um, args.noise_x_um, args.scale_sigma_ppm)
+    if noise.sigma_x_um + noise.sigma_z_um <= 0:
+        raise ConfigError("--noise-um, --noise-x-um: the assumed noise must not be zero in both x and z")
+    res = estimate_file(args.input, args.gauge, method=args.method, mounting=args.mounting, rotation=args.rotation,
+                        noise_um=args.noise_um, noise_x_um=args.noise_x_um, significance=args.significance,
+                        scale_sigma_ppm=args.scale_sigma_ppm, read=read_options(args), out=args.out,
+                        stream=sys.stdout if args.out is None else None,
+                        progress=lambda it: progress(it, total=len(it), desc="estimate"))
+    total = len(res.records)
+    counts = res.status_counts()
+    reversed_count = sum(bool(est is not None and est.reversed and rec["status"] == "ok")
+                         for rec, est in zip(res.records, res.estimates))
     check = res.gauge_check
     if check.passed is False:
         print(f"posekit: {check.message}; every pose of the batch is marked suspect", file=sys.stderr)
-    else:
+    elif check.passed or total >= MIN_CHECK_PROFILES:   # a batch too small to check it is no news
         print(f"posekit: note: {check.message}", file=sys.stderr)
     if reversed_count:
-        print(f"posekit: note: {reversed_count} of {len(profiles)} profiles had their corners in reverse "
+        print(f"posekit: note: {reversed_count} of {total} profiles had their corners in reverse "
               "order (sensor mounted the other way round?)", file=sys.stderr)
     if counts["error"]:
-        print(f"posekit: {counts['error']} of {len(profiles)} profiles failed; their records have status 'error'",
+        print(f"posekit: {counts['error']} of {total} profiles failed; their records have status 'error'",
               file=sys.stderr)
     if counts["suspect"]:
-        print(f"posekit: {counts['suspect']} of {len(profiles)} profiles are suspect (the data disagree with the "
+        print(f"posekit: {counts['suspect']} of {total} profiles are suspect (the data disagree with the "
               "gauge or the assumed noise); their records have status 'suspect' and the reason", file=sys.stderr)
-    return 0 if counts["ok"] == len(profiles) else 1
-
-
-def _estimator_noise(args):
-    """The noise model and significance the estimate assumes (``--noise-um``, ``--noise-x-um``, ``--significance``)."""
-    from ..profiler.estimate.sensor import NoiseModel
-    from ..profiler.estimate.solve import DEFAULT_SIGNIFICANCE
-
-    noise_x = 2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um
-    if noise_x + args.noise_um <= 0:
-        raise ConfigError("--noise-um, --noise-x-um: the assumed noise must not be zero in both x and z")
-    significance = DEFAULT_SIGNIFICANCE if args.significance is None else args.significance
-    scale = getattr(args, "scale_sigma_ppm", None)
-    if scale is None:
-        return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um), significance
-    return NoiseModel(sigma_x_um=noise_x, sigma_z_um=args.noise_um, scale_sigma_ppm=scale), significance
-
-
-def _estimate_gauge(args):
-    """The gauge of ``--gauge`` (a path or a bundled name) loaded for ``--mounting``."""
-    from ..profiler.estimate.gauge import BUNDLED_GAUGES, bundled_gauge_path, load_gauge
-
-    path = Path(args.gauge)
-    if not path.exists() and args.gauge in BUNDLED_GAUGES:
-        path = bundled_gauge_path(args.gauge)
-    return load_gauge(path, mounting=args.mounting)
-
-
-def check_workspace(ws, args) -> None:
-    """The workspace half-ranges within 0..1000 mm and 0..180 deg (``Workspace`` checks >= 0)."""
-    for flag, text, values, hi, unit in (("--translation-mm", args.translation_mm, ws.translation_mm, 1e3, "mm"),
-                                         ("--rotation-deg", args.rotation_deg, ws.rotation_deg, 180.0, "deg")):
-        for v in values:
-            check_range(flag, v, 0.0, hi, unit, what="three numbers", shown=repr(text))
+    return res.exit_code
 
 
 def run_simulate(args) -> int:
     import numpy as np
 
-    from ..errors import ConfigError
-    from ..geometry import quaternion_from_matrix
-    from ..profiler.estimate.io import write_truth_csv
-    from ..profiler.estimate.sensor import NoiseModel, RealismModel, Workspace, render_profiles, sample_poses
+    from ..profiler.sim.poses import Workspace
+    from ..profiler.sim.simulate import simulate
 
     if args.count < 1:
         raise ConfigError(f"--count must be >= 1, got {args.count}")
@@ -184,42 +150,30 @@ def run_simulate(args) -> int:
         if value is not None and not (np.isfinite(value) and value >= 0):
             raise ConfigError(f"{flag} must be a finite number >= 0, got {value:g}")
     check_flags(args)
-    gauge = resolve_gauge(args.gauge)
-    noise = NoiseModel(
-        sigma_x_um=2.0 * args.noise_um if args.noise_x_um is None else args.noise_x_um,
-        sigma_z_um=args.noise_um, outlier_rate=args.outliers, dropouts_per_profile=args.dropouts)
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"), standoff_mm=args.standoff_mm)
     check_workspace(ws, args)
-    out_folder(args)
-    rng = np.random.default_rng(args.seed)
-    Ts = sample_poses(gauge, args.count, rng, ws)
-    realism = RealismModel.realistic() if args.realistic else None
-    profiles = render_profiles(gauge, Ts, noise, rng, realism=realism)
+    sim = simulate(args.gauge, args.count, noise_um=args.noise_um, noise_x_um=args.noise_x_um,
+                   outliers=args.outliers, dropouts=args.dropouts, translation_mm=ws.translation_mm,
+                   rotation_deg=ws.rotation_deg,
+                   standoff_mm=args.standoff_mm, realistic=args.realistic, seed=args.seed, out=args.out,
+                   overwrite=args.overwrite)
     out = Path(args.out)
-    with staged(args) as tmp:
-        np.savez_compressed(tmp / "profiles.npz", profiles=profiles.astype(np.float64), T_G_F=Ts)
-        write_truth_csv(tmp / "truth.csv", Ts, quaternion_from_matrix(Ts[:, :3, :3]))
-    valid = np.isfinite(profiles[..., 0]).mean()
-    print(f"wrote {args.count} {'realistic ' if args.realistic else ''}profiles of gauge '{gauge.name}' "
-          f"({profiles.shape[1]} points each, {100 * valid:.1f} % returns) to {out / 'profiles.npz'} and the poses "
-          f"to {out / 'truth.csv'}")
+    print(f"wrote {args.count} {'realistic ' if args.realistic else ''}profiles of gauge '{sim.gauge.name}' "
+          f"({sim.profiles.shape[1]} points each, {100 * sim.returns:.1f} % returns) to {out / 'profiles.npz'} and "
+          f"the poses to {out / 'truth.csv'}")
     return 0
 
 
 def run_calibrate_gauge(args) -> int:
-    from ..io import write_text_atomic
-    from ..profiler.estimate.gauge_calibration import as_built_yaml, calibrate_gauge
-    from ..profiler.estimate.io import read_profiles
+    from ..profiler.stream.files import calibrate_gauge_file
 
     out = Path(args.out)
     if out.suffix.lower() not in (".yaml", ".yml"):
         raise ConfigError(f"--out {args.out}: expected a gauge file ASBUILT.yaml")
     if Path(args.gauge).exists() and out.exists() and out.resolve() == Path(args.gauge).resolve():
         raise ConfigError(f"--out {args.out}: is the nominal gauge file; write the as-built gauge to another file")
-    nominal = _estimate_gauge(args)      # loaded for --mounting, as estimate loads it
-    cal = calibrate_gauge(read_profiles(args.input), nominal, mounting=args.mounting, source=str(args.input))
-    write_text_atomic(out, as_built_yaml(cal, Path(args.input).name))
+    cal = calibrate_gauge_file(args.input, args.gauge, mounting=args.mounting, out=out)
     for index, reason in cal.skipped[:5]:
         print(f"posekit: note: profile {index} left out: {reason}", file=sys.stderr)
     if len(cal.skipped) > 5:

@@ -2,17 +2,18 @@
 
 import importlib.util
 import sys
-from pathlib import Path
 
-from ._common import add_deprecated, add_overwrite, out_folder, progress, resolve_gauge, staged
+from ._common import add_deprecated, add_overwrite, out_folder, overwrite_flag, progress
+from ._config import add_config_arguments
 from ._flags import MAX_NOISE_UM, bounded_float, bounded_int, check_flags, seed
 
 #: Most runs per axis, step and mode; most step sizes and axes; most closed-loop runs in all
 #: (axes × steps × 2 modes × runs: about 0.4 s each in lock-step, so at most about 15 minutes).
 MAX_RUNS, MAX_STEPS, MAX_AXES, MAX_TOTAL_RUNS = 100, 10, 10, 2000
-#: Largest step size, mm (the gauge must stay in the profiler's view).
-MAX_STEP_MM = 50.0
 _RUNS = bounded_int(1, MAX_RUNS, flag="--runs")
+#: ``posekit.profiler.loop.closed_loop.MAX_STEP_MM`` for the help (not imported: the parser stays light;
+#: tests/cli/test_cli_library.py keeps them equal).
+HELP_MAX_STEP_MM = 50.0
 
 __all__ = ["add_loop_parser", "run_loop"]
 
@@ -34,22 +35,23 @@ def add_loop_arguments(p, out_default=None):
     add_deprecated(p, "--repeats", "--runs", "repeats", _RUNS)
     p.add_argument("--axes", default="x,y,z,xyz", help=f"step directions, at most {MAX_AXES} (default x,y,z,xyz)")
     p.add_argument("--steps-mm", default="1,2",
-                   help=f"step sizes, at most {MAX_STEPS}, each non-zero within ±{MAX_STEP_MM:g} mm (default 1,2)")
+                   help=f"step sizes, at most {MAX_STEPS}, each non-zero within ±{HELP_MAX_STEP_MM:g} mm (default 1,2)")
     p.add_argument("--noise-um", type=bounded_float(0.0, MAX_NOISE_UM, "µm"), default=5.0,
                    help="profiler noise in z, 0..10000 µm (x: twice); default 5")
     p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     p.add_argument("--realtime", action="store_true", help="pace the cycles at 83.3 Hz instead of lock-step")
     p.add_argument("--linear", action="store_true", help="linear robot model (no amplitude-dependent damping)")
     p.add_argument("--no-camera", action="store_true", help="skip timing the camera pipeline for Table III")
+    add_config_arguments(p)
 
 
 def run_loop(args) -> int:
     import numpy as np
 
     from ..errors import ConfigError
-    from ..profiler.estimate.sensor import NoiseModel
-    from ..profiler.loop.loop import run_loop_experiment
-    from ..profiler.loop.loop_report import format_table3, format_table4, write_loop_report
+    from ..profiler.gauge.model import resolve_gauge
+    from ..profiler.loop.closed_loop import MAX_STEP_MM, closed_loop
+    from ..profiler.loop.loop_report import format_table3, format_table4
 
     try:
         steps = tuple(float(v) for v in args.steps_mm.split(","))
@@ -75,26 +77,33 @@ def run_loop(args) -> int:
     out_folder(args)
     camera = not args.no_camera
     if camera and importlib.util.find_spec("cv2") is None:
+        from .._extras import install_hint
         print("posekit: note: Table III without the OpenCV camera pipeline, which needs the 'vision' extra: "
-              'pip install "posekit[vision]"', file=sys.stderr)
+              f"{install_hint('vision')}", file=sys.stderr)
         camera = False
     print(f"closed loop on gauge '{gauge.name}': steps {', '.join(f'{s:g}' for s in steps)} mm along "
           f"{', '.join(axes)}, open vs closed, {args.repeats} repeats, "
           f"{'real time (83.3 Hz)' if args.realtime else 'lock-step'} over loopback TCP")
-    exp = run_loop_experiment(gauge, axes=axes, steps_mm=steps, repeats=args.repeats,
-                         noise=NoiseModel(sigma_x_um=2 * args.noise_um, sigma_z_um=args.noise_um),
-                         seed=args.seed, realtime=args.realtime, nonlinear=not args.linear,
-                         camera=camera,
-                         progress=lambda it: progress(it, total=len(it), desc="runs"))
-    with staged(args) as tmp:
-        paths = write_loop_report(exp, tmp)
-        paths = {k: Path(args.out) / Path(v).relative_to(tmp) for k, v in paths.items()}
+    exp, paths = closed_loop(gauge, runs=args.repeats, axes=axes, steps_mm=steps, noise_um=args.noise_um,
+                             seed=args.seed, realtime=args.realtime, linear=args.linear, camera=camera,
+                             out=args.out, overwrite=overwrite_flag(args),
+                             progress=lambda it: progress(it, total=len(it), desc="runs"))
     print()
-    print("Table IV (Mp overshoot, zeta damping ratio, Mf peak-frequency magnitude; measured by posekit):")
+    from ..profiler.loop.loop_verdict import table3_verdict, table4_verdicts
+    print("Table IV: step responses of the robot's flange, open loop (robot alone) and closed loop (posekit's pose "
+          "feeding the PD correction); mean ± std over repeats; the paper's values at the right")
+    print("  Mp: overshoot, % of the step; zeta: damping ratio (1 = no oscillation); Mf: amplitude of the 10 Hz "
+          "oscillation about the target, um (spectrum peak over 1 s after arrival); improv.: closed vs open")
     print(format_table4(exp))
+    for line in table4_verdicts(exp.table4):
+        print(line)
     print()
-    print("Table III (per-stage times, ms; camera = 2590x1942 chessboard image through OpenCV):")
+    print("Table III: time per stage and frame, ms (DT data transfer, CD corner detection / chessboard corners, "
+          "PC pose computation); camera = 2590x1942 chessboard image through OpenCV; the paper's at the right")
     print(format_table3(exp))
+    verdict = table3_verdict(exp.table3)
+    if verdict:
+        print(verdict)
     st = exp.server_stats or {}
     missed = sum(r.missed for r in exp.runs)
     res = exp.resonance or {}

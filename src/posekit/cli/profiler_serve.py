@@ -12,9 +12,9 @@ import logging
 import signal
 import sys
 import threading
-import time
 
-from ._common import add_deprecated, resolve_gauge
+from ._common import add_deprecated
+from ._config import add_config_arguments
 from ._flags import bounded_float, bounded_int, check_flags
 
 __all__ = ["add_serve_parser", "run_serve"]
@@ -48,7 +48,8 @@ def add_serve_parser(verbs):
     add_deprecated(p, "--duration", "--duration-s", "duration", float)
     p.add_argument("--duration-s", dest="duration", type=float, default=None, metavar="S",
                    help="stop after S seconds (default: run until Ctrl-C)")
-    p.add_argument("--status-every", type=float, default=5.0, metavar="S",
+    add_deprecated(p, "--status-every", "--status-every-s", "status_every", float)
+    p.add_argument("--status-every-s", dest="status_every", type=float, default=5.0, metavar="S",
                    help=f"seconds between status lines, {_STATUS_RANGE[0]:g} to {_STATUS_RANGE[1]:g} (default 5)")
     p.add_argument("--idle-timeout-s", type=float, default=30.0, metavar="S",
                    help="close a sensor connection that sends no complete frame for S seconds (default 30)")
@@ -102,6 +103,7 @@ def add_serve_parser(verbs):
                      default=None, metavar="B", help="cv: the same for the rotation, rad/s² (default 0.025)")
     flt.add_argument("--filter-window", type=bounded_int(1, 10_000, "estimates"), default=None, metavar="K",
                      help="window: estimates fused (default 10)")
+    add_config_arguments(p)
     p.set_defaults(func=run_serve)
     return p
 
@@ -119,14 +121,11 @@ def _numbers(text: str, flag: str, sizes: tuple[int, ...], what: str) -> list[fl
     return vals
 
 
-def _controller(args, gauge):
-    """The server's controller from the flags (None for --controller none)."""
+def _controller_flags(args) -> dict:
+    """The controller's arguments of :func:`~posekit.profiler.stream.serve.serve` from the flags (checked)."""
     import numpy as np
 
     from ..errors import ConfigError
-    from ..geometry import matrix_from_quaternion
-    from ..profiler.estimate.sensor import LJ_X8400, nominal_pose
-    from ..profiler.loop.control import DEFAULT_KD, DEFAULT_KP, OpenLoop, PDController, TargetCompensator
 
     given = [f for f in _CONTROL_FLAGS if getattr(args, f) is not None]
     if given and args.controller != "pd":
@@ -134,34 +133,27 @@ def _controller(args, gauge):
     given = [f for f in (*_TARGET_FLAGS, "standoff_mm") if getattr(args, f) is not None]
     if given and args.controller == "none":
         raise ConfigError(f"--{given[0].replace('_', '-')} needs --controller pd (or open)")
-    if args.controller == "none":
-        return None
     gains = "one number or three comma-separated numbers X,Y,Z"
-    kp = DEFAULT_KP if args.kp is None else _numbers(args.kp, "--kp", (1, 3), gains)
-    kd = DEFAULT_KD if args.kd is None else _numbers(args.kd, "--kd", (1, 3), gains)
-    standoff = LJ_X8400.z_mid if args.standoff_mm is None else float(args.standoff_mm)
-    T = nominal_pose(gauge, standoff_mm=standoff)
-    if args.target_mm is not None:
-        T[:3, 3] = _numbers(args.target_mm, "--target-mm", (3,), "three comma-separated numbers X,Y,Z in mm")
+    kw = {"controller": args.controller, "limit_mm": args.limit_mm, "derivative_filter_hz": args.derivative_filter_hz,
+          "standoff_mm": args.standoff_mm,
+          "kp": None if args.kp is None else _numbers(args.kp, "--kp", (1, 3), gains),
+          "kd": None if args.kd is None else _numbers(args.kd, "--kd", (1, 3), gains),
+          "target_mm": None if args.target_mm is None else _numbers(args.target_mm, "--target-mm", (3,),
+                                                                       "three comma-separated numbers X,Y,Z in mm"),
+          "target_q_wxyz": None}
     if args.target_q_wxyz is not None:
         q = np.array(_numbers(args.target_q_wxyz, "--target-q-wxyz", (4,), "a unit quaternion W,X,Y,Z"))
         norm = float(np.linalg.norm(q))
         if abs(norm - 1.0) > 1e-3:
             raise ConfigError(f"--target-q-wxyz: expected a unit quaternion W,X,Y,Z, got '{args.target_q_wxyz}' "
                               f"(norm {norm:.6g})")
-        T[:3, :3] = matrix_from_quaternion(q / norm)
-    if args.controller == "open":
-        law = OpenLoop()
-    else:
-        law = PDController(kp=kp, kd=kd, limit_mm=2.0 if args.limit_mm is None else args.limit_mm,
-                           derivative_filter_hz=args.derivative_filter_hz)
-    return TargetCompensator(law, T, standoff)
+        kw["target_q_wxyz"] = q
+    return kw
 
 
-def _pose_filter(args):
-    """The server's pose filter from the flags (None for --filter none)."""
+def _filter_flags(args) -> dict:
+    """The pose filter's arguments of :func:`~posekit.profiler.stream.serve.serve` from the flags (checked)."""
     from ..errors import ConfigError
-    from ..profiler.stream.pose_filter import ConstantVelocityFilter, WindowFusion
 
     for flag, kind in _FILTER_FLAGS.items():
         if getattr(args, flag) is not None and args.filter != kind:
@@ -169,25 +161,8 @@ def _pose_filter(args):
     if args.filter != "none" and args.method == "cf":
         raise ConfigError(f"--filter {args.filter} needs --method mle (the closed form 'cf' gives no covariance "
                           "to filter with)")
-    if args.filter == "cv":
-        return ConstantVelocityFilter(10.0 if args.filter_accel_mm_s2 is None else args.filter_accel_mm_s2,
-                                      0.025 if args.filter_angular_accel_rad_s2 is None
-                                      else args.filter_angular_accel_rad_s2)
-    if args.filter == "window":
-        return WindowFusion(10 if args.filter_window is None else args.filter_window)
-    return None
-
-
-def _record_sink(args):
-    """The record outputs of --out / --jsonl (None without either); files are opened here."""
-    from ..profiler.stream.server_records import RecordOutput, RecordSink, output_format
-
-    outputs = []
-    if args.out is not None:
-        outputs.append(RecordOutput(args.out, output_format(args.out, "--out"), stream=False, flag="--out"))
-    if args.jsonl is not None:
-        outputs.append(RecordOutput(args.jsonl, "jsonl", stream=True, flag="--jsonl"))
-    return RecordSink(outputs) if outputs else None
+    return {"filter": args.filter, "filter_accel_mm_s2": args.filter_accel_mm_s2,
+            "filter_angular_accel_rad_s2": args.filter_angular_accel_rad_s2, "filter_window": args.filter_window}
 
 
 def _check_seconds(value: float, flag: str, bounds: tuple[float, float]) -> None:
@@ -246,7 +221,8 @@ def _describe(args, controller, pose_filter) -> str:
 
 def run_serve(args) -> int:
     from ..errors import ConfigError
-    from ..profiler.stream.server import PoseServer, parse_address, read_token_file
+    from ..profiler.stream.serve import serve
+    from ..profiler.stream.server import parse_address
 
     check_flags(args)
     listen = parse_address(args.listen, "--listen")
@@ -255,7 +231,7 @@ def run_serve(args) -> int:
         raise ConfigError(f"--queue must be >= 1, got {args.queue}")
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration-s must be > 0 seconds, got {args.duration:g}")
-    _check_seconds(args.status_every, "--status-every", _STATUS_RANGE)
+    _check_seconds(args.status_every, "--status-every-s", _STATUS_RANGE)
     _check_seconds(args.idle_timeout_s, "--idle-timeout-s", _TIMEOUT_RANGE)
     _check_seconds(args.read_timeout_s, "--read-timeout-s", _TIMEOUT_RANGE)
     if args.allow_remote and not args.token_file:
@@ -264,10 +240,7 @@ def run_serve(args) -> int:
     if args.out is not None:
         from ..profiler.stream.server_records import output_format
         output_format(args.out, "--out")
-    token = read_token_file(args.token_file) if args.token_file else None
-    gauge = resolve_gauge(args.gauge)
-    controller = _controller(args, gauge)
-    pose_filter = _pose_filter(args)
+    controller, pose_filter = _controller_flags(args), _filter_flags(args)
     say = sys.stderr if args.jsonl == "-" else sys.stdout      # stdout carries the records then
 
     log = logging.getLogger("posekit.server")
@@ -277,63 +250,41 @@ def run_serve(args) -> int:
         handler.setFormatter(logging.Formatter("posekit: %(levelname)s: %(message)s"))
         log.addHandler(handler)
         log.setLevel(logging.INFO)
-    sink = _record_sink(args)                  # opens the outputs: a bad --out/--jsonl fails before serving
-    server = None
-    old_term = None
-    served = False
-    try:
-        server = PoseServer(gauge, listen=listen, robot=robot, queue_size=args.queue, method=args.method,
-                            mounting=args.mounting, allow_remote=args.allow_remote, log=log, token=token,
-                            idle_timeout_s=args.idle_timeout_s, read_timeout_s=args.read_timeout_s,
-                            controller=controller, pose_filter=pose_filter, record_sink=sink)
-        if threading.current_thread() is threading.main_thread():     # SIGTERM stops like Ctrl-C
-            old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
-        host, port = server.start()
+
+    def started(server, host, port):
         target = f"robot interface {robot[0]}:{robot[1]}" if robot else "no robot (records are not sent)"
-        auth = "sensors must present the token" if token is not None else "no token"
-        print(f"posekit profiler serve: gauge '{gauge.name}', method {args.method}, listening on "
+        auth = "sensors must present the token" if args.token_file else "no token"
+        print(f"posekit profiler serve: gauge '{server.gauge.name}', method {args.method}, listening on "
               f"{host}:{port} ({auth}), sending to {target}; Ctrl-C stops", file=say, flush=True)
-        extra = _describe(args, controller, pose_filter)
+        extra = _describe(args, server.controller, server.pose_filter)
         if extra:
             print(f"posekit profiler serve: {extra}", file=say, flush=True)
-        t0 = time.monotonic()
-        next_status = t0 + args.status_every
-        last_processed, last_t = 0, t0
-        nap = 0.2 if args.count is None else 0.02
-        try:
-            while True:
-                now = time.monotonic()
-                if args.duration is not None and now - t0 >= args.duration:
-                    break
-                if args.count is not None and server.stats()["processed"] >= args.count:
-                    break
-                if now >= next_status:
-                    st, tim = server.stats(), server.timings()
-                    new = st["processed"] - last_processed          # medians over this interval only
-                    recent = {k: (v[-new:] if new else v[:0]) for k, v in tim.items()}
-                    rate = new / max(now - last_t, 1e-9)
-                    print(_status_line(now - t0, st, recent, rate), file=say, flush=True)
-                    last_processed, last_t = st["processed"], now
-                    next_status += args.status_every
-                wake = next_status if args.duration is None else min(next_status, t0 + args.duration)
-                time.sleep(max(0.0, min(nap, wake - time.monotonic())))
-        except KeyboardInterrupt:
-            print("posekit profiler serve: interrupted, stopping", file=sys.stderr, flush=True)
-        elapsed = time.monotonic() - t0
-        served = True
+
+    def status(elapsed, st, recent, rate):
+        print(_status_line(elapsed, st, recent, rate), file=say, flush=True)
+
+    old_term = None
+    try:
+        if threading.current_thread() is threading.main_thread():     # SIGTERM stops like Ctrl-C
+            old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+        report = serve(args.gauge, listen, robot=robot, queue=args.queue, method=args.method, mounting=args.mounting,
+                       duration_s=args.duration, count=args.count, status_every_s=args.status_every,
+                       idle_timeout_s=args.idle_timeout_s, read_timeout_s=args.read_timeout_s,
+                       allow_remote=args.allow_remote, token_file=args.token_file, out=args.out, jsonl=args.jsonl,
+                       log=log, on_start=started, on_status=status, **controller, **pose_filter)
     finally:
-        if server is not None:
-            server.stop()
-        if sink is not None:
-            sink.close(discard=not served)     # after the worker: every record is in; --out renamed into place
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
         if handler is not None:
             log.removeHandler(handler)
-    print(_summary(elapsed, server.stats(), server.timings()), file=say, flush=True)
-    if sink is not None:
-        lost = f" ({sink.unwritten} not written: the outputs fell behind)" if sink.unwritten else ""
-        print(f"  records: {sink.written} written to {', '.join(sink.targets)}{lost}", file=say, flush=True)
-        if sink.errors:
-            raise ConfigError(sink.errors[0])
+    if report.interrupted:
+        print("posekit profiler serve: interrupted, stopping", file=sys.stderr, flush=True)
+    print(_summary(report.elapsed_s, report.stats, report.timings), file=say, flush=True)
+    if report.targets:
+        lost = (f" ({report.records_unwritten} not written: the outputs fell behind)" if report.records_unwritten
+                else "")
+        print(f"  records: {report.records_written} written to {', '.join(report.targets)}{lost}", file=say,
+              flush=True)
+        if report.errors:
+            raise ConfigError(report.errors[0])
     return 0

@@ -5,7 +5,16 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ._common import add_deprecated, add_overwrite, out_folder, parse_triplet, staged
+from ._common import (
+    SCHEDULER_HELP,
+    add_deprecated,
+    add_overwrite,
+    check_workspace,
+    local_scheduler,
+    overwrite_flag,
+    parse_triplet,
+)
+from ._config import add_config_arguments
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed, workers
 
 __all__ = ["add_study_parser", "parse_numbers"]
@@ -68,10 +77,10 @@ def _common(p, out_default):
     p.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same numbers; default 0)")
     p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run)")
     add_overwrite(p, out_default)
-    p.add_argument("--scheduler", default=None,
-                   help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")
+    p.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     p.add_argument("--workers", type=workers, default=None,
                    help="worker processes of the local cluster, 1..256 (default: one per core)")
+    add_config_arguments(p)
 
 
 def _workspace(p):
@@ -104,8 +113,8 @@ def add_study_parser(verbs):
 
     n = kinds.add_parser("noise", help="Fig. 3: reprojection error and covariance vs noise level")
     n.add_argument("--noise-um", default="0:45:5", help="noise levels in z, 0..10000 µm (default 0:45:5)")
-    n.add_argument("--noise-x-ratio", type=bounded_float(0.0, 100.0), default=2.0,
-                   help="noise in x / noise in z, 0..100 (default 2)")
+    n.add_argument("--noise-x-ratio", type=bounded_float(0.0, 100.0), default=None,
+                   help="noise in x / noise in z, 0..100 (default 2, the LJ-X8400's 10/5 µm)")
     n.add_argument("--corners", type=_CORNERS, default=5, help=f"corner count n, 4..{MAX_CORNERS} (default 5)")
     n.add_argument("--gauges", type=_GAUGES, default=150, help=f"random gauges, 1..{MAX_GAUGES} (default 150)")
     n.add_argument("--count", dest="poses", type=_POSES, default=100,
@@ -134,27 +143,28 @@ def add_study_parser(verbs):
 
 
 def _noise_model(z_um, x_um):
-    from ..profiler.estimate.sensor import NoiseModel
+    from ..profiler.sensor import NoiseModel
     for flag, v in (("--noise-um", z_um), ("--noise-x-um", x_um)):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise ConfigError(f"{flag} must be a finite number >= 0, got {v:g}")
-    return NoiseModel(sigma_x_um=2.0 * z_um if x_um is None else x_um, sigma_z_um=z_um)
+    return NoiseModel.from_z_um(z_um, x_um)
 
 
 def _build(args):
-    """The study function and its configuration from the parsed flags."""
-    from ..profiler.estimate.sensor import Workspace
+    """The study's configuration from the parsed flags (:func:`~posekit.profiler.studies.study_report.run_study`
+    picks the study by its type)."""
+    from ..profiler.sim.poses import Workspace
     if args.study == "limits":
-        from ..profiler.studies.study_limits import LimitsConfig, limits_study
+        from ..profiler.studies.study_limits import LimitsConfig
         cfg = LimitsConfig(n_corners=args.corners, gauges=args.gauges,
                            widths_mm=parse_numbers(args.widths_mm, "widths-mm", lo=1.0, hi=1e3, unit="mm"),
                            lengths_mm=parse_numbers(args.lengths_mm, "lengths-mm", lo=1.0, hi=1e3, unit="mm"),
                            betas_deg=parse_numbers(args.betas_deg, "betas-deg", lo=5.0, hi=85.0, unit="deg"),
                            tilts_deg=parse_numbers(args.tilts_deg, "tilts-deg", lo=-89.0, hi=89.0, unit="deg"),
                            tilt_poses=args.tilt_poses, noise=_noise_model(args.noise_um, None), seed=args.seed)
-        return limits_study, cfg
-    from ..profiler.studies.study import CornersConfig, NoiseConfig, corners_study, noise_study
-    from .profiler import check_workspace
+        return cfg
+    from ..profiler.studies.study import CornersConfig
+    from ..profiler.studies.study_noise import NoiseConfig
     ws = Workspace(translation_mm=parse_triplet(args.translation_mm, "translation-mm"),
                    rotation_deg=parse_triplet(args.rotation_deg, "rotation-deg"))
     check_workspace(ws, args)
@@ -163,12 +173,13 @@ def _build(args):
                             gauges=parse_numbers(args.gauges, "gauges", integer=True, lo=1, hi=MAX_GAUGES),
                             poses=args.poses, noise=_noise_model(args.noise_um, args.noise_x_um), seed=args.seed,
                             workspace=ws, beta_min_deg=args.beta_min_deg)
-        return corners_study, cfg
+        return cfg
     cfg = NoiseConfig(noise_um=parse_numbers(args.noise_um, "noise-um", lo=0.0, hi=MAX_NOISE_UM, unit="µm"),
                       n_corners=args.corners,
-                      gauges=args.gauges, poses=args.poses, x_ratio=args.noise_x_ratio, seed=args.seed,
-                      workspace=ws, beta_min_deg=args.beta_min_deg)
-    return noise_study, cfg
+                      gauges=args.gauges, poses=args.poses, seed=args.seed,
+                      workspace=ws, beta_min_deg=args.beta_min_deg,
+                      **({} if args.noise_x_ratio is None else {"x_ratio": args.noise_x_ratio}))
+    return cfg
 
 
 def _check_size(args, cfg) -> None:
@@ -187,7 +198,8 @@ def _check_size(args, cfg) -> None:
 
 
 def _print_summary(study, out):
-    from ..profiler.studies.study import CornersStudy, NoiseStudy
+    from ..profiler.studies.study import CornersStudy
+    from ..profiler.studies.study_noise import NoiseStudy
     if isinstance(study, CornersStudy):
         print("method    n     m  reproj mean/std (µm)   eq.17 ×10³ mean/std   t_err (µm)  rot_err (deg)  failures")
         for r in study.table:
@@ -203,17 +215,14 @@ def _print_summary(study, out):
 
 
 def run_study(args) -> int:
-    from ..profiler.studies.study_report import write_report
+    from ..profiler.studies.study_report import run_study as study
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
     check_flags(args)
-    fn, cfg = _build(args)
+    cfg = _build(args)
     _check_size(args, cfg)
-    out_folder(args)
-    study = fn(cfg, scheduler=args.scheduler, n_workers=args.workers)
-    with staged(args) as tmp:
-        write_report(study, tmp)
+    result = study(cfg, args.out, scheduler=local_scheduler(args), n_workers=args.workers, overwrite=overwrite_flag(args))
     report = Path(args.out) / "report.html"
-    _print_summary(study, report)
+    _print_summary(result, report)
     sys.stdout.flush()
     return 0

@@ -1,8 +1,8 @@
 """``posekit seam design``: which sensor configuration to buy for a seam (the paper's purpose).
 
 ``posekit seam design --config CFG --sensors 1,2,3 --distances-mm A:B:STEP --runs R --out DIR``
-simulates every configuration on Dask (a local cluster by default, ``--scheduler`` for a
-cluster), ranks them by the tool-pose RMSE on the configured seam and writes
+simulates every configuration (on a local Dask cluster by default, in this process without Dask,
+``--scheduler`` for a cluster), ranks them by the tool-pose RMSE on the configured seam and writes
 ``DIR/ranking.csv`` (``sensors,distances_mm,rmse_x_mm,…,score``), ``ranking.png`` and
 ``report.html``.
 """
@@ -10,7 +10,7 @@ cluster), ranks them by the tool-pose RMSE on the configured seam and writes
 import sys
 
 from ..errors import ConfigError
-from ._common import add_dask_args, add_overwrite, check_dask_args, out_folder, staged
+from ._common import add_dask_args, add_overwrite, check_dask_args, local_scheduler, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_design_parser", "parse_counts"]
@@ -94,7 +94,7 @@ def run_design(args) -> int:
                           f"{MAX_DESIGN_EPISODES:,}")
     out_folder(args)
     design = sensor_design(cfg, counts=counts, distances_mm=grid, angle=args.angle, runs=args.runs, seed=args.seed,
-                           lever_mm=args.lever_mm, scheduler=args.scheduler, n_workers=args.workers)
+                           lever_mm=args.lever_mm, scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
         paths = write_design(design, tmp)
     rows = design.rows()

@@ -4,7 +4,7 @@ import math
 import sys
 
 from ..errors import ConfigError
-from ._common import add_dask_args, add_overwrite, check_dask_args
+from ._common import add_dask_args, add_overwrite, check_dask_args, local_scheduler
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
 #: Most random parameter draws, most episodes per draw, and most episodes in all (a study of
@@ -89,7 +89,7 @@ def run_study(args) -> int:
     factors = make_factors(study_base(cfg), names, spread=args.spread, ranges=ranges)
     out_folder(args)
     study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
-                       scheduler=args.scheduler, n_workers=args.workers)
+                       scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
         report = write_study(study, tmp)
         written = [n for n in ("fig6_pvalues.png", "parameters_ranked.csv", "runs.csv", "report.html")

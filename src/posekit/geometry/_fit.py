@@ -1,7 +1,8 @@
 """Orthogonal (total least squares) line fitting in the plane, plain and outlier-robust."""
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ..errors import GeometryError
 

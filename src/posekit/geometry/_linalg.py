@@ -7,7 +7,7 @@ resolved-rate loop of the long-reach arm simulator both solve one such system pe
 
 import math
 
-from numba import njit
+from posekit._jit import njit
 
 __all__ = ["cholesky_solve"]
 

@@ -17,7 +17,8 @@ rounding for any rotation (no cancellation near 180°); the rotation vector is t
 import math
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 __all__ = [
     "quaternion_from_entries",

@@ -1,7 +1,8 @@
 """Polyline simplification: Ramer–Douglas–Peucker, iterative (explicit stack), compiled."""
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ..errors import GeometryError
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from posekit.localcal.methods.trajectory_method import STANDOFF_MM
 from posekit.localcal.sim.experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,
@@ -302,6 +303,63 @@ def _paper_line(name: str) -> str:
     return ""
 
 
+#: What the paper's methods aim at, the expected range of the verdict lines: the line method brings x, y to
+#: "a few centimeters" (§4.1; depth is not controlled), the trajectory method to sub-centimetre x, y after its
+#: second update with the depth at the designed stand-off b = 100 mm (eq. 21) "allowed more tolerance" (§4.2).
+LINE_XY_MM = 50.0
+TRAJECTORY_XY_MM = 10.0
+TRAJECTORY_DEPTH_MM = 20.0
+
+
+def verdict_line(name: str, rows: list[dict], updates: int, standoff_mm: float = STANDOFF_MM) -> str:
+    """One line under a table: what its depth column means and whether the mean is in the expected range.
+
+    Parameters
+    ----------
+    name : str
+        ``table2``, ``table3`` or ``table4`` (the ``_truth`` tables get none).
+    rows : list of dict
+        The table's rows (the mean row included).
+    updates : int
+        Look-then-move updates per episode.
+    standoff_mm : float
+        The designed stand-off ``b`` of the trajectory method (eq. 21), mm.
+
+    Returns
+    -------
+    str
+        The line, or ``""``.
+    """
+    mean = next((r for r in rows if str(r.get("run")) == "mean"), None)
+    if mean is None:
+        return ""
+    last = updates
+
+    def within(value, limit):
+        return "within" if math.isfinite(value) and value <= limit else "OUTSIDE"
+    if name == "table2":                 # the paper's Table 2 is the line equation's update (#1, eq. 16)
+        xy = max(mean["ex_1_mm"], mean["ey_1_mm"])
+        return (f"verdict: x/y after the update (#1) {mean['ex_1_mm']:.1f} / {mean['ey_1_mm']:.1f} mm, "
+                f"{within(xy, LINE_XY_MM)} the paper's few centimetres (< {LINE_XY_MM:g} mm); e_z is the depth to the "
+                f"OOI, which this method does not control (paper {PAPER_TABLE2_MEAN[5]:g} mm), not an error")
+    if name == "table3":
+        worst = max(mean[f"mean_{a}_mm"] - PAPER_TABLE3["max"][i] for i, a in enumerate("xyz"))
+        errs = " / ".join(f"{mean['mean_' + a + '_mm']:.1f}" for a in "xyz")
+        return (f"verdict: mean matching errors {errs} mm, "
+                f"{within(worst, 0.0)} the paper's largest errors ({' / '.join(f'{v:g}' for v in PAPER_TABLE3['max'])} mm)")
+    if name == "table4":
+        xy = max(mean[f"ex_{last}_mm"], mean[f"ey_{last}_mm"])
+        depth = [mean[f"ez_{k}_mm"] - standoff_mm for k in range(1, last + 1)]
+        paper = [PAPER_TABLE4_MEAN[2] - standoff_mm, PAPER_TABLE4_MEAN[5] - standoff_mm]
+        ok = within(max(xy - TRAJECTORY_XY_MM, max(abs(d) for d in depth) - TRAJECTORY_DEPTH_MM), 0.0)
+        return (f"verdict: e_z includes the designed stand-off b = {standoff_mm:g} mm (eq. 21), so the depth error is "
+                f"e_z - {standoff_mm:g}: {' / '.join(f'{d:+.1f}' for d in depth)} mm (paper "
+                f"{' / '.join(f'{d:+.1f}' for d in paper)}); x/y after update {last} {mean[f'ex_{last}_mm']:.1f} / "
+                f"{mean[f'ey_{last}_mm']:.1f} mm; {ok} the expected sub-centimetre x/y and depth within "
+                f"±{TRAJECTORY_DEPTH_MM:g} mm")
+    return ""
+
+
 def simulation_settings(result: ExperimentResult) -> dict:
     """What the simulated episodes modelled (camera, VO, matching), from the first episode's config."""
     ep = next((e for e in result.episodes if e is not None), None)
@@ -330,7 +388,9 @@ def tables_text(result: ExperimentResult, *, truth: bool = False) -> str:
             continue
         text = format_table(rows, table_columns(name, result.updates), TABLE_TITLES.get(name, name))
         paper = _paper_line(name)
-        parts.append(text + ("\n" + paper if paper else ""))
+        ep = next((e for e in result.episodes if e is not None), None)
+        verdict = verdict_line(name, rows, result.updates, STANDOFF_MM if ep is None else ep.config.b_mm)
+        parts.append(text + ("\n" + paper if paper else "") + ("\n" + verdict if verdict else ""))
     verdicts = registration_verdicts(result)
     if verdicts:
         parts.append(verdicts)

@@ -28,7 +28,8 @@ configurations and batches from Python.
 import math
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 __all__ = [
     "fk_batch",

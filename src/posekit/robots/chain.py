@@ -98,6 +98,16 @@ class KinematicChain:
 
     # ------------------------------------------------------------------ basics
     @property
+    def summary(self) -> str:
+        """The chain in one line: ``name: base → tip, n joints (names)`` (what the CLI prints)."""
+        base, tip = getattr(self, "base_link", "base"), getattr(self, "tip_link", "flange")
+        names = ", ".join(self.joint_names)
+        return f"{self.name}: {base} → {tip}, {self.n_joints} joints ({names})"
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.summary}>"
+
+    @property
     def n_joints(self) -> int:
         """Number of joints ``n``."""
         return self._A.shape[0]
@@ -268,7 +278,7 @@ class KinematicChain:
         object.__setattr__(self, "_A", A)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class SerialChain(KinematicChain):
     """A serial chain given by a fixed origin transform and an axis per joint (a URDF path).
 
@@ -296,6 +306,9 @@ class SerialChain(KinematicChain):
         One name per joint; ``joint_1`` … by default.
     base_link, tip_link : str
         Names of the base and tip frames (URDF links), for messages and plots.
+    notes : tuple of str
+        What a loader chose or assumed (how a default tip was found, limits read as
+        unbounded); empty by default.
 
     Raises
     ------
@@ -315,6 +328,7 @@ class SerialChain(KinematicChain):
     joint_names: tuple[str, ...] | None = None
     base_link: str = "base"
     tip_link: str = "flange"
+    notes: tuple[str, ...] = ()
     _M_tool: np.ndarray = field(init=False, repr=False)
     _M_flange: np.ndarray = field(init=False, repr=False)
     _A: np.ndarray = field(init=False, repr=False)

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from posekit._jit import njit
 from posekit.errors import ConfigError
 from posekit.geometry import (
     cholesky_solve,

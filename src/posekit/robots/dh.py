@@ -67,7 +67,7 @@ def dh_row_transform(a, alpha, d, theta) -> np.ndarray:
     return T
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class DHChain(KinematicChain):
     """A serial chain given by standard DH rows, joint types, joint limits and a tool.
 

@@ -2,19 +2,39 @@
 
 Clock convention: ``offset_s`` is what must be added to a src timestamp to read the dst clock,
 ``t_dst ≈ t_src + offset_s``.
+
+The offset estimate comes with its 1σ (:func:`offset_std`: the Gauss–Newton variance of the
+offset in the joint fit of rotation, translation (scale) and offset, times the residuals'
+integrated autocorrelation time — VO drift makes neighbouring residuals alike). A caller can then
+tell an offset the data determine from one they do not (:func:`offset_is_determined`).
 """
+
+from statistics import NormalDist
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from posekit.errors import TrajectoryError
 from posekit.geometry import rotation_angle_between
-from posekit.localcal.registration.alignment import MIN_POSES, robust_principal_axes, umeyama
+from posekit.localcal.registration.alignment import (
+    MIN_POSES,
+    robust_inliers,
+    robust_principal_axes,
+    thin_indices,
+    umeyama,
+)
 
-__all__ = ["associate", "estimate_time_offset", "interpolate_positions"]
+__all__ = ["OFFSET_ALPHA", "associate", "dedupe_stamps", "edge_message", "estimate_time_offset", "interpolate_positions",
+           "offset_is_determined", "offset_std", "typical_gap"]
 
-#: Largest number of src samples the offset search evaluates (evenly thinned beyond).
+#: Largest number of src samples the offset grid search evaluates (evenly thinned beyond).
 _OFFSET_SAMPLES = 600
+#: Largest number of src samples the offset refinement and its std use (evenly thinned beyond; for
+#: white residuals the std of a longer file is then conservative by sqrt(N / this)).
+_REFINE_SAMPLES = 20_000
+#: Significance level of the test "the clock offset differs from 0": an estimate within the
+#: two-sided (1 - OFFSET_ALPHA) interval of 0 (|z| < 2.58) is not taken as a clock offset.
+OFFSET_ALPHA = 0.01
 #: Offsets whose cost is within this factor of the best one fit as well as it (the noise level).
 _OFFSET_TIE_FACTOR = 1.5
 #: Two such offsets whose rotations differ by more than this make the offset ambiguous, deg.
@@ -71,6 +91,30 @@ def associate(t_src, t_dst, *, max_dt_s: float = 0.02, offset_s: float = 0.0):
     return i_src, j[i_src]
 
 
+def dedupe_stamps(t_s) -> np.ndarray:
+    """Indices that keep the last sample of every run of equal timestamps, shape (K,).
+
+    A pose re-published at the same stamp supersedes the earlier one (evo's nearest-stamp match
+    picks the last of equal stamps, too).
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N,)
+        Non-decreasing timestamps, s.
+    """
+    t_s = np.asarray(t_s, dtype=np.float64)
+    if t_s.size < 2:
+        return np.arange(t_s.size)
+    return np.flatnonzero(np.r_[t_s[1:] != t_s[:-1], True])
+
+
+def typical_gap(t_s) -> float:
+    """Largest gap between samples that counts as continuous data: 5 x the median step, s."""
+    d = np.diff(np.asarray(t_s, dtype=np.float64))
+    med = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
+    return max(5.0 * med, 1e-6)
+
+
 def interpolate_positions(t_dst, p_dst, t_query, *, max_gap_s: float):
     """Linear interpolation of dst positions at query times, where dst has data.
 
@@ -124,7 +168,7 @@ def _alignment_cost(offset, *args):
 
 
 def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.0,
-                         with_scale: bool = False, names=("src", "dst")) -> float:
+                         with_scale: bool = False, names=("src", "dst"), edge: str = "raise"):
     """Constant clock offset that best aligns two position trajectories up to a rigid motion.
 
     The cost of an offset is the median residual of a trimmed Umeyama fit of the src positions
@@ -149,32 +193,36 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     names : tuple of str
         Names of src and dst for messages.
 
+    edge : {'raise', 'return'}
+        What a best offset at the edge of the search does: raise (default), or be returned with
+        a flag (the caller decides with :func:`offset_std` whether the data determine it).
+
     Returns
     -------
     offset_s : float
-        Estimated offset, s (``t_dst ≈ t_src + offset_s``).
+        Estimated offset, s (``t_dst ≈ t_src + offset_s``), within ``±max_offset_s``;
+        ``(offset_s, at_edge)`` with ``edge='return'``.
 
     Raises
     ------
     TrajectoryError
         If no offset in the range gives at least ``MIN_POSES`` overlapping samples, the best
-        offset is at the edge of the range (the true one may lie beyond), or the best offset
+        offset is at the edge of the range (the true one may lie beyond; ``edge='raise'``), or the best offset
         fits (``_OFFSET_FIT_FRACTION``) and offsets that fit equally well (within
         ``_OFFSET_TIE_FACTOR`` of its cost) give rotations more than ``_OFFSET_AMBIGUOUS_DEG``
         apart: the path maps onto itself under a time shift (a circle or helix at constant
         speed), so the offset, and with it the rotation, is undetermined.
     """
-    if t_src.size > _OFFSET_SAMPLES:
-        k = np.linspace(0, t_src.size - 1, _OFFSET_SAMPLES).round().astype(int)
-        t_src, p_src = t_src[k], p_src[k]
-    dt_d = np.diff(t_dst)
-    med = float(np.median(dt_d[dt_d > 0])) if np.any(dt_d > 0) else 0.0
-    max_gap_s = max(5.0 * med, 1e-6)
+    t_all, p_all = np.asarray(t_src, dtype=np.float64), np.asarray(p_src, dtype=np.float64)
+    k = thin_indices(t_all.size, _OFFSET_SAMPLES)
+    t_src, p_src = t_all[k], p_all[k]
+    max_gap_s = typical_gap(t_dst)
+    med = max_gap_s / 5.0
     dt_s = np.diff(t_src)
     med_s = float(np.median(dt_s[dt_s > 0])) if np.any(dt_s > 0) else med
     step = max(min(med, med_s) / 2.0, max_offset_s / 40.0, 1e-4)
     n = int(np.ceil(max_offset_s / step)) if max_offset_s > 0 else 0
-    grid = np.linspace(-n * step, n * step, 2 * n + 1)
+    grid = np.clip(np.linspace(-n * step, n * step, 2 * n + 1), -max_offset_s, max_offset_s)
     args = (t_src, p_src, t_dst, p_dst, max_gap_s, with_scale)
     fits = [_alignment_fit(o, *args) for o in grid]
     cost = np.array([c for c, _ in fits])
@@ -185,7 +233,7 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
             f"{MIN_POSES} poses for any clock offset within ±{max_offset_s:g} s")
     best = int(np.argmin(cost))
     if grid.size == 1:
-        return float(grid[0])
+        return (float(grid[0]), False) if edge == "return" else float(grid[0])
     extent = robust_principal_axes(p_dst)[2][0]
     if best in (0, grid.size - 1) and cost[best] > _OFFSET_NOTHING_FITS * extent:
         raise TrajectoryError(
@@ -193,10 +241,9 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
             f"({grid[best]:+.3f} s) leaves a median residual of {cost[best]:.1f} mm, {cost[best] / extent:.0%} of "
             f"the path's extent; they do not record the same motion (or the offset lies beyond: --max-offset)")
     if best in (0, grid.size - 1):
-        raise TrajectoryError(
-            f"the clock offset between {names[0]} and {names[1]} fits best at the edge of the search "
-            f"({grid[best]:+.3f} s): it may lie beyond ±{max_offset_s:g} s; widen the search "
-            f"(max_offset_s, --max-offset) or give the offset (time_offset_s, --time-offset)")
+        if edge == "raise":
+            raise TrajectoryError(edge_message(names, float(grid[best]), max_offset_s))
+        return float(grid[best]), True
     tied = np.flatnonzero(cost <= _OFFSET_TIE_FACTOR * cost[best])
     angles = np.rad2deg(rotation_angle_between(fits[best][1], np.array([fits[k][1] for k in tied]), check=False))
     fits_well = cost[best] <= _OFFSET_FIT_FRACTION * extent
@@ -211,14 +258,26 @@ def estimate_time_offset(t_src, p_src, t_dst, p_dst, *, max_offset_s: float = 1.
     opt = minimize_scalar(_alignment_cost, bounds=(lo, hi), args=args, method="bounded",
                           options={"xatol": 1e-4})
     offset = float(opt.x) if opt.success and np.isfinite(opt.fun) and opt.fun <= cost[best] else float(grid[best])
-    return _refine_offset(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale)
+    k = thin_indices(t_all.size, _REFINE_SAMPLES)
+    offset = _refine_offset(offset, t_all[k], p_all[k], t_dst, p_dst, max_gap_s, with_scale, bounds=(lo, hi))
+    return (offset, False) if edge == "return" else offset
 
 
-def _refine_offset(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale, n_iter=8):
-    """Gauss-Newton on the offset, alternating with the (trimmed) Umeyama fit.
+def edge_message(names, offset_s: float, max_offset_s: float) -> str:
+    """The message of a clock offset that fits best at the edge of its search."""
+    return (f"the clock offset between {names[0]} and {names[1]} fits best at the edge of the search "
+            f"({offset_s:+.3f} s): it may lie beyond ±{max_offset_s:g} s; widen the search "
+            f"(max_offset_s, --max-offset) or give the offset (time_offset_s, --time-offset)")
+
+
+def _refine_offset(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale, bounds, n_iter=8):
+    """Gauss-Newton on the offset, alternating with the (trimmed) Umeyama fit, within ``bounds``.
 
     The median cost above is flat near its minimum; this least-squares step uses the dst velocity:
-    ``r_i(offset + d) ≈ r_i(offset) + v_dst(t_i + offset) d``.
+    ``r_i(offset + d) ≈ r_i(offset) + v_dst(t_i + offset) d``. It never leaves the bracket of
+    the grid's best point (inside ``±max_offset_s``): on a drifting VO path the least-squares
+    optimum can lie far from where the median cost put it (KITTI 00 S-PTAM: +0.13 s unbounded,
+    outside a 0.05 s search).
     """
     h = max_gap_s / 5.0
     for _ in range(n_iter):
@@ -241,7 +300,83 @@ def _refine_offset(offset, t_src, p_src, t_dst, p_dst, max_gap_s, with_scale, n_
             break
         step = -float((v[keep] * r[keep]).sum() / vv)
         step = float(np.clip(step, -h, h))
-        offset += step
+        new = float(np.clip(offset + step, bounds[0], bounds[1]))
+        step, offset = new - offset, new
         if abs(step) < 1e-6:
             break
     return offset
+
+
+def offset_std(offset_s, t_src, p_src, t_dst, p_dst, *, with_scale: bool = False) -> float:
+    """1σ of a clock offset estimated from positions, s (inf when the data do not determine it).
+
+    The residuals ``r_i = p_dst(t_i + offset) - (s R p_src_i + t)`` of the pairs within the robust
+    inlier gate (:func:`.alignment.robust_inliers`) are linearised in the rotation
+    (3), translation (3), scale (with ``with_scale``) and offset (the dst velocity ``v_i``); the
+    offset's variance is the corresponding entry of ``σ² (JᵀJ)⁻¹`` (``σ²`` the residual variance),
+    times the residuals' integrated autocorrelation time (:func:`.uncertainty.autocorrelation_time`).
+
+    Parameters
+    ----------
+    offset_s : float
+        The offset, s.
+    t_src, t_dst : ndarray, shape (M,), (N,)
+        Timestamps, s.
+    p_src, p_dst : ndarray, shape (M, 3), (N, 3)
+        Positions, mm.
+    with_scale : bool
+        A similarity fit (the scale is a parameter too).
+
+    Returns
+    -------
+    float
+        The offset's standard deviation, s; ``inf`` when fewer than ``MIN_POSES`` samples overlap
+        or the dst path does not move at the paired samples (stop-and-go captures).
+    """
+    from posekit.localcal.registration.uncertainty import autocorrelation_time
+
+    t_src, p_src = np.asarray(t_src, dtype=np.float64), np.asarray(p_src, dtype=np.float64)
+    k = thin_indices(t_src.size, _REFINE_SAMPLES)
+    t_src, p_src = t_src[k], p_src[k]
+    gap = typical_gap(t_dst)
+    h = gap / 5.0
+    q, ok = interpolate_positions(t_dst, p_dst, t_src + offset_s, max_gap_s=gap)
+    qa, va = interpolate_positions(t_dst, p_dst, t_src + offset_s + h, max_gap_s=gap)
+    qb, vb = interpolate_positions(t_dst, p_dst, t_src + offset_s - h, max_gap_s=gap)
+    ok &= va & vb
+    if ok.sum() < MIN_POSES:
+        return float("inf")
+    a, b, v = p_src[ok], q[ok], (qa[ok] - qb[ok]) / (2.0 * h)
+    R, t, s = umeyama(a, b, with_scale=with_scale)
+    keep = robust_inliers(np.linalg.norm(b - (s * a @ R.T + t), axis=1))     # gross outliers out
+    if keep.sum() < MIN_POSES:
+        return float("inf")
+    a, b, v = a[keep], b[keep], v[keep]
+    R, t, s = umeyama(a, b, with_scale=with_scale)
+    m = s * a @ R.T
+    r = b - m - t
+    npar = 8 if with_scale else 7
+    J = np.zeros((len(a), 3, npar))
+    J[:, 0, 1], J[:, 0, 2] = m[:, 2], -m[:, 1]              # d(exp([δ]x) m)/dδ = -[m]x
+    J[:, 1, 0], J[:, 1, 2] = -m[:, 2], m[:, 0]
+    J[:, 2, 0], J[:, 2, 1] = m[:, 1], -m[:, 0]
+    J[:, :, 3:6] = np.eye(3)
+    J[:, :, 6] = -v                                          # r(offset + d) = r - ... : only the sign
+    if with_scale:
+        J[:, :, 7] = m / s
+    H = np.einsum("nij,nik->jk", J, J)
+    dof = max(3 * len(a) - npar, 1)
+    try:
+        var = float(np.linalg.inv(H)[6, 6]) * float((r ** 2).sum()) / dof
+    except np.linalg.LinAlgError:
+        return float("inf")
+    if not np.isfinite(var) or var <= 0 or float((v ** 2).sum()) <= 1e-18 * max(float((b ** 2).sum()), 1.0):
+        return float("inf")
+    return float(np.sqrt(var * autocorrelation_time(r)))
+
+
+def offset_is_determined(estimate_s: float, std_s: float, alpha: float = OFFSET_ALPHA) -> bool:
+    """Whether an offset estimate differs from 0 at significance ``alpha`` (two-sided z test)."""
+    if not (np.isfinite(estimate_s) and np.isfinite(std_s)) or std_s <= 0:
+        return False
+    return abs(estimate_s) > NormalDist().inv_cdf(1.0 - alpha / 2.0) * std_s

@@ -14,12 +14,13 @@ Examples
 >>> res.T_tool_camera, res.T_base_world, res.status, res.reasons  # doctest: +SKIP
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from posekit.errors import CalibrationError, TrajectoryError
 from posekit.geometry import rotation_vector_from_matrix
+from posekit.verdict import Verdict
 
 from .association import associate
 from .handeye_closed import park_martin, solve_world
@@ -54,6 +55,9 @@ SPLIT_SIGMAS = 5.0
 DRIFT_BLOCKS = 8
 #: Most pairs the refinement uses (evenly thinned beyond; the uncertainty accounts for it).
 MAX_PAIRS = 4000
+#: A kinematic log with at most this many samples per camera pose (and one within the pairing
+#: window of each) holds one pose per capture: stop-and-go pose pairs, not a trajectory.
+CAPTURE_RATIO = 1.5
 
 
 @dataclass(frozen=True)
@@ -89,9 +93,14 @@ class HandEyeResult:
         at least the spread of the residuals' block means (VO drift moves the world frame), and
         multiplied like the mount's by the disagreement of the two halves of the run.
     std_time_offset_s : float
-        1 sigma of the clock offset, s (0 when it was given).
+        1 sigma of the clock offset, s (0 when it was given; NaN when the data do not determine it).
     excitation_deg : ndarray, shape (3,)
         Rotation spread of the tool about its principal rotation axes (1 sigma, largest first), deg.
+    time_offset_source : {'estimated', 'given', 'undetermined'}
+        ``undetermined``: the data cannot measure the clock offset (one kinematic pose per capture,
+        or a tool at rest at every capture); the poses were paired at 0 (``time_offset_s`` NaN).
+    notes : list of str
+        What was decided and why.
     """
 
     T_tool_camera: np.ndarray
@@ -109,6 +118,15 @@ class HandEyeResult:
     std_world_t_mm: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     std_time_offset_s: float = 0.0
     excitation_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    time_offset_source: str = "estimated"
+    notes: list = field(default_factory=list)
+
+    @property
+    def verdict(self):
+        """The result's :class:`posekit.verdict.Verdict` (1σ of the camera mount)."""
+        std = {**{f"r{a}_deg": v for a, v in zip("xyz", self.std_rot_deg)},
+               **{f"t{a}_mm": v for a, v in zip("xyz", self.std_t_mm)}}
+        return Verdict(self.status, tuple(self.reasons), std)
 
     def to_json(self) -> dict:
         """The DESIGN.md contract ``{R_tool_camera, t_tool_camera_mm, R, t_mm, rmse_mm, status,
@@ -133,7 +151,9 @@ class HandEyeResult:
             "n_inliers": int(np.sum(self.inliers)),
             "time_offset_s": f(self.time_offset_s),
             "std_time_offset_s": f(self.std_time_offset_s),
+            "time_offset_source": self.time_offset_source,
             "excitation_deg": [f(v) for v in self.excitation_deg],
+            "notes": list(self.notes),
         }
 
 
@@ -219,6 +239,19 @@ def _split_check(t_c, B, kin, fit: JointFit, n: int) -> tuple[str | None, np.nda
     return None, z
 
 
+def _pose_pairs_only(t_cam, t_kin, max_dt_s: float) -> bool:
+    """True when the kinematic log holds one pose per camera pose (stop-and-go captures): at most
+    ``CAPTURE_RATIO`` samples per camera pose over the camera's span, and a kinematic stamp within
+    ``max_dt_s`` of at least 90 % of the camera stamps."""
+    if t_cam.size < 2 or t_kin.size < 2:
+        return False
+    span = (t_kin >= t_cam[0] - max_dt_s) & (t_kin <= t_cam[-1] + max_dt_s)
+    if span.sum() > CAPTURE_RATIO * t_cam.size:
+        return False
+    i, _ = associate(t_cam, t_kin, max_dt_s=max_dt_s)
+    return i.size >= 0.9 * t_cam.size
+
+
 def calibrate_handeye(camera: Trajectory, kinematic: Trajectory, *, max_dt_s: float = 0.02,
                       time_offset_s: float | None = None, max_offset_s: float = 1.0,
                       noise_mm: float = 2.0, noise_deg: float = 0.5, max_std_t_mm: float = MAX_STD_T_MM,
@@ -252,6 +285,10 @@ def calibrate_handeye(camera: Trajectory, kinematic: Trajectory, *, max_dt_s: fl
     Returns
     -------
     HandEyeResult
+        When the data cannot measure the clock offset — one kinematic pose per capture (stop-and-go
+        pose pairs), or a tool at rest at every capture (the offset's 1σ beyond ``max_offset_s``) —
+        the poses are paired at offset 0, ``time_offset_source`` is ``undetermined`` and a note
+        says so, instead of a number.
         With ``status`` ``ok`` or ``suspect`` and ``reasons``: too few pairs, rotations about one
         axis only (the camera offset along it is undetermined), residuals above
         ``RESIDUAL_FACTOR`` times the stated noise, camera positions that fit far better scaled by
@@ -269,6 +306,15 @@ def calibrate_handeye(camera: Trajectory, kinematic: Trajectory, *, max_dt_s: fl
     if len(camera) < 3 or len(kinematic) < 2:
         raise TrajectoryError(f"hand-eye needs >= 3 camera poses and >= 2 kinematic poses, got {len(camera)} "
                               f"({names[0]}) and {len(kinematic)} ({names[1]})")
+    kw = dict(max_dt_s=max_dt_s, max_offset_s=max_offset_s, noise_mm=noise_mm, noise_deg=noise_deg,
+              max_std_t_mm=max_std_t_mm, max_std_rot_deg=max_std_rot_deg, names=names)
+    if time_offset_s is None and _pose_pairs_only(camera.t_s, kinematic.t_s, max_dt_s):
+        res = calibrate_handeye(camera, kinematic, time_offset_s=0.0, **kw)
+        return replace(res, time_offset_s=float("nan"), std_time_offset_s=float("nan"),
+                       time_offset_source="undetermined",
+                       notes=[f"{names[1]} holds one pose per {names[0]} pose (stop-and-go captures): the clock "
+                              "offset cannot be measured from them; the poses are paired by their stamps "
+                              f"within {max_dt_s:g} s (give --time-offset to shift them)"])
     reasons = []
     fit_offset = time_offset_s is None
     if fit_offset:
@@ -286,8 +332,11 @@ def calibrate_handeye(camera: Trajectory, kinematic: Trajectory, *, max_dt_s: fl
     if n < 3:
         raise TrajectoryError(f"{names[0]} and {names[1]}: {n} pose pairs within {max_dt_s:g} s at a clock offset "
                               f"of {offset * 1000:+.1f} ms; hand-eye needs >= 3 (expected >= {MIN_PAIRS})")
-    kin = PoseInterpolator(kinematic.t_s, kinematic.T)
-    t_c = camera.t_s[i_cam]
+    # times relative to the first camera stamp: at 1.3e9 s (Unix time) a float64 resolves 2.4e-7 s,
+    # coarser than the refinement's finite-difference step on the offset (which then saw no motion)
+    t_ref = float(camera.t_s[0])
+    kin = PoseInterpolator(kinematic.t_s - t_ref, kinematic.T)
+    t_c = camera.t_s[i_cam] - t_ref
     B = camera.T[i_cam]
     A = kin(t_c + offset)
     excitation = _excitation_deg(A[:, :3, :3])
@@ -340,12 +389,22 @@ def calibrate_handeye(camera: Trajectory, kinematic: Trajectory, *, max_dt_s: fl
         reasons.append(f"camera mount weakly determined: std {std_rot.max():.3g} deg, {std_t.max():.3g} mm "
                        f"(limits {max_std_rot_deg:g} deg, {max_std_t_mm:g} mm: --max-std-deg, --max-std-mm)")
     std_off = float(std[12]) if fit_offset else 0.0
+    if fit_offset and std_off > max(max_offset_s, MAX_STD_OFFSET_S):
+        # the data leave the offset where the prior put it: the tool is (nearly) at rest at the captures
+        res = calibrate_handeye(camera, kinematic, time_offset_s=0.0, **kw)
+        return replace(res, time_offset_s=float("nan"), std_time_offset_s=float("nan"),
+                       time_offset_source="undetermined",
+                       notes=[f"the clock offset is not determined by the data (1 sigma {std_off:.3g} s, beyond the "
+                              f"±{max_offset_s:g} s search): the tool is at rest or nearly at the {names[0]} poses; "
+                              "paired at offset 0 (give --time-offset to shift them)"])
     if std_off > MAX_STD_OFFSET_S:
         reasons.append(f"clock offset weakly determined: std {std_off * 1000:.3g} ms (limit "
                        f"{MAX_STD_OFFSET_S * 1000:g} ms): the angular speed varies too little; give --time-offset")
     return HandEyeResult(
         T_tool_camera=fit.X, T_base_world=fit.Z, rmse_mm=rmse, rms_rot_deg=rms_rot, n_pairs=n, inliers=inl,
-        time_offset_s=fit.offset_s, status="suspect" if reasons else "ok", reasons=reasons,
+        time_offset_s=fit.offset_s, status=Verdict("suspect" if reasons else "ok", tuple(reasons)).status,
+        reasons=reasons,
+        time_offset_source="estimated" if fit_offset else "given",
         std_rot_deg=std_rot, std_t_mm=std_t, std_world_rot_deg=np.rad2deg(std[6:9]), std_world_t_mm=std[9:12],
         std_time_offset_s=std_off, excitation_deg=excitation)
 

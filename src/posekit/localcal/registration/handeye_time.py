@@ -79,6 +79,25 @@ def angular_speed(interp: PoseInterpolator, t_s, h_s: float) -> np.ndarray:
     return (R0.inv() * R1).magnitude() / h_s
 
 
+def _speed_grid(t_kin, h: float, step: float):
+    """Grid times over the stretches of continuous data of a log, and each stretch's ``[lo, hi]``.
+
+    A stretch ends where two samples are further apart than ``max(5 x the median step, 2 h)``;
+    the grid covers ``[start, end - h]`` of each stretch (the speed over ``[t, t + h]`` needs data
+    up to ``t + h``).
+    """
+    d = np.diff(t_kin)
+    med = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
+    cut = np.flatnonzero(d > max(5.0 * med, 2.0 * h)) + 1
+    starts, ends = t_kin[np.r_[0, cut]], t_kin[np.r_[cut - 1, t_kin.size - 1]]
+    keep = ends - h > starts
+    lo, hi = starts[keep], ends[keep] - h
+    if lo.size == 0:
+        return np.zeros(0), np.zeros(1), np.zeros(1) - 1.0
+    grid = np.concatenate([np.arange(a, b, step) for a, b in zip(lo, hi)])
+    return grid, lo, hi
+
+
 def estimate_offset_by_rotation(t_cam, T_cam, t_kin, T_kin, *, max_offset_s: float = 1.0,
                                 names=("camera", "kinematic")) -> tuple[float, bool]:
     """Clock offset that best matches the angular-speed profiles of two trajectories of one body.
@@ -115,17 +134,23 @@ def estimate_offset_by_rotation(t_cam, T_cam, t_kin, T_kin, *, max_offset_s: flo
     tc = t_cam[thin_indices(t_cam.size, _OFFSET_SAMPLES)]
     tc = tc[tc + h <= t_cam[-1]]
     w_cam = angular_speed(cam, tc, h)
-    # kinematic speed on a grid fine enough to interpolate: a tenth of the window
+    # kinematic speed on a grid fine enough to interpolate (a tenth of the window), built only over
+    # the stretches where the log has data: memory follows the samples, not the time span (a log
+    # with one 1e6 s jump in its stamps would otherwise need a grid of 1e8 points)
     step = h / 10.0
-    grid = np.arange(t_kin[0], t_kin[-1] - h, step)
+    grid, lo, hi = _speed_grid(t_kin, h, step)
     if grid.size < 2:
         raise TrajectoryError(f"{names[1]}: spans {t_kin[-1] - t_kin[0]:.3g} s; too short to estimate "
                               f"a clock offset (needs > {2 * h:.3g} s)")
     w_kin = angular_speed(kin, grid, h)
 
+    def inside(tq):
+        b = np.clip(np.searchsorted(lo, tq, side="right") - 1, 0, lo.size - 1)
+        return (tq >= lo[b]) & (tq <= hi[b])
+
     def cost(offset):
         tq = tc + offset
-        ok = (tq >= grid[0]) & (tq <= grid[-1])
+        ok = inside(tq)
         if ok.sum() < max(min(_MIN_OVERLAP, tc.size), 3, tc.size // 3):
             return np.inf
         return float(np.mean(np.abs(w_cam[ok] - np.interp(tq[ok], grid, w_kin))))

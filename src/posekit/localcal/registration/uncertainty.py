@@ -82,8 +82,9 @@ def _acf_direct(x, var, lags):
     return np.array(rho)
 
 
-def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocities=None, correlated: bool = True):
-    """Covariance of ``(δ, t)`` of a fitted match, with the residual variance.
+def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocities=None, correlated: bool = True,
+                            fit_scale: bool = False):
+    """Covariance of ``(δ, t)`` (and ``log s``) of a fitted match, with the residual variance.
 
     Parameters
     ----------
@@ -96,7 +97,7 @@ def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocit
     t : ndarray, shape (3,)
         Fitted ``t_dst_src``, mm.
     s : float
-        Fitted scale (held fixed).
+        Fitted scale (held fixed unless ``fit_scale``).
     tangents : ndarray, shape (N, 3), optional
         Unit directions of the dst path at each pair (nearest-neighbour pairs): the component along
         it is dropped (point-to-line).
@@ -106,19 +107,26 @@ def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocit
         uncertainty widens that of ``R`` and ``t``.
     correlated : bool
         Multiply by the residuals' integrated autocorrelation time (see the module docstring).
+    fit_scale : bool
+        The scale was fitted too (Sim(3)): ``log s`` is a parameter (Jacobian column ``q_i``), so
+        the rotation's and translation's covariance include its uncertainty and its correlation
+        with them — large when the src world origin lies far from the path, where a scale error
+        moves every point the same way.
 
     Returns
     -------
-    cov : ndarray, shape (6, 6)
-        Covariance of the rotation perturbation about the base axes (rad², first three) and of
-        ``t`` (mm², last three).
+    cov : ndarray, shape (6, 6), or (7, 7) with ``fit_scale``
+        Covariance of the rotation perturbation about the base axes (rad², first three), of
+        ``t`` (mm², next three) and of ``log s`` (last, with ``fit_scale``; ``std(s) ≈ s
+        sqrt(cov[6, 6])``).
     tau : float
         The autocorrelation factor applied (1 when ``correlated`` is False).
     """
     p_src = np.asarray(p_src, dtype=np.float64)
     p_dst = np.asarray(p_dst, dtype=np.float64)
     n = len(p_src)
-    npar = 6 if velocities is None else 7
+    ns = 7 if fit_scale else 6                      # parameters reported (δ, t, log s)
+    npar = ns + (velocities is not None)
     H = np.zeros((npar, npar))
     sse = 0.0
     e_all = np.empty((n, 3))
@@ -131,8 +139,10 @@ def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocit
         J[:, 1, 0], J[:, 1, 2] = -q[:, 2], q[:, 0]
         J[:, 2, 0], J[:, 2, 1] = q[:, 1], -q[:, 0]
         J[:, :, 3:6] = np.eye(3)
+        if fit_scale:
+            J[:, :, 6] = q                                 # d(exp(l) q)/dl at l = 0
         if velocities is not None:
-            J[:, :, 6] = velocities[a:a + _CHUNK]
+            J[:, :, ns] = velocities[a:a + _CHUNK]
         if tangents is not None:
             tg = tangents[a:a + _CHUNK]
             J = J - tg[:, :, None] * np.einsum("ni,nij->nj", tg, J)[:, None, :]
@@ -142,9 +152,9 @@ def registration_covariance(p_src, p_dst, R, t, s=1.0, *, tangents=None, velocit
         e_all[a:a + len(e)] = e
     dof = max((2 if tangents is not None else 3) * n - npar, 1)
     try:
-        cov = np.linalg.inv(H)[:6, :6] * (sse / dof)
+        cov = np.linalg.inv(H)[:ns, :ns] * (sse / dof)
     except np.linalg.LinAlgError:
-        cov = np.full((6, 6), np.inf)
+        cov = np.full((ns, ns), np.inf)
     tau = autocorrelation_time(e_all) if correlated else 1.0
     return cov * tau, tau
 

@@ -17,8 +17,8 @@ One time step does, in this order (see :mod:`posekit.localcal.sim.arm` for the m
 """
 
 import numpy as np
-from numba import njit
 
+from posekit._jit import njit
 from posekit.robots import resolved_rate_update
 
 __all__ = ["simulate_moves"]

@@ -415,7 +415,7 @@ def render_markers(
     frame is the background with the same grey-level noise (for the default wall, one of a
     few cached noisy frames); blurring the smooth background there would change nothing.
     The grey-level noise is a cached unit Gaussian field, shifted by a random offset and
-    sign per frame, so every pixel's noise is N(0, ``noise_gray``²), independent between
+    sign per frame, so every pixel's noise is normal with std ``noise_gray``, independent between
     neighbouring pixels.
 
     Parameters
@@ -546,12 +546,3 @@ def render_markers(
             patch += gain * bank[py0 + dy : py1 + dy, px0 + dx : px1 + dx]
         img[py0:py1, px0:px1] = _to_u8(patch)
     return img
-
-
-def __getattr__(name):
-    """:class:`MarkerDetector` lives in :mod:`posekit.localcal.sim.marker_detector` (imported on first
-    use: that module builds on this one)."""
-    if name == "MarkerDetector":
-        from posekit.localcal.sim.marker_detector import MarkerDetector
-        return MarkerDetector
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,8 +10,10 @@ task seed, so the numbers do not depend on the scheduler) and builds:
     Table 3: per run the mean and maximum absolute errors after point-set matching (mm);
     Table 4: per run the absolute position errors after each update (mm); mean rows.
 
-Every row has ``status`` (``ok`` or ``error``) and ``error`` (the reason); a failed run keeps
-its row with NaN values and is left out of the mean. The true errors (simulation truth, not
+Every row has ``status`` and ``error`` (the reason): ``ok``; ``suspect`` when the episode ran but
+its trajectory registration (match or hand-eye) was ``suspect`` (its numbers are kept, in the
+mean too); ``error`` when it failed (NaN values, left out of the mean). The words are
+:mod:`posekit.verdict`'s. The true errors (simulation truth, not
 the camera's) are in extra tables with the suffix ``_truth``.
 """
 
@@ -24,16 +26,23 @@ import numpy as np
 from posekit.errors import ConfigError, PosekitError
 from posekit.localcal.sim.episode import METHODS, EpisodeConfig, LocalcalEpisode, run_localcal_episode
 from posekit.sweep import SERIAL, run_tasks, task_seed
+from posekit.verdict import status_counts
 
 __all__ = [
     "PAPER_TABLE2_MEAN",
     "PAPER_TABLE3",
     "PAPER_TABLE4_MEAN",
+    "RUN_STATUSES",
     "ExperimentResult",
+    "episode_status",
     "format_table",
     "run_experiment",
     "table_columns",
 ]
+
+#: The status words of a run (posekit.verdict's): done and trusted, done but the registration is
+#: suspect, failed.
+RUN_STATUSES = ("ok", "suspect", "error")
 
 #: Mean row of the paper's Table 2 (line method): e_θx, e_θy, e_θz [deg], e_x, e_y, e_z [mm].
 PAPER_TABLE2_MEAN = (1.58, 1.57, 6.64, 24.0, 29.0, 338.0)
@@ -73,6 +82,25 @@ class ExperimentResult:
     failures: list
     tables: dict = field(default_factory=dict)
     wall_s: float = 0.0
+
+    @property
+    def statuses(self) -> list[str]:
+        """One of :data:`RUN_STATUSES` per run (:func:`episode_status`)."""
+        return [episode_status(ep) for ep in self.episodes]
+
+    @property
+    def status_counts(self) -> dict:
+        """``{"ok": n, "suspect": n, "error": n}`` over the runs."""
+        return status_counts(self.statuses, RUN_STATUSES)
+
+
+def episode_status(ep: LocalcalEpisode | None) -> str:
+    """``error`` for a failed run, ``suspect`` when its registration was, else ``ok``."""
+    if ep is None:
+        return "error"
+    if ep.matching and ep.matching.get("status") not in (None, "ok"):
+        return "suspect"
+    return "ok"
 
 
 def _update_columns(updates: int) -> list[str]:
@@ -138,10 +166,12 @@ def _build_table(name: str, episodes, failures, updates: int) -> list[dict]:
         if ep is None:
             row.update(_nan_row(value_cols), status="error", error=fail)
         else:
+            status = episode_status(ep)
+            why = "; ".join(ep.matching.get("reasons", ())) if status == "suspect" else ""
             row.update(dict(zip(value_cols, (float(v) for v in _values(ep, base, truth, updates)))),
-                       status="ok", error="")
+                       status=status, error=f"registration suspect: {why}" if why else "")
         rows.append(row)
-    ok = [r for r in rows if r["status"] == "ok"]
+    ok = [r for r in rows if r["status"] != "error"]
     mean = {"run": "mean", "status": "ok" if ok else "error",
             "error": "" if ok else "every run failed"}
     for c in value_cols:

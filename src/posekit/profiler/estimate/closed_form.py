@@ -12,7 +12,8 @@ than the arithmetic.
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import EstimationError
 

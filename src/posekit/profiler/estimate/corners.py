@@ -35,18 +35,21 @@ RDP pipeline, compiled as one numba kernel (about 15 µs for 3,200 points):
 """
 
 import weakref
-from dataclasses import astuple, dataclass
+from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from ...errors import ConfigError, ProfileError
+from posekit._jit import njit
+
+from ...errors import ProfileError
 from ...geometry import robust_line_kernel
-from ..estimate import faces
-from .gauge import Gauge
+from ..gauge.model import Gauge
+from . import faces
+from .corner_params import CornerParams, param_vector
+from .face_fit import corner_jacobian_rows
 from .segments import _median5, chord_deviation, expected_turns
 
-__all__ = ["CornerParams", "Corners", "detect_corners", "detect_corners_unchecked", "check_profile",
+__all__ = ["Corners", "detect_corners", "detect_corners_unchecked", "check_profile",
            "raise_for_status", "gauge_turns"]
 
 OK = 0
@@ -58,130 +61,6 @@ PARALLEL = 5
 NO_MATCH = faces.NO_MATCH
 CLUTTER = faces.CLUTTER
 EXTRA_FACE = faces.EXTRA_FACE
-
-
-@dataclass(frozen=True)
-class CornerParams:
-    """Tunable parameters of corner detection (mm unless named otherwise).
-
-    The first six serve both detectors; ``trim`` and ``min_corner_mm`` only the RDP
-    detector; the rest only the model-based one. ``face_tilt_tolerance_deg`` and
-    ``scale_tolerance_ppm`` add declared systematic uncertainties (the as-built faces' tilt,
-    the sensor's scale) to the model-based detector's corner covariance (0: noise only).
-    """
-
-    #: A vertex is a corner when it deviates at least this much from its chord.
-    min_corner_mm: float = 0.3
-    #: A return farther than this (in z) from its 5-point running median is a spike.
-    spike_mm: float = 0.2
-    #: Fraction of each segment's points dropped at both ends.
-    trim: float = 0.1
-    #: Residual rejection threshold of the robust line fit, in residual RMS.
-    k_sigma: float = 4.0
-    #: Smallest number of points a segment must keep for its fit.
-    min_segment_points: int = 8
-    #: Floor of the per-line noise σ used for the covariance, mm.
-    sigma_floor_mm: float = 1e-6
-    #: Segmentation tolerance: straight within this (or 6 noise σ, if more) is one segment.
-    seg_tol_mm: float = 0.05
-    #: The segmentation tolerance in units of the measured noise σ, if larger than seg_tol_mm.
-    seg_tol_sigmas: float = 6.0
-    #: Shortest segment that can be a face.
-    min_face_mm: float = 2.0
-    #: Returns closer than this to a ridge (along the face) are not fitted: the rounded zone.
-    band_mm: float = 1.0
-    #: The band grows up to this while the returns beside it lean off the face's line.
-    max_band_mm: float = 5.0
-    #: Neighbouring segments within this angle (deg) and a few σ of one line are one face.
-    merge_deg: float = 3.0
-    #: Most segments skipped between two consecutive faces.
-    max_skip: int = 3
-    #: Tolerance (1σ, deg) of a turn between faces against the gauge's cross-section.
-    turn_sigma_deg: float = 10.0
-    #: Largest deviation of a turn from the gauge's, deg.
-    max_turn_dev_deg: float = 30.0
-    #: Smallest turn that separates two faces, deg.
-    min_turn_deg: float = 3.0
-    #: How far two faces' lines may meet inside one of their segments.
-    corner_inside_mm: float = 1.0
-    #: Scale (1σ) and limit of the detour from one face's segment through the corner to the next.
-    detour_mm: float = 1.0
-    max_detour_mm: float = 10.0
-    #: Cost of skipping a segment between two faces, per mm of its length.
-    skip_cost_per_mm: float = 0.5
-    #: Segments beside the outer faces are background unless within this of the gauge's surface.
-    attach_mm: float = 3.0
-    #: A long segment within this of an outer face, meeting it in a corner, is a face more
-    #: than the gauge has (wrong gauge file): an error.
-    extra_face_gap_mm: float = 1.5
-    #: Smallest distance from a face's line at which a return is rejected.
-    gate_floor_mm: float = 0.015
-    #: 1σ of each as-built face's tilt from its drawing (about its middle), deg. The faces'
-    #: offset tolerance is the gauge's ``tolerance_um``, which the solver adds at the pose.
-    face_tilt_tolerance_deg: float = 0.0
-    #: 1σ of the sensor's scale error in x and in z, ppm.
-    scale_tolerance_ppm: float = 0.0
-    #: Depth about which a z scale error acts (the middle of the measuring range), mm.
-    scale_center_z_mm: float = 442.5
-    #: Most segments in one profile before it counts as clutter.
-    max_segments: int = 512
-
-    def __post_init__(self):
-        for key, value in zip(self.__dataclass_fields__, astuple(self)):
-            if not np.isfinite(value) or value < 0:
-                raise ConfigError(f"corner parameters: '{key}' must be a finite number >= 0, got {value}")
-        if self.min_segment_points < 2 or self.max_skip > 16 or self.max_segments < 8:
-            raise ConfigError("corner parameters: expected min_segment_points >= 2, max_skip <= 16 and "
-                              f"max_segments >= 8, got {self.min_segment_points}, {self.max_skip}, "
-                              f"{self.max_segments}")
-
-
-_VECTORS: dict = {}
-
-
-def _param_vector(params: CornerParams) -> np.ndarray:
-    """The model kernel's parameter vector (cached per CornerParams object: they are frozen)."""
-    hit = _VECTORS.get(id(params))
-    if hit is not None and hit[0] is params:
-        return hit[1]
-    if len(_VECTORS) > 256:
-        _VECTORS.clear()
-    v = _build_param_vector(params)
-    _VECTORS[id(params)] = (params, v)
-    return v
-
-
-def _build_param_vector(params: CornerParams) -> np.ndarray:
-    """The model kernel's parameter vector (layout in :mod:`~posekit.profiler.estimate.faces`)."""
-    p = params
-    v = np.empty(faces.N_PARAMS)
-    v[faces.P_SPIKE] = p.spike_mm
-    v[faces.P_KSIG] = p.k_sigma
-    v[faces.P_MINPTS] = p.min_segment_points
-    v[faces.P_SIGFLOOR] = p.sigma_floor_mm
-    v[faces.P_SEGTOL] = p.seg_tol_mm
-    v[faces.P_SEGSIG] = p.seg_tol_sigmas
-    v[faces.P_MINFACE] = p.min_face_mm
-    v[faces.P_BAND] = p.band_mm
-    v[faces.P_MAXBAND] = max(p.max_band_mm, p.band_mm)
-    v[faces.P_MERGEDEG] = p.merge_deg
-    v[faces.P_MAXSKIP] = p.max_skip
-    v[faces.P_TURNSIG] = np.radians(p.turn_sigma_deg)
-    v[faces.P_TURNMAX] = np.radians(p.max_turn_dev_deg)
-    v[faces.P_TURNMIN] = np.radians(p.min_turn_deg)
-    v[faces.P_TOLIN] = p.corner_inside_mm
-    v[faces.P_DETSIG] = p.detour_mm
-    v[faces.P_DETMAX] = p.max_detour_mm
-    v[faces.P_SKIPCOST] = p.skip_cost_per_mm
-    v[faces.P_GATEFLOOR] = p.gate_floor_mm
-    v[faces.P_FACETILT] = np.radians(p.face_tilt_tolerance_deg)
-    v[faces.P_SCALE] = p.scale_tolerance_ppm
-    v[faces.P_SCALEZ] = p.scale_center_z_mm
-    v[faces.P_MAXVERT] = p.max_segments
-    v[faces.P_ATTACH] = p.attach_mm
-    v[faces.P_EXTRAGAP] = p.extra_face_gap_mm
-    v.flags.writeable = False
-    return v
 
 
 _TURNS = weakref.WeakKeyDictionary()
@@ -361,7 +240,7 @@ def _detect_kernel(profile, n, min_corner, spike, trim, k_sigma, min_pts, sigma_
         pz = (ax * bc - bx * ac) / det
         corners[k, 0] = px
         corners[k, 1] = pz
-        faces.corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
+        corner_jacobian_rows(G, k, px, pz, cent, ax, az, bx, bz, det)
     var = np.empty(2 * (n + 1))
     for j in range(n + 1):
         var[2 * j] = sig[j] ** 2 / npts[j]
@@ -386,7 +265,7 @@ def detect_corners_unchecked(profile, n_corners, params=CornerParams(), turns=No
     success. For the real-time path; use :func:`detect_corners` otherwise.
     """
     if turns is not None:
-        return faces.model_kernel(profile, turns, _param_vector(params))
+        return faces.model_kernel(profile, turns, param_vector(params))
     return _detect_kernel(profile, n_corners, params.min_corner_mm, params.spike_mm, params.trim,
                           params.k_sigma, params.min_segment_points, params.sigma_floor_mm)
 
@@ -395,8 +274,65 @@ def _fmt_x(values):
     return "[" + ", ".join(f"{v:.1f}" for v in values) + "]"
 
 
-def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge"):
-    """Turn a failed kernel status into a :class:`ProfileError` that says what went wrong."""
+#: Largest relative misfit of the distances between found corners and a run of the gauge's ridges
+#: for the corners to be part of that gauge. Measured on the bundled gauges (6 poses each, one or two
+#: corners cut away): the right gauge fits within 0.17, demo-5/demo-7 profiles against demo-10 miss by 0.30-0.56.
+WRONG_GAUGE_MISFIT = 0.25
+#: Returns (mm, along x) beyond a missing ridge that still count as "not in view" (its rounded edge, noise).
+WRONG_GAUGE_MARGIN_MM = 2.0
+
+
+def wrong_gauge_reason(corners_xz, span_x, gauge: Gauge) -> str | None:
+    """Why the corners found cannot belong to ``gauge`` with some of its corners out of view, or None.
+
+    The corners found must be pierce points of a run of consecutive ridges: their distances match
+    the ridges' (at some y, stretched by at most 10 % for a turned laser line) within
+    :data:`WRONG_GAUGE_MISFIT`, and each ridge outside the run lies beyond the returns (else it
+    would have been seen).
+
+    Parameters
+    ----------
+    corners_xz : ndarray, shape (F, 2)
+        Corners found, in scan order, (x, z) in F, mm; F < gauge.n_corners.
+    span_x : tuple of float
+        x of the first and the last return of the profile, mm.
+    gauge : Gauge
+
+    Returns
+    -------
+    str or None
+        The reason, naming the gauge, when no run of its ridges explains the corners.
+    """
+    c = np.asarray(corners_xz, dtype=float)
+    found, n = len(c), gauge.n_corners
+    if found < 3 or found >= n:
+        return None
+    d = np.linalg.norm(np.diff(c, axis=0), axis=1)
+    ext = (abs(c[0, 0] - span_x[0]), abs(span_x[1] - c[-1, 0]))      # returns beyond the outer corners
+    ys = np.linspace(gauge.y_range[0], gauge.y_range[1], 41)
+    P = gauge.ridge_q[None] + ys[:, None, None] * gauge.ridge_s[None]  # ridge points at each y, (Y, n, 3)
+    D = np.linalg.norm(np.diff(P, axis=1), axis=2)                     # ridge-to-ridge distances, (Y, n-1)
+    Dx = np.abs(np.diff(P[..., 0], axis=1))
+    for k in range(n - found + 1):
+        W = D[:, k:k + found - 1]
+        for rev, dd in ((False, d), (True, d[::-1])):
+            scale = np.clip((W * dd).sum(1) / (W * W).sum(1), 1.0, 1.1)
+            fits = (np.abs(dd - scale[:, None] * W) / W).max(1) <= WRONG_GAUGE_MISFIT
+            before = Dx[:, k - 1] * scale if k > 0 else np.full(len(ys), np.inf)
+            after = Dx[:, k + found - 1] * scale if k + found - 1 < n - 1 else np.full(len(ys), np.inf)
+            left, right = (after, before) if rev else (before, after)
+            hidden = (left > ext[0] - WRONG_GAUGE_MARGIN_MM) & (right > ext[1] - WRONG_GAUGE_MARGIN_MM)
+            if np.any(fits & hidden):
+                return None
+    return (f"the {found} corners found fit no {found} consecutive ridges of gauge '{gauge.name}' with the rest out "
+            f"of view (the returns span x = {span_x[0]:.1f}..{span_x[1]:.1f} mm): wrong gauge file?")
+
+
+def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge", gauge: Gauge | None = None):
+    """Turn a failed kernel status into a :class:`ProfileError` that says what went wrong.
+
+    With ``gauge``, missing corners that no run of its ridges explains are called a wrong gauge
+    (:func:`wrong_gauge_reason`) instead of corners out of view."""
     what = f"expected {n_corners} corners for gauge '{gauge_name}'"
     if status == NO_POINTS:
         if info[1] == 0:
@@ -408,6 +344,9 @@ def raise_for_status(status, info, npts, cand, n_corners, gauge_name="gauge"):
     if status == MISSING:
         found = int(info[0])
         where = _fmt_x(cand[:found, 0]) if found else "none"
+        wrong = None if gauge is None else wrong_gauge_reason(cand[:found, :2], cand[n_corners, :2], gauge)
+        if wrong is not None:
+            raise ProfileError(f"{what}, found {found} (at x = {where} mm); {wrong}")
         raise ProfileError(
             f"{what}, found {found} (at x = {where} mm); missing corner(s): the returns span "
             f"x = {cand[n_corners, 0]:.1f}..{cand[n_corners, 1]:.1f} mm, so part of the gauge is "
@@ -508,5 +447,5 @@ def detect_corners(profile, n_corners, params=CornerParams(), gauge_name="gauge"
     status, info, corners, cov, lines, sig, npts, cand = detect_corners_unchecked(
         arr, int(n_corners), params, turns)
     if status != OK:
-        raise_for_status(status, info, npts, cand, n_corners, gauge_name)
+        raise_for_status(status, info, npts, cand, n_corners, gauge_name, gauge)
     return Corners(points=corners, cov=cov, lines=lines, sigma=sig, n_points=npts)

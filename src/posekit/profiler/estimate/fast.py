@@ -17,10 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ProfileError
-from .corners import CornerParams, Corners, detect_corners_unchecked, raise_for_status
+from ...verdict import Verdict
+from ..sensor import NoiseModel
+from .consistency import DEFAULT_SIGNIFICANCE, chi2_critical
+from .corner_params import CornerParams
+from .corners import Corners, detect_corners_unchecked, raise_for_status
 from .pipeline import DEFAULT_NOISE
-from .sensor import NoiseModel
-from .solve import DEFAULT_SIGNIFICANCE, METHODS, PoseEstimate, chi2_critical, estimate_from_corners, status_message
+from .result import PoseEstimate, failed_verdict, pose_std
+from .solve import METHODS, estimate_from_corners, status_message
 
 __all__ = ["ProfileResult", "estimate_profile_unchecked", "warm_gate"]
 
@@ -37,8 +41,8 @@ class ProfileResult:
         As :attr:`PoseEstimate.status`; 'error' when there is no estimate.
     error : str or None
         Why there is no estimate (status 'error').
-    reason : str or None
-        Why the estimate is suspect.
+    reasons : tuple of str
+        Why the estimate is suspect (:attr:`PoseEstimate.reasons`).
     T_G_F : ndarray, shape (4, 4) or None
     cov : ndarray, shape (6, 6) or None
         Pose covariance ``[δt mm, δθ rad]`` in G (:attr:`PoseEstimate.cov`).
@@ -59,7 +63,7 @@ class ProfileResult:
 
     status: str
     error: str | None = None
-    reason: str | None = None
+    reasons: tuple[str, ...] = ()
     T_G_F: np.ndarray | None = None
     cov: np.ndarray | None = None
     reprojection_um: float | None = None
@@ -71,6 +75,22 @@ class ProfileResult:
     cold_restart: bool = False
     detect_ns: int = 0
     estimate: PoseEstimate | None = None
+
+    @property
+    def reason(self) -> str | None:
+        """The reasons joined by ``"; "``, or None (the record's ``reason``)."""
+        return "; ".join(self.reasons) or None
+
+    @property
+    def verdict(self) -> Verdict:
+        """:class:`posekit.verdict.Verdict` of the profile: the estimate's (status, reasons, std), or
+        ``Verdict.failed(error)`` when there is none. Built on each call: the server's hot path reads
+        :attr:`status` and :attr:`reason` alone."""
+        if self.estimate is not None:
+            return self.estimate.verdict
+        if self.status == "error":
+            return failed_verdict(self.error)
+        return Verdict(self.status, self.reasons, None if self.cov is None else pose_std(self.cov))
 
     @property
     def R(self) -> np.ndarray | None:
@@ -133,7 +153,7 @@ def estimate_profile_unchecked(points, gauge, params: CornerParams, turns, metho
     n_valid = int(info[1])
     if status != 0:
         try:
-            raise_for_status(status, info, npts, cand, n, gauge.name)
+            raise_for_status(status, info, npts, cand, n, gauge.name, gauge)
         except ProfileError as exc:
             return ProfileResult("error", error=str(exc), n_valid=n_valid, detect_ns=detect_ns)
     corners = Corners(points=pts, cov=ccov, lines=lines, sigma=sig, n_points=npts)
@@ -148,6 +168,6 @@ def estimate_profile_unchecked(points, gauge, params: CornerParams, turns, metho
     if not isinstance(est, PoseEstimate):
         return ProfileResult("error", error=status_message(est, n), corners=corners, n_valid=n_valid,
                              cold_restart=cold, detect_ns=detect_ns)
-    return ProfileResult(est.status, reason=est.reason, T_G_F=est.T_G_F, cov=est.cov,
+    return ProfileResult(est.status, reasons=est.reasons, T_G_F=est.T_G_F, cov=est.cov,
                          reprojection_um=est.reprojection_um, chi2=est.chi2, dof=est.dof, reversed=est.reversed,
                          corners=corners, n_valid=n_valid, cold_restart=cold, detect_ns=detect_ns, estimate=est)

@@ -1,13 +1,13 @@
 """Profile → pose, for one profile or a batch that never drops an item.
 
-Records (JSON lines and CSV through :class:`~posekit.profiler.estimate.io.RecordWriter`) carry the
+Records (JSON lines and CSV through :class:`~posekit.profiler.stream.records.RecordWriter`) carry the
 verdict of :func:`~posekit.profiler.estimate.solve.solve_pose`: ``status`` 'ok' (the data agree
 with the gauge and the assumed noise), 'suspect' (an estimate exists but the consistency
 test failed; ``reason`` says why) or 'error' (no estimate; ``error`` says why), with
 ``chi2`` and ``dof`` of the test. One profile cannot see every gauge that differs from its
 file (a face off its drawing can look like a pose shifted along y); a batch
 (:func:`estimate_profiles`, :func:`estimate_batch`) also tests the gauge file against all its
-profiles together (:mod:`~posekit.profiler.estimate.gauge_check`).
+profiles together (:mod:`~posekit.profiler.gauge.check`).
 
 Rotation output for robot controllers (:data:`ROTATIONS`; ``q_wxyz`` is always written):
 
@@ -47,14 +47,18 @@ import numpy as np
 
 from ...errors import EstimationError, PosekitError
 from ...geometry import euler_zyx_from_matrix
-from .corners import CornerParams, Corners, detect_corners
-from .gauge import Gauge
-from .gauge_check import GaugeCheck, check_gauge_file
-from .sensor import NoiseModel
-from .solve import DEFAULT_SIGNIFICANCE, PoseEstimate, solve_pose
+from ...verdict import Verdict, batch_exit_code, status_counts
+from ..gauge.check import GaugeCheck, check_gauge_file
+from ..gauge.model import Gauge
+from ..sensor import NoiseModel
+from .consistency import DEFAULT_SIGNIFICANCE
+from .corner_params import CornerParams
+from .corners import Corners, detect_corners
+from .result import STD_KEYS, PoseEstimate, failed_verdict
+from .solve import solve_pose
 
-__all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record", "rotation_fields",
-           "euler_zyx_from_matrix", "ROTATIONS", "DEFAULT_NOISE"]
+__all__ = ["estimate_pose", "estimate_batch", "estimate_profiles", "BatchResult", "ok_record", "error_record",
+           "rotation_fields", "ROTATIONS", "STATUSES", "DEFAULT_NOISE"]
 
 #: Rotation formats of the records (module docstring).
 ROTATIONS = ("quat", "matrix", "euler-zyx", "euler-xyz")
@@ -145,19 +149,20 @@ def ok_record(index: int, corners: Corners, est: PoseEstimate, rotation: str = "
     q = est.q_wxyz
     if q_prev is not None and float(np.dot(q, q_prev)) < 0:
         q = -q
+    v = est.verdict
     return {
         "index": int(index),
-        "status": est.status,
-        "t_mm": [float(v) for v in est.t_mm],
-        "q_wxyz": [float(v) + 0.0 for v in q],
+        "status": v.status,
+        "t_mm": [float(x) for x in est.t_mm],
+        "q_wxyz": [float(x) + 0.0 for x in q],
         **rotation_fields(est.T_G_F[:3, :3], rotation),
         "reprojection_um": float(est.reprojection_um),
         "corners_mm": [[float(x), float(z)] for x, z in pts],
-        "std_t_um": [float(v) for v in est.std_t_um],
-        "std_rot_deg": [float(v) for v in est.std_rot_deg],
+        "std_t_um": [v.std[k] for k in STD_KEYS[:3]],
+        "std_rot_deg": [v.std[k] for k in STD_KEYS[3:]],
         "chi2": float(est.chi2),
         "dof": int(est.dof),
-        "reason": est.reason,
+        "reason": v.reason or None,
         "error": None,
     }
 
@@ -167,10 +172,16 @@ _ROTATION_NULLS = {"quat": {}, "matrix": {"R": None}, "euler-zyx": {"euler_zyx_d
 
 
 def error_record(index: int, message: str, rotation: str = "quat") -> dict:
-    """The record of a profile without an estimate (status 'error', the reason in ``error``)."""
-    return {"index": int(index), "status": "error", "t_mm": None, "q_wxyz": None,
+    """The record of a profile without an estimate (its verdict ``Verdict.failed(message)``: status
+    'error', the message in ``error``; ``reason`` stays null, as DESIGN.md's records have it)."""
+    v = failed_verdict(message)
+    return {"index": int(index), "status": v.status, "t_mm": None, "q_wxyz": None,
             **_ROTATION_NULLS.get(rotation, {}), "reprojection_um": None, "corners_mm": None, "std_t_um": None,
-            "std_rot_deg": None, "chi2": None, "dof": None, "reason": None, "error": message}
+            "std_rot_deg": None, "chi2": None, "dof": None, "reason": None, "error": v.reasons[0]}
+
+
+#: The status words of a profile's verdict, in the order a batch counts them.
+STATUSES = ("ok", "suspect", "error")
 
 
 @dataclass(frozen=True)
@@ -192,6 +203,23 @@ class BatchResult:
     estimates: list
     gauge_check: GaugeCheck | None
 
+    @property
+    def verdicts(self) -> list[Verdict]:
+        """The :class:`posekit.verdict.Verdict` of each profile, in order: the estimate's, or
+        ``Verdict.failed(error)`` for a profile without one."""
+        return [est.verdict if est is not None else failed_verdict(rec["error"])
+                for rec, est in zip(self.records, self.estimates)]
+
+    def status_counts(self) -> dict[str, int]:
+        """How many profiles are 'ok', 'suspect' and 'error' (:func:`posekit.verdict.status_counts`)."""
+        return status_counts((rec["status"] for rec in self.records), STATUSES)
+
+    @property
+    def exit_code(self) -> int:
+        """The batch command's exit code (:func:`posekit.verdict.batch_exit_code`): 0 only if every
+        profile is 'ok'."""
+        return batch_exit_code(rec["status"] for rec in self.records)
+
 
 def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str = "auto",
                       params: CornerParams = CornerParams(), *, noise: NoiseModel = DEFAULT_NOISE,
@@ -201,9 +229,9 @@ def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str
 
     Each profile gets its own verdict (:func:`estimate_pose`). One profile cannot tell a face
     machined off its drawing from a pose shifted along the weakly observable y (see
-    :mod:`~posekit.profiler.estimate.gauge_check`): such a pose reads 'ok' while it is off by
+    :mod:`~posekit.profiler.gauge.check`): such a pose reads 'ok' while it is off by
     several times its std. A batch can: with ``check_gauge`` and enough profiles at varied
-    poses (:data:`~posekit.profiler.estimate.gauge_check.MIN_CHECK_PROFILES`, the laser line
+    poses (:data:`~posekit.profiler.gauge.check.MIN_CHECK_PROFILES`, the laser line
     turned about its line of sight between them), a bundle adjustment of every face and every
     pose tests the file's planes within their declared ``tolerance_um`` at ``significance``;
     when the file fails, every estimate of the batch becomes 'suspect' and its reason names
@@ -245,9 +273,8 @@ def estimate_profiles(profiles, gauge: Gauge, method: str = "mle", mounting: str
     if check_gauge:
         check = check_gauge_file(corners_all, ests, gauge, noise=noise, significance=significance)
         if check.passed is False:
-            ests = [None if e is None else replace(e, status="suspect",
-                                                   reason=check.message if e.reason is None
-                                                   else f"{e.reason}; {check.message}") for e in ests]
+            ests = [None if e is None else replace(e, status="suspect", reasons=(*e.reasons, check.message))
+                    for e in ests]
     records = []
     err = dict(errors)
     q_prev = None

@@ -11,7 +11,8 @@ Compiled with numba, allocation- and BLAS-free in the inner loops.
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry import cholesky_solve
 

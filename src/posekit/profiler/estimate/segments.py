@@ -26,10 +26,11 @@ chamfer or a ghost cluster is a skipped segment, a plate beside the gauge is bac
 """
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...geometry._fit import FASTMATH
-from .gauge import Gauge
+from ..gauge.model import Gauge
 
 __all__ = ["expected_turns", "clean_points", "chord_deviation", "split_segments", "segment_table", "line_candidates",
            "assign_faces", "NCOL"]

@@ -31,7 +31,7 @@ other way round sees the ridges in reverse scan order. The order solved first is
 normal one (in a stream, the previous frame's); the other one is left unsolved when the
 first is clearly best: it passes the fit test at a possible pose, and the gauge's reversed
 reading misses the ridges by at least :data:`SKIP_OTHER_ORDER_MISS_UM` RMS at every probe
-pose of the load-time ambiguity check (:attr:`~posekit.profiler.estimate.gauge.Gauge.reversed_miss_um`;
+pose of the load-time ambiguity check (:attr:`~posekit.profiler.gauge.model.Gauge.reversed_miss_um`;
 demo-5 320 µm, demo-7 183 µm, demo-4 and demo-10 over 4 mm). The other order then cannot fit
 the corners (on 7,790 wrong-order solves of 9 gauges, ideal and realistic profiles, its χ²
 was never below 100 for 4-24 dof), so the verdict is the one both orders give; a gauge
@@ -39,36 +39,28 @@ not analysed at load (NaN) or with a smaller margin gets both orders solved.
 
 Verdict (DESIGN.md "Trust"): every estimate carries ``status`` 'ok' or 'suspect' with a
 ``reason``; the error model (corner covariances under the assumed noise and the gauge's
-tolerance) and the tests are in :mod:`~posekit.profiler.estimate.verdict`.
+tolerance) and the tests are in :mod:`~posekit.profiler.estimate.consistency`.
 """
 
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import EstimationError
-from .closed_form import cf4_start, cf_kernel, closed_form
+from ..gauge.model import MOUNTINGS
+from .closed_form import cf4_start, cf_kernel
+from .consistency import DEFAULT_SIGNIFICANCE, Candidate, check_noise, chi2_critical, judge
 from .corners import Corners
+from .covariance import cf_linearisation, corner_covariance, face_tolerance_covariance, plus_scale_covariance
 from .refine import normal_equations, pose_covariance_and_reprojection, refine_kernel, spd_inverse
-from .verdict import (
-    DEFAULT_SIGNIFICANCE,
-    PoseEstimate,
-    _Candidate,
-    _cf_linearisation,
-    _verdict,
-    check_noise,
-    chi2_critical,
-    corner_covariance,
-    face_tolerance_covariance,
-    plus_scale_covariance,
-)
+from .result import PoseEstimate
 
-__all__ = ["PoseEstimate", "solve_pose", "status_message", "corner_covariance", "face_tolerance_covariance",
-           "closed_form", "METHODS", "MOUNTINGS", "DEFAULT_SIGNIFICANCE", "estimate_from_corners", "chi2_critical"]
+__all__ = ["solve_pose", "status_message", "METHODS", "estimate_from_corners"]
 
+#: The estimators (module docstring); the corner orders are :data:`~posekit.profiler.gauge.model.MOUNTINGS`.
 METHODS = ("cf", "mle")
-MOUNTINGS = ("auto", "normal", "reversed")
 OK = 0
 CF_UNDERDETERMINED = 1
 DEGENERATE = 2
@@ -256,7 +248,7 @@ def _evaluate(R_GF, t_GF, pts, C, rev, q, s, H, cost, under_C):
 
 
 def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter, gate=None):
-    """Solve one corner order; ``(candidate, cold_restart)`` with a :class:`_Candidate` or a
+    """Solve one corner order; ``(candidate, cold_restart)`` with a :class:`Candidate` or a
     failed kernel status (int).
 
     The fit is weighted by ``C_fit`` (the line fits' covariance); χ² and the pose covariance
@@ -296,8 +288,8 @@ def _solve_order(pts, C_fit, C_model, gauge, method, rev, T_init, max_iter, gate
         return status, cold
     T = _as_T(R, t)
     if method == "cf":
-        cov, chi2 = _cf_linearisation(c, C_ridge, gauge, T)
-    return _Candidate(bool(rev), T, cov, float(reproj_mm), float(cost), float(chi2), c, gauge), cold
+        cov, chi2 = cf_linearisation(c, C_ridge, gauge, T)
+    return Candidate(bool(rev), T, cov, float(reproj_mm), float(cost), float(chi2), c, gauge), cold
 
 
 def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "auto", T_init=None,
@@ -366,7 +358,7 @@ def solve_pose(corners: Corners, gauge, method: str = "mle", mounting: str = "au
 SKIP_OTHER_ORDER_MISS_UM = 100.0
 
 
-def _clearly_best(cand: _Candidate, gauge, n: int, noise, significance: float) -> bool:
+def _clearly_best(cand: Candidate, gauge, n: int, noise, significance: float) -> bool:
     """Whether the other corner order need not be solved: ``cand`` passes the fit test at a possible
     pose and the gauge's reversed reading misses by :data:`SKIP_OTHER_ORDER_MISS_UM` or more."""
     if not gauge.reversed_miss_um >= SKIP_OTHER_ORDER_MISS_UM:       # NaN (not analysed): solve both
@@ -416,10 +408,10 @@ def estimate_from_corners(corners: Corners, gauge, method: str, orders, T_inits,
             break                  # the other order cannot fit: not solved (module docstring)
         res, c = _solve_order(pts, C_fit, C_model, gauge, method, rev, T_inits[int(rev)], max_iter, gate)
         cold |= c
-        if isinstance(res, _Candidate):
+        if isinstance(res, Candidate):
             cands.append(res)
         else:
             failures[rev] = res
     if not cands:
         return failures[min(failures)], cold       # the normal order's failure first, as offline
-    return _verdict(cands, corners, gauge, method, noise, significance), cold
+    return judge(cands, corners, gauge, method, noise, significance), cold

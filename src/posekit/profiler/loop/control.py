@@ -15,9 +15,19 @@ timing of a cycle.
 import numpy as np
 
 from ...errors import ConfigError
+from ...geometry import matrix_from_quaternion
+from ..sensor import LJ_X8400
+from ..sim.poses import nominal_pose
 from .robotsim import PERIOD_S
 
-__all__ = ["OpenLoop", "PDController", "TargetCompensator", "DEFAULT_KP", "DEFAULT_KD"]
+__all__ = ["OpenLoop", "PDController", "TargetCompensator", "make_compensator", "CONTROLLERS", "DEFAULT_KP",
+           "DEFAULT_KD", "DEFAULT_LIMIT_MM"]
+
+#: The pose server's controllers (``posekit profiler serve --controller``): none, the open-loop
+#: baseline (command 0), the PD compensation.
+CONTROLLERS = ("none", "open", "pd")
+#: Largest correction per axis of the server's PD compensation unless told, mm.
+DEFAULT_LIMIT_MM = 2.0
 
 DEFAULT_KP = (-0.275, -0.60, -0.325)
 """Default proportional gains on (x, y, z), dimensionless; negative on purpose, see
@@ -234,3 +244,53 @@ class TargetCompensator:
 
     def __repr__(self) -> str:
         return f"TargetCompensator({self.controller!r}, standoff_mm={self.spot_F[2]:g})"
+
+
+def make_compensator(kind: str, gauge, *, kp=None, kd=None, limit_mm: float | None = None,
+                     derivative_filter_hz: float | None = None, target_mm=None, target_q_wxyz=None,
+                     standoff_mm: float | None = None) -> "TargetCompensator | None":
+    """The pose server's controller (``posekit profiler serve --controller``), or None for ``'none'``.
+
+    Parameters
+    ----------
+    kind : {'none', 'open', 'pd'}
+        :data:`CONTROLLERS`.
+    gauge : Gauge
+        The default target is the nominal pose above its centre
+        (:func:`~posekit.profiler.sim.poses.nominal_pose`).
+    kp, kd : float or 3 floats, optional
+        PD gains on x, y, z (default :data:`DEFAULT_KP`, :data:`DEFAULT_KD`).
+    limit_mm : float, optional
+        Largest correction per axis, mm (default :data:`DEFAULT_LIMIT_MM`).
+    derivative_filter_hz : float, optional
+        Low-pass cut-off of the derivative, Hz (default: none).
+    target_mm : 3 floats, optional
+        Target position of F in G, mm.
+    target_q_wxyz : 4 floats, optional
+        Target orientation of F in G, a unit quaternion (normalised; off by more than 1e-3 in
+        norm is an error).
+    standoff_mm : float, optional
+        Depth of the laser spot the controller holds, and of the default target, mm
+        (default: mid-range of the LJ-X8400).
+    """
+    if kind not in CONTROLLERS:
+        raise ConfigError(f"unknown controller '{kind}'; expected one of {', '.join(CONTROLLERS)}")
+    if kind == "none":
+        return None
+    standoff = LJ_X8400.z_mid if standoff_mm is None else float(standoff_mm)
+    T = nominal_pose(gauge, standoff_mm=standoff)
+    if target_mm is not None:
+        T[:3, 3] = _vector(target_mm, "target_mm")
+    if target_q_wxyz is not None:
+        q = np.asarray(target_q_wxyz, dtype=float)
+        norm = float(np.linalg.norm(q)) if q.shape == (4,) and np.all(np.isfinite(q)) else float("nan")
+        if not abs(norm - 1.0) <= 1e-3:
+            raise ConfigError(f"target_q_wxyz: expected a unit quaternion [w, x, y, z], got {list(q.ravel())}")
+        T[:3, :3] = matrix_from_quaternion(q / norm)
+    if kind == "open":
+        law = OpenLoop()
+    else:
+        law = PDController(kp=DEFAULT_KP if kp is None else kp, kd=DEFAULT_KD if kd is None else kd,
+                           limit_mm=DEFAULT_LIMIT_MM if limit_mm is None else limit_mm,
+                           derivative_filter_hz=derivative_filter_hz)
+    return TargetCompensator(law, T, standoff)

@@ -24,8 +24,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import ConfigError
-from ..estimate.gauge import Gauge
-from ..estimate.sensor import LJ_X8400, NoiseModel, nominal_pose, render_profiles
+from ..gauge.model import Gauge
+from ..sensor import LJ_X8400, NoiseModel
+from ..sim.poses import nominal_pose
+from ..sim.render import render_profiles
 from ..stream.server import PoseServer
 from ..stream.stream_client import RobotInterfaceStub, SensorClient
 from .control import OpenLoop, PDController
@@ -113,12 +115,18 @@ class LoopRun:
         magnitude is a spectrum), so such gaps are filled linearly from their neighbours;
         ``missed`` counts them.
         """
+        t, y = self.filled_signal(source)
+        ok = np.isfinite(y)
+        return step_metrics(t[ok], y[ok], self.step_mm, t_step_s=self.t_step_s)
+
+    def filled_signal(self, source: str = "measured"):
+        """:meth:`signal` on the uniform grid: cycles without a measurement filled linearly from
+        their neighbours (left NaN when fewer than two cycles have one), as a spectrum needs."""
         t, y = self.signal(source)
         ok = np.isfinite(y)
         if not ok.all() and ok.sum() >= 2:
             y = np.interp(t, t[ok], y[ok])
-            ok = np.ones_like(ok)
-        return step_metrics(t[ok], y[ok], self.step_mm, t_step_s=self.t_step_s)
+        return t, y
 
 
 def run_loop_step(server_io, compensator, robot, gauge, axis, step_mm, controller, *, duration_s=1.5,
@@ -329,7 +337,8 @@ def run_loop_experiment(gauge: Gauge, *, axes=("x", "y", "z", "xyz"), steps_mm=(
                   stage_stats("proposed", "PC", tim["PC"]),
                   stage_stats("proposed", "DT 12.8 KB payload", transfer_times(n_profile_bytes))]
     if camera:
-        from .camera_peer import IMAGE_SIZE, time_camera_pipeline
+        from .camera_peer import time_camera_pipeline
+        from .chessboard import IMAGE_SIZE
         cam = time_camera_pipeline(n_images=10, repeats=3, seed=seed)
         exp.table3 = [stage_stats("camera", "DT", transfer_times(IMAGE_SIZE[0] * IMAGE_SIZE[1])),
                       stage_stats("camera", "CD", cam["cd_ms"]), stage_stats("camera", "PC", cam["pc_ms"]),

@@ -53,6 +53,7 @@ def _fig_open_loop(exp, path):
     for src, style, label in (("truth", "-", "truth (250 Hz, 'VICON')"), ("measured", ".", "posekit (83.3 Hz)")):
         t, y = run.signal(src)
         ax[0, 0].plot(t, y, style, ms=3, label=label)
+        t, y = run.filled_signal(src)              # the spectrum needs the uniform grid: gaps filled
         ok = np.isfinite(y) & (t >= run.t_step_s)
         f, a = amplitude_spectrum(t[ok], y[ok] - np.mean(y[ok][-20:]))
         ax[0, 1].plot(f, a * 1e3, style, ms=2, label=label)
@@ -63,6 +64,7 @@ def _fig_open_loop(exp, path):
     for src, style, label in (("truth", "-", "truth"), ("measured", ".", "posekit")):
         t, y = imp.signal(src)
         ax[1, 0].plot(t, y, style, ms=3, label=label)
+        t, y = imp.filled_signal(src)
         ok = np.isfinite(y) & (t > imp.t_step_s)
         f, a = amplitude_spectrum(t[ok], y[ok] - np.mean(y[ok][-20:]))
         ax[1, 1].plot(f, a * 1e3, style, ms=2, label=label)

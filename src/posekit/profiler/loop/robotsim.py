@@ -21,7 +21,8 @@ exp(-πζ/√(1-ζ²)) = 5.4 %, 66 % and 14 % on x, y and z.
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from posekit._jit import njit
 
 from ...errors import ConfigError
 

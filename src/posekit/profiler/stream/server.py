@@ -80,12 +80,13 @@ import numpy as np
 
 from ...errors import ConfigError, PosekitError, ProfileError
 from ...geometry import quaternion_from_matrix
-from ..estimate.corners import CornerParams, gauge_turns
+from ..estimate.consistency import DEFAULT_SIGNIFICANCE, check_noise
+from ..estimate.corner_params import CornerParams
+from ..estimate.corners import gauge_turns
 from ..estimate.fast import warm_gate
-from ..estimate.gauge import Gauge
 from ..estimate.pipeline import DEFAULT_NOISE
-from ..estimate.solve import DEFAULT_SIGNIFICANCE, METHODS, MOUNTINGS
-from ..estimate.verdict import check_noise
+from ..estimate.solve import METHODS
+from ..gauge.model import MOUNTINGS, Gauge
 from .protocol import MAX_POINTS, Frame, encode_hello
 from .server_receiver import SensorReceiver
 from .server_support import (
@@ -332,7 +333,9 @@ class PoseServer(SensorReceiver, PoseWorker):
     def _warm_up(self) -> None:
         """Run the pipeline once on a simulated profile: load the compiled kernels now,
         not on the first real frame (that costs 0.1-1 s and would drop frames)."""
-        from ..estimate.sensor import NoiseModel, nominal_pose, render_profiles
+        from ..sensor import NoiseModel
+        from ..sim.poses import nominal_pose
+        from ..sim.render import render_profiles
 
         prof = render_profiles(self.gauge, nominal_pose(self.gauge), NoiseModel(), rng=0)
         last = None

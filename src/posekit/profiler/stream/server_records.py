@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ...errors import ConfigError
 from ...io import atomic_file
-from .protocol import encode_command
+from .lines import encode_command
 
 __all__ = ["SERVE_CSV_COLUMNS", "RecordOutput", "RecordSink", "record_csv_row", "output_format"]
 

@@ -14,10 +14,11 @@ import time
 from ...errors import ConfigError
 from ...geometry import quaternion_from_matrix
 from ..estimate.fast import estimate_profile_unchecked
-from .protocol import Frame, encode_command
+from .lines import encode_command
+from .protocol import Frame
+from .reading import units_hint
 from .server_receiver import _POLL_S
 from .server_support import RobotLink
-from .sources import units_hint
 
 __all__ = ["PoseWorker", "NAN_STORM"]
 

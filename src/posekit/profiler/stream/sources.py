@@ -58,26 +58,13 @@ import numpy as np
 
 from ...errors import ConfigError, InputFileError, ProfileError
 from ...io import load_npz_member
-from ..estimate.gauge import Gauge
-from ..estimate.reading import (
-    METRES_LIMIT,
-    METRES_SPAN,
-    ReadOptions,
-    apply_roi,
-    check_units,
-    parse_columns,
-    parse_delimiter,
-    parse_roi,
-    read_profile_file,
-    units_hint,
-)
-from ..estimate.sensor import LJ_X8400, NoiseModel, ProfilerModel, render_profiles
+from ..gauge.model import Gauge
 from ..loop.robotsim import PERIOD_S
-from .socket_source import SocketSource
+from ..sensor import LJ_X8400, NoiseModel, ProfilerModel
+from ..sim.render import render_profiles
+from .reading import ReadOptions, read_profile_file
 
-__all__ = ["ProfileSource", "ReadOptions", "read_profile_file", "check_units", "units_hint", "apply_roi",
-           "parse_columns", "parse_delimiter", "parse_roi", "ArraySource", "FileSource", "SimulatedSource",
-           "SocketSource", "METRES_LIMIT", "METRES_SPAN"]
+__all__ = ["ProfileSource", "ArraySource", "FileSource", "SimulatedSource"]
 
 _DEFAULT_RATE_HZ = 1.0 / PERIOD_S          # the paper's 12 ms control cycle
 
@@ -158,7 +145,7 @@ class FileSource(ArraySource):
 
 
 class SimulatedSource:
-    """Simulated profiles of a gauge at given sensor poses (:func:`~posekit.profiler.estimate.sensor.render_profiles`).
+    """Simulated profiles of a gauge at given sensor poses (:func:`~posekit.profiler.sim.render.render_profiles`).
 
     Parameters
     ----------

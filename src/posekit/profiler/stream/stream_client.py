@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ConfigError
-from .protocol import LineDecoder, encode_frame, encode_hello
+from .lines import LineDecoder
+from .protocol import encode_frame, encode_hello
 
 __all__ = ["SensorClient", "StreamReport", "RobotInterfaceStub"]
 

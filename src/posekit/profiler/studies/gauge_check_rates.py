@@ -1,4 +1,4 @@
-"""Both error rates of the batch test of the gauge file (:mod:`~posekit.profiler.estimate.gauge_check`).
+"""Both error rates of the batch test of the gauge file (:mod:`~posekit.profiler.gauge.check`).
 
 ``python -m posekit.profiler.studies.gauge_check_rates faces NB K TOLS [--scale-sigma-ppm S] [--gen sim|simcal|ind]``
     one face of demo-5 20 µm off its file, NB batches of K profiles per face and declared
@@ -9,8 +9,8 @@
 ``python -m posekit.profiler.studies.gauge_check_rates tilts NB K TOLS``
     the nominal demo-5 file with a declared tolerance on a realistically machined gauge.
 
-Generators: ``sim`` posekit's realistic simulator (:class:`~posekit.profiler.estimate.realism.RealismModel`,
-its defaults but machining, at :func:`~posekit.profiler.estimate.sensor.sample_poses`), ``simcal``
+Generators: ``sim`` posekit's realistic simulator (:class:`~posekit.profiler.sim.realism.RealismModel`,
+its defaults but machining, at :func:`~posekit.profiler.sim.poses.sample_poses`), ``simcal``
 the same with the sensor's scale error 15 ppm instead of 100, ``ind`` the tests' independent
 generator (tests/profiler/test_gauge_check.py; run from the repository root). Seeded: the
 numbers in the README come from these commands.
@@ -21,11 +21,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..estimate.evaluate import pose_errors
-from ..estimate.gauge import bundled_gauge
 from ..estimate.pipeline import estimate_profiles
-from ..estimate.realism import RealismModel, build_as_built
-from ..estimate.sensor import NoiseModel, render_profiles, sample_poses
+from ..gauge.model import bundled_gauge
+from ..sensor import NoiseModel
+from ..sim.poses import sample_poses
+from ..sim.realism import RealismModel, build_as_built
+from ..sim.render import render_profiles
+from .evaluate import pose_errors
 
 __all__ = ["face_off", "batch", "face_rates", "good_rates", "tilt_rates"]
 

@@ -1,4 +1,4 @@
-"""Design studies of the paper's §III by simulation: Table I (corner count) and Fig. 3 (noise).
+"""Design studies of the paper's §III by simulation: Table I (corner count), and what every study shares.
 
 Each study is a list of tasks run through :func:`posekit.sweep.run_tasks`; one task is one
 random gauge with all of its poses and both estimators (``cf``: the closed form,
@@ -35,7 +35,8 @@ closed-form gap to the paper with these numbers.
 The simulated sensor is mounted the normal way round, so the studies solve with
 ``mounting='normal'`` by default ('auto' also tries the reversed corner order, as the
 CLI does, at a cost).
-Figures and report: :mod:`posekit.profiler.studies.study_report`. Fig. 4: :mod:`.study_limits`.
+Figures and report: :mod:`posekit.profiler.studies.study_report`. Fig. 3: :mod:`.study_noise`; Fig. 4:
+:mod:`.study_limits`.
 """
 
 import time
@@ -47,13 +48,16 @@ from ...errors import ConfigError, EstimationError, ProfileError
 from ...sweep import run_tasks, task_seed
 from ..estimate.closed_form import closed_form
 from ..estimate.corners import detect_corners
-from ..estimate.design import random_gauge
-from ..estimate.evaluate import pose_errors
-from ..estimate.sensor import LJ_X8400, NoiseModel, Workspace, render_profiles, sample_poses
-from ..estimate.solve import MOUNTINGS, solve_pose
+from ..estimate.solve import solve_pose
+from ..gauge.design import random_gauge
+from ..gauge.model import MOUNTINGS
+from ..sensor import LJ_X8400, NoiseModel
+from ..sim.poses import Workspace, sample_poses
+from ..sim.render import render_profiles
+from .evaluate import pose_errors
 
-__all__ = ["CornersConfig", "CornersStudy", "NoiseConfig", "NoiseStudy", "corners_study", "noise_study",
-           "study_gauge", "estimate_profiles", "ridge_direction_error", "FAIL_UM", "METHODS", "TABLE1_COLUMNS",
+__all__ = ["CornersConfig", "CornersStudy", "corners_study", "study_gauge", "estimate_profiles", "ridge_direction_error",
+           "check_ints", "check_common", "summary_row", "merge_failures", "FAIL_UM", "METHODS", "TABLE1_COLUMNS",
            "PAPER_TABLE1", "PAPER_TABLE1_M", "GAP_COLUMNS"]
 
 #: The estimators compared: closed form (CF) and refined (CF-Opt).
@@ -86,14 +90,14 @@ PAPER_TABLE1 = {
 }
 
 
-def _ints(values, name, minimum):
+def check_ints(values, name, minimum):
     out = tuple(int(v) for v in np.atleast_1d(values))
     if not out or min(out) < minimum:
         raise ConfigError(f"{name}: expected integers >= {minimum}, got {list(out)}")
     return out
 
 
-def _check_common(poses, seed, beta_min_deg, mounting):
+def check_common(poses, seed, beta_min_deg, mounting):
     if int(poses) < 1:
         raise ConfigError(f"poses: expected >= 1 pose per gauge, got {poses}")
     if int(seed) < 0:
@@ -118,35 +122,9 @@ class CornersConfig:
     mounting: str = "normal"
 
     def __post_init__(self):
-        object.__setattr__(self, "corners", _ints(self.corners, "corners", 4))
-        object.__setattr__(self, "gauges", _ints(self.gauges, "gauges", 1))
-        _check_common(self.poses, self.seed, self.beta_min_deg, self.mounting)
-
-
-@dataclass(frozen=True)
-class NoiseConfig:
-    """Fig. 3: one corner count, ``gauges`` × ``poses`` at each noise level (z; x = ``x_ratio`` × z)."""
-
-    noise_um: tuple[float, ...] = tuple(float(v) for v in range(0, 50, 5))
-    n_corners: int = 5
-    gauges: int = 150
-    poses: int = 100
-    x_ratio: float = 2.0
-    seed: int = 0
-    workspace: Workspace = Workspace()
-    beta_min_deg: float = 50.0
-    mounting: str = "normal"
-
-    def __post_init__(self):
-        levels = tuple(float(v) for v in np.atleast_1d(self.noise_um))
-        if not levels or not all(np.isfinite(v) and v >= 0 for v in levels):
-            raise ConfigError(f"noise_um: expected noise levels >= 0 µm, got {list(levels)}")
-        object.__setattr__(self, "noise_um", levels)
-        _ints(self.n_corners, "n_corners", 4)
-        _ints(self.gauges, "gauges", 1)
-        if not (np.isfinite(self.x_ratio) and self.x_ratio >= 0):
-            raise ConfigError(f"x_ratio: expected a number >= 0, got {self.x_ratio}")
-        _check_common(self.poses, self.seed, self.beta_min_deg, self.mounting)
+        object.__setattr__(self, "corners", check_ints(self.corners, "corners", 4))
+        object.__setattr__(self, "gauges", check_ints(self.gauges, "gauges", 1))
+        check_common(self.poses, self.seed, self.beta_min_deg, self.mounting)
 
 
 def study_gauge(n_corners: int, k: int, seed: int, poses: int, *, beta_min_deg=50.0,
@@ -275,7 +253,7 @@ def estimate_profiles(gauge, Ts_G_F, profiles, mounting="auto"):
             "std": std, "examples": examples}
 
 
-def _summary(status, reproj, err, eq17):
+def summary_row(status, reproj, err, eq17):
     """One table row's statistics over profiles (any leading shape) of one method: means
     over every estimate returned, failures = no estimate + estimates beyond FAIL_UM."""
     ok = np.isin(status, (OK, DIVERGED))
@@ -294,7 +272,7 @@ def _summary(status, reproj, err, eq17):
             "failures": int(np.sum(status != OK))}
 
 
-def _merge_examples(parts):
+def merge_failures(parts):
     """{(method, status): [count, first message]} over tasks' results."""
     out = {}
     for part in parts:
@@ -441,11 +419,11 @@ def corners_study(config: CornersConfig = CornersConfig(), *, scheduler=None, n_
             s = samples[n]
             for m in config.gauges:
                 row = {"n": n, "m": m, "method": method}
-                row.update(_summary(s["status"][:m, :, j], s["reproj_um"][:m, :, j], s["err"][:m, :, j],
+                row.update(summary_row(s["status"][:m, :, j], s["reproj_um"][:m, :, j], s["err"][:m, :, j],
                                     s["eq17"][:m, :, j]))
                 table.append(row)
     return CornersStudy(config=config, table=table, diagnostics=_diagnostics(samples, m_max), samples=samples,
-                        failures=_merge_examples(results), wall_s=time.perf_counter() - t0,
+                        failures=merge_failures(results), wall_s=time.perf_counter() - t0,
                         task_cpu_s=sum(r["cpu_s"] for r in results), gap=_gap(samples, m_max))
 
 
@@ -474,89 +452,3 @@ def _diagnostics(samples, m):
 # --------------------------------------------------------------------------- Fig. 3
 
 
-@dataclass(frozen=True)
-class NoiseStudy:
-    """Result of :func:`noise_study`.
-
-    Attributes
-    ----------
-    config : NoiseConfig
-    table : list of dict
-        Per noise level and method: ``noise_um``, ``method`` and the statistics of
-        :data:`TABLE1_COLUMNS` (reprojection mean/std, mean pose errors, failures).
-    covariance : list of dict
-        Per noise level and axis x, y, z of G (mle only, over every estimate returned, also
-        those beyond :data:`FAIL_UM`): ``predicted_std_um`` (RMS of the estimator's own
-        std), ``empirical_rmse_um`` (RMSE of the translation error) and ``normalized_rms``
-        (RMS of error / predicted std; 1 when the covariance is right).
-    failures : dict
-        ``{(method, status): (count, example message)}``.
-    wall_s, task_cpu_s : float
-        Wall time of the study and CPU time in its tasks, s.
-    """
-
-    config: NoiseConfig
-    table: list
-    covariance: list
-    failures: dict
-    wall_s: float
-    task_cpu_s: float
-
-
-def _noise_task(task):
-    cpu0 = time.process_time()
-    cfg, k = task
-    gauge, Ts, rng = study_gauge(cfg.n_corners, k, cfg.seed, cfg.poses, beta_min_deg=cfg.beta_min_deg,
-                                 workspace=cfg.workspace)
-    clean = render_profiles(gauge, Ts, NoiseModel(0.0, 0.0), 0)
-    # The draws of render_profiles (x, then z): level σ adds σ·Z, bit for bit its noise.
-    zx = rng.standard_normal(clean.shape[:2])
-    zz = rng.standard_normal(clean.shape[:2])
-    parts = []
-    for level in cfg.noise_um:
-        profiles = clean.copy()
-        profiles[..., 0] += (cfg.x_ratio * level * 1e-3) * zx
-        profiles[..., 1] += (level * 1e-3) * zz
-        parts.append(estimate_profiles(gauge, Ts, profiles, cfg.mounting))
-    out = {key: np.stack([p[key] for p in parts]) for key in ("status", "reproj_um", "eq17", "err", "std")}
-    out["examples"] = {}
-    for p in parts:
-        for key, msg in p["examples"].items():
-            out["examples"].setdefault(key, msg)
-    out["cpu_s"] = time.process_time() - cpu0
-    return out
-
-
-def noise_study(config: NoiseConfig = NoiseConfig(), *, scheduler=None, n_workers=None,
-                progress=None) -> NoiseStudy:
-    """Fig. 3: reprojection error vs noise for CF and CF-Opt, and the predicted vs
-    empirical translation error of CF-Opt. ``gauges`` tasks, each with every noise level.
-    Scheduler arguments as :func:`posekit.sweep.run_tasks`.
-    """
-    t0 = time.perf_counter()
-    tasks = [(config, k) for k in range(config.gauges)]
-    results = run_tasks(_noise_task, tasks, scheduler=scheduler, n_workers=n_workers, progress=progress,
-                        desc="noise study")
-    # (gauges, levels, poses, ...) -> (levels, gauges * poses, ...)
-    data = {key: np.concatenate([r[key] for r in results], axis=1)
-            for key in ("status", "reproj_um", "eq17", "err", "std")}
-    table, cov = [], []
-    j_mle = METHODS.index("mle")
-    for i, level in enumerate(config.noise_um):
-        for j, method in enumerate(METHODS):
-            row = {"noise_um": level, "method": method}
-            row.update(_summary(data["status"][i, :, j], data["reproj_um"][i, :, j], data["err"][i, :, j],
-                                data["eq17"][i, :, j]))
-            table.append(row)
-        ok = np.isin(data["status"][i, :, j_mle], (OK, DIVERGED))       # no censoring of large errors
-        err = data["err"][i, ok, j_mle, :3]
-        std = data["std"][i, ok, :3]
-        for a, axis in enumerate("xyz"):
-            with np.errstate(divide="ignore", invalid="ignore"):
-                z = err[:, a] / std[:, a]
-            cov.append({"noise_um": level, "axis": axis,
-                        "predicted_std_um": float(np.sqrt(np.mean(std[:, a] ** 2)) * 1e3) if ok.any() else np.nan,
-                        "empirical_rmse_um": float(np.sqrt(np.mean(err[:, a] ** 2)) * 1e3) if ok.any() else np.nan,
-                        "normalized_rms": float(np.sqrt(np.mean(z**2))) if level > 0 and ok.any() else np.nan})
-    return NoiseStudy(config=config, table=table, covariance=cov, failures=_merge_examples(results),
-                      wall_s=time.perf_counter() - t0, task_cpu_s=sum(r["cpu_s"] for r in results))

@@ -5,7 +5,7 @@
     ridges. From the nominal pose the sensor is translated along F's x, z (width sweep)
     or y (length sweep) until the pose is lost; the range is the length of the interval
     around the nominal pose where it is kept, by two criteria: geometric visibility
-    (:func:`~posekit.profiler.estimate.sensor.visible_mask`, 3 mm margins) and actual tracking
+    (:func:`~posekit.profiler.sim.poses.visible_mask`, 3 mm margins) and actual tracking
     (every corner detected on a rendered, noisy profile and a CF-Opt estimate that fits
     them within :data:`~posekit.profiler.studies.study.FAIL_UM`). The edges are found by a coarse
     scan and bisection.
@@ -27,9 +27,11 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import ConfigError, GaugeError
 from ...sweep import run_tasks, task_seed
-from ..estimate.design import random_gauge
-from ..estimate.gauge import Gauge, gauge_from_design
-from ..estimate.sensor import LJ_X8400, NoiseModel, nominal_pose, render_profiles, visible_mask
+from ..gauge.design import random_gauge
+from ..gauge.model import Gauge, gauge_from_design
+from ..sensor import LJ_X8400, NoiseModel
+from ..sim.poses import nominal_pose, visible_mask
+from ..sim.render import render_profiles
 from .study import DIVERGED, FAIL_UM, METHODS, OK, estimate_profiles
 
 __all__ = ["LimitsConfig", "LimitsStudy", "limits_study", "scaled_gauge", "range_summary", "tilt_summary"]

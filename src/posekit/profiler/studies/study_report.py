@@ -1,7 +1,7 @@
 """Tables (CSV), figures (PNG, matplotlib Agg) and ``report.html`` of the design studies.
 
 :func:`write_report` takes the result of :func:`~posekit.profiler.studies.study.corners_study`,
-:func:`~posekit.profiler.studies.study.noise_study` or
+:func:`~posekit.profiler.studies.study_noise.noise_study` or
 :func:`~posekit.profiler.studies.study_limits.limits_study` and writes everything into one folder;
 the report embeds each figure (base64) and links its PNG file.
 """
@@ -11,9 +11,10 @@ import math
 from pathlib import Path
 
 from ...errors import ConfigError
+from ...io import check_out_folder, staged_folder
 from ...report import html_figure as _figure
 from ...report import html_table, pyplot, save_figure, write_csv, write_html
-from ..estimate.sensor import LJ_X8400
+from ..sensor import LJ_X8400
 from .study import (
     GAP_COLUMNS,
     METHODS,
@@ -21,12 +22,14 @@ from .study import (
     PAPER_TABLE1_M,
     STATUS_NAMES,
     TABLE1_COLUMNS,
+    CornersConfig,
     CornersStudy,
-    NoiseStudy,
+    corners_study,
 )
-from .study_limits import LimitsStudy, range_summary, tilt_summary
+from .study_limits import LimitsConfig, LimitsStudy, limits_study, range_summary, tilt_summary
+from .study_noise import NoiseConfig, NoiseStudy, noise_study
 
-__all__ = ["write_report", "write_csv"]
+__all__ = ["run_study", "write_report", "write_csv"]
 
 LABEL = {"cf": "CF", "mle": "CF-Opt"}
 
@@ -310,7 +313,7 @@ def _limits(study: LimitsStudy, out: Path) -> Path:
     intro = ("<p>Paper Fig. 4 by simulation. (a) From the nominal pose, the sensor is moved along F's x and z "
              "(gauges scaled in x–z to each width) or y (gauges cut to each length) until the pose is lost: "
              "<em>tracked</em> = all corners detected on a noisy rendered profile and a CF-Opt estimate that "
-             "fits them; <em>visible</em> = posekit.profiler.estimate.sensor.visible_mask (3 mm margins). "
+             "fits them; <em>visible</em> = posekit.profiler.sim.poses.visible_mask (3 mm margins). "
              f"{cfg.gauges} random gauges with {cfg.n_corners} corners per size (band: min–max). "
              f"(b) Gauges whose steepest faces make exactly β with the vertical, tilted by α about F's y "
              f"through the gauge, {cfg.tilt_poses} jittered poses per gauge and tilt.</p>"
@@ -350,3 +353,39 @@ def write_report(study, out) -> Path:
     if isinstance(study, LimitsStudy):
         return _limits(study, out)
     raise ConfigError(f"write_report: expected a study result, got {type(study).__name__}")
+
+
+def run_study(config, out=None, *, scheduler=None, n_workers=None, overwrite: bool = False, progress=None):
+    """Run a design study and write its report (``posekit profiler study corners|noise|limits``).
+
+    Parameters
+    ----------
+    config : CornersConfig, NoiseConfig or LimitsConfig
+        Which study (Table I, Fig. 3, Fig. 4) and its parameters.
+    out : str or Path, optional
+        Folder for the CSV tables, PNG figures and ``report.html`` (checked before the study
+        runs; written whole or not at all).
+    scheduler, n_workers
+        As :func:`posekit.sweep.run_tasks` (``"serial"``, a Dask address, or a local cluster
+        of ``n_workers`` processes).
+    overwrite : bool
+        Replace a non-empty ``out``.
+    progress : callable, optional
+        As :func:`posekit.sweep.run_tasks`.
+
+    Returns
+    -------
+    CornersStudy, NoiseStudy or LimitsStudy
+    """
+    kinds = {CornersConfig: corners_study, NoiseConfig: noise_study, LimitsConfig: limits_study}
+    fn = kinds.get(type(config))
+    if fn is None:
+        raise ConfigError(f"run_study: expected a CornersConfig, NoiseConfig or LimitsConfig, got "
+                          f"{type(config).__name__}")
+    if out is not None:
+        check_out_folder(out, overwrite=overwrite)
+    study = fn(config, scheduler=scheduler, n_workers=n_workers, progress=progress)
+    if out is not None:
+        with staged_folder(out, overwrite=overwrite) as tmp:
+            write_report(study, tmp)
+    return study

@@ -10,9 +10,9 @@ Particles are ``T (N, 4, 4)`` rigid transforms (mm, rad); every kernel writes in
 
 import math
 
-import numba as nb
 import numpy as np
 
+from posekit._jit import njit
 from posekit.geometry import rotvec_from_entries
 
 __all__ = [
@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def propagate(T, A, z_, sig, out):
     """``out_i = A @ T_i @ exp(xi_i)``, ``xi_i = sig * z_i`` per axis (standard normal ``z_``,
     ``sig (6,)`` the widths x, y, z (mm), rx, ry, rz (rad)); exp by Rodrigues, translation part
@@ -82,7 +82,7 @@ def propagate(T, A, z_, sig, out):
         out[i, 3, 3] = 1.0
 
 
-@nb.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _plateau_maha(x, y, z, d, Sinv):
     """``δᵀ Sinv δ`` with ``δ = (1 - d/‖Δ‖)₊ Δ`` for ``Δ = (x, y, z)``: 0 inside the plateau of radius d."""
     r = math.sqrt(x * x + y * y + z * z)
@@ -97,7 +97,7 @@ def _plateau_maha(x, y, z, d, Sinv):
             + z * (Sinv[2, 0] * x + Sinv[2, 1] * y + Sinv[2, 2] * z))
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, A_r, d_t, d_r, logD, out):
     """Eq. (8) in two 3-D blocks: ``Δt = p_i - p_μ``, ``Δr = log(R_i R_μᵀ)`` (base frame).
 
@@ -119,7 +119,7 @@ def robot_loglik_kernel(T, mu, Sinv_t, Sinv_r, A_r, d_t, d_r, logD, out):
         out[i] += logD - 0.5 * (mt + _plateau_maha(ax, ay, az, d_r, Sinv_r))
 
 
-@nb.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _plane_error(T, i, mx, mz, M, P, lo, hi):
     """In-plane error ``(found, ex_S, ez_S)`` of particle ``i`` for one laser reading ``(mx, mz)``.
 
@@ -188,7 +188,7 @@ def _plane_error(T, i, mx, mz, M, P, lo, hi):
     return best < math.inf, bx, bz
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
     """Eq. (9) for one sensor: ``out_i += log N(e; 0, σ² I₂)``, ``e = m̂ - pi`` in the laser plane.
 
@@ -211,7 +211,7 @@ def laser_loglik_kernel(T, mx, mz, dist, P, lo, hi, sigma, miss, out):
             out[i] += const - inv * miss * miss
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def laser_error_kernel(T, mx, mz, M, P, lo, hi, err):
     """In-plane errors ``e = m̂ - pi`` of every particle for one laser reading (eq. 9, Fig. 4).
 
@@ -234,7 +234,7 @@ def laser_error_kernel(T, mx, mz, M, P, lo, hi, err):
     return found_n
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
     """Knot range ``(lo, hi)`` of the polyline ``P (K, 3)`` around a plane through ``p`` with
     normal ``n``: the first and last segment reaching within ``window`` of the plane and
@@ -262,7 +262,7 @@ def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
     return lo, hi
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def inv_det3(S):
     """Inverse and determinant of a 3×3 matrix by cofactors: ``(S⁻¹ (3, 3), det S)``."""
     a, b, c = S[0, 0], S[0, 1], S[0, 2]
@@ -277,7 +277,7 @@ def inv_det3(S):
     return inv, det
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def _chordal_mean(T, w):
     """``T_mean (4, 4)``: ``p̄ = Σ w p``, ``R̄`` = the polar factor of ``Σ w R``."""
     n = T.shape[0]
@@ -308,7 +308,7 @@ def _chordal_mean(T, w):
     return Tm
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def _offset(T, i, Tm, q, out):
     """Offset of particle ``i`` from the mean ``Tm`` in its frame: ``out (6,)`` =
     ``[R̄ᵀ (p_i - p̄), log(R̄ᵀ R_i)]`` (mm, rad); ``q (9,)`` is work space."""
@@ -322,7 +322,7 @@ def _offset(T, i, Tm, q, out):
     out[3], out[4], out[5] = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def mean_spread_kernel(T, w):
     """Chordal weighted mean ``(T_mean (4, 4), spread (6,))`` of particles ``T (N, 4, 4)``.
 
@@ -349,7 +349,7 @@ def mean_spread_kernel(T, w):
 
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def cloud_kernel(T, w, xi, L):
     """:func:`mean_spread_kernel` plus the offsets and the factor of their covariance.
 
@@ -391,7 +391,7 @@ def cloud_kernel(T, w, xi, L):
     return Tm, spread, mu
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
     """Regularised resampling in the tangent space at ``Tm (4, 4)``:
     ``out_i = Tm exp(ξ'_i)`` with ``ξ'_i = a xi[idx_i] + (1 - a) mu + B z_i`` (translation part
@@ -434,7 +434,7 @@ def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
         out[i, 3, 3] = 1.0
 
 
-@nb.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _row_finite(E, i):
     """Whether every entry of row ``i`` of ``E`` is finite."""
     for j in range(E.shape[1]):
@@ -443,7 +443,7 @@ def _row_finite(E, i):
     return True
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def weighted_moments_kernel(E, w, mean, C):
     """Weighted mean and covariance of the rows of ``E (N, k)`` whose entries are all finite.
 
@@ -478,7 +478,7 @@ def weighted_moments_kernel(E, w, mean, C):
     return total
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def _shrunk_maha_cov(x, y, z, d, S):
     """``δᵀ S⁻¹ δ`` for ``δ = (1 - d/‖Δ‖)₊ Δ``, ``Δ = (x, y, z)``; ``S (3, 3)`` SPD (inf if singular)."""
     r = math.sqrt(x * x + y * y + z * z)
@@ -490,7 +490,7 @@ def _shrunk_maha_cov(x, y, z, d, S):
     return _plateau_maha(x, y, z, d, Sinv)
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
     """Mahalanobis distances ``(m_t, m_r)`` of the pose ``T (4, 4)`` from the robot measurement
     mean ``mu (4, 4)`` outside its plateau (eq. 8), with the pose's own spread ``spread (6,)``
@@ -529,7 +529,7 @@ def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
     return m_t, _shrunk_maha_cov(ax, ay, az, d_r, S)
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def local_level_nll(y, ds, q2, r2):
     """Negative log-likelihood of a scalar series ``y (T,)`` under the local-level model ``y_k = s_k + v``,
     ``s_k = s_{k-1} + w``, ``v ~ N(0, r2)``, ``w ~ N(0, q2 ds_k)`` (``ds (T,)`` the travel per step, the first

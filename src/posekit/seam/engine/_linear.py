@@ -16,9 +16,9 @@ likelihood the tuner maximises (:mod:`posekit.seam.engine.ekf`):
 
 import math
 
-import numba as nb
 import numpy as np
 
+from posekit._jit import njit
 from posekit.seam.engine._kernels import _plane_error, window_kernel
 
 __all__ = ["ekf_pass", "exp_right", "kalman_update", "laser_rows", "plateau_cov", "predict_capped"]
@@ -26,7 +26,7 @@ __all__ = ["ekf_pass", "exp_right", "kalman_update", "laser_rows", "plateau_cov"
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def plateau_cov(T, Sigma_t, Sigma_r, A_inv, d_t, d_r, C):
     """Write ``C (6, 6)``: the robot density's covariance in the frame of ``T (4, 4)``, block diagonal —
     a uniform ball of radius ``d_t`` (mm; ``d²/5`` per axis) plus ``Sigma_t`` (mm², base frame), and the
@@ -40,7 +40,7 @@ def plateau_cov(T, Sigma_t, Sigma_r, A_inv, d_t, d_r, C):
     C[3:, 3:] = Rt @ Cr @ R
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def predict_capped(P, C, first, q2, Q_pf):
     """In place on ``P (6, 6)``: ``C`` when ``first``, else ``P + diag(q2) + Q_pf`` with every axis capped at
     ``diag(C)`` by scaling its row and column (the correlations kept)."""
@@ -59,7 +59,7 @@ def predict_capped(P, C, first, q2, Q_pf):
             P[a, b] *= s[a] * s[b]
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def exp_right(T, d, out):
     """``out = T exp(d)``: ``d (6,)`` a tangent offset ``[ρ (mm), φ (rad)]`` in the frame of ``T``
     (translation ``R ρ``, rotation by Rodrigues)."""
@@ -89,7 +89,7 @@ def exp_right(T, d, out):
     out[3, 3] = 1.0
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def laser_rows(T, mxs, mzs, Ms, los, his, pts, r2s, h_t, h_r, H, e0, r2):
     """The lasers' in-plane errors at ``T (4, 4)`` and their Jacobian with respect to its tangent offset.
 
@@ -143,7 +143,7 @@ def laser_rows(T, mxs, mzs, Ms, los, his, pts, r2s, h_t, h_r, H, e0, r2):
     return m
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def kalman_update(P, H, e0, r2, m, dx):
     """Condition ``P (6, 6)`` on ``m`` laser rows (in place) and write the correction ``dx (6,)``.
 
@@ -183,7 +183,7 @@ def kalman_update(P, H, e0, r2, m, dx):
     return 0.5 * (quad + logdet + m * _LOG_2PI)
 
 
-@nb.njit(cache=True, boundscheck=False)
+@njit(cache=True, boundscheck=False)
 def ekf_pass(U, T0, K, Sigma_t, Sigma_r, A_inv, d_t, d_r, laser, Ms, r2, q2, ds, pts, lever, h_t, h_r,
              out_T, out_P):
     """The linearised filter over one episode; returns the lasers' negative log-likelihood (sum over steps).

@@ -56,8 +56,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2
 
+from posekit._chi2 import chi2
 from posekit.seam.engine import _kernels as _k
 
 _EYE3 = np.eye(3)

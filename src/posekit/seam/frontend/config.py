@@ -40,6 +40,7 @@ import yaml
 from pydantic import BeforeValidator, Field, ValidationError, model_validator
 
 from posekit.errors import ConfigError
+from posekit.seam.engine.particles import RESAMPLERS
 from posekit.seam.frontend.config_cell import (
     DEFAULT_ROBOT,
     DEFAULT_SENSOR_DISTANCES_MM,
@@ -95,7 +96,7 @@ __all__ = [
 ]
 
 TRAJECTORY_KINDS = ("xy", "yz", "line", "bend")
-RESAMPLER_NAMES = ("systematic", "stratified", "residual")
+RESAMPLER_NAMES = tuple(RESAMPLERS)  # the one list: posekit.seam.engine.particles.RESAMPLERS
 
 
 class LayoutNote(UserWarning):
@@ -211,7 +212,7 @@ class FilterConfig(Section):
     """
 
     particles: Integer = num(500, 1, MAX_PARTICLES)  # N, 1 .. 1,000,000
-    resampler: Literal["systematic", "stratified", "residual"] = "systematic"  # the resampling scheme, by name
+    resampler: Literal[RESAMPLER_NAMES] = "systematic"  # the resampling scheme, by name
     ess_threshold: Number = num(0.5, 0.0, 1.0, lo_open=True)  # resample below this x N effective particles, (0, 1]
     regularize_h: Number = num(0.5, 0.0, 1.0, hi_open=True)  # resampling kernel bandwidth (0: plain), [0, 1)
     anneal_ess: Number = num(0.05, 0.0, 1.0)  # temper an update leaving fewer than this x N effective, 0 .. 1

@@ -525,7 +525,7 @@ def metrics(results: list[EpisodeResult]) -> dict:
         ``knots_kept``, ``trend_max_error_mm``, ``recoveries``, ``laser_missing_fraction``,
         ``spread_median_mm``, ``spread_median_deg``; ``status_counts`` ``{tracking, degraded,
         lost}`` (steps over all runs), ``coverage_2sigma`` ``{x, y, z, rx, ry, rz}`` (fraction of
-        steps whose |error| <= 2 × the reported spread) and ``tracking_beyond_3sigma`` (fraction
+        steps whose absolute error <= 2 × the reported spread) and ``tracking_beyond_3sigma`` (fraction
         of the steps whose error exceeds 3 × the reported spread on some axis that are
         ``tracking``; null when there are none) and ``confident_wrong`` (the fraction of all steps
         that are ``tracking`` and beyond 3 × the spread: :func:`confident_wrong_fraction`);

@@ -1,7 +1,8 @@
 """Pose topics of ROS 1 bags (``.bag``), ROS 2 bags (a bag folder, ``.db3``, ``.mcap``) through the
 ``rosbags`` package (extra ``bags``): ``geometry_msgs/PoseStamped``,
 ``geometry_msgs/PoseWithCovarianceStamped``, ``nav_msgs/Odometry`` and
-``geometry_msgs/TransformStamped``, in metres, timed by their header stamps."""
+``geometry_msgs/TransformStamped``, in metres, timed by their header stamps; and the transform
+between two frames of ``/tf`` + ``/tf_static`` (:mod:`.tf`)."""
 
 from pathlib import Path
 
@@ -52,6 +53,9 @@ def _open(path: Path):
     highlevel = require("rosbags.highlevel", "bags", f"reading the ROS bag {path}")
     typesys = require("rosbags.typesys", "bags", f"reading the ROS bag {path}")
     store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+    if "tf2_msgs/msg/TFMessage" not in store.fielddefs:     # not bundled: for bags that carry no definitions
+        store.register(typesys.get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                                  "tf2_msgs/msg/TFMessage"))
     return highlevel.AnyReader([path], default_typestore=store)
 
 
@@ -72,12 +76,19 @@ def _check_path(path: Path) -> None:
 
 
 def _pick_topic(path: Path, topics: dict, topic: str | None) -> str:
+    from .tf import TF_TYPES
+
     poses = {name: info.msgtype for name, info in topics.items() if info.msgtype in POSE_TYPES}
     listing = ", ".join(f"{n} ({_short(t)})" for n, t in sorted(poses.items())) or "none"
+    has_tf = any(info.msgtype in TF_TYPES for info in topics.values())
     if topic is None:
         if len(poses) == 1:
             return next(iter(poses))
-        raise InputFileError(f"{path}: {len(poses)} pose topics ({listing}); name one with --topic")
+        tf_hint = "; or give --tf-parent FRAME --tf-child FRAME to read /tf" if has_tf else ""
+        raise InputFileError(f"{path}: {len(poses)} pose topics ({listing}); name one with --topic{tf_hint}")
+    if topic in topics and topics[topic].msgtype in TF_TYPES:
+        raise InputFileError(f"{path}: topic {topic} holds {_short(str(topics[topic].msgtype))}, a frame tree: give "
+                             "--tf-parent FRAME --tf-child FRAME for the transform to read")
     if topic not in topics:
         raise InputFileError(f"{path}: no topic {quote(topic)}; pose topics: {listing}")
     if topic not in poses:
@@ -87,8 +98,9 @@ def _pick_topic(path: Path, topics: dict, topic: str | None) -> str:
     return topic
 
 
-def read_rosbag(path, topic: str | None = None) -> Trajectory:
-    """Read the poses of one topic of a ROS 1 or ROS 2 bag.
+def read_rosbag(path, topic: str | None = None, tf_parent: str | None = None,
+                tf_child: str | None = None) -> Trajectory:
+    """Read the poses of one topic of a ROS 1 or ROS 2 bag, or a transform of its frame tree.
 
     Parameters
     ----------
@@ -96,7 +108,11 @@ def read_rosbag(path, topic: str | None = None) -> Trajectory:
         A ROS 1 ``.bag``, a ROS 2 bag folder (with ``metadata.yaml``), or a single ROS 2 storage
         file ``.db3`` / ``.mcap``.
     topic : str, optional
-        The topic; may be left out when the bag has exactly one pose topic.
+        The topic; may be left out when the bag has exactly one pose topic (or, with the tf
+        frames, names the dynamic tf topic).
+    tf_parent, tf_child : str, optional
+        Read ``T_parent_child`` from ``/tf`` and ``/tf_static`` instead of a pose topic
+        (:func:`.tf.read_tf`); both or neither.
 
     Returns
     -------
@@ -116,9 +132,15 @@ def read_rosbag(path, topic: str | None = None) -> Trajectory:
         If the ``rosbags`` package is not installed (``pip install "posekit[bags]"``).
     """
     path = Path(path)
+    if (tf_parent is None) != (tf_child is None):
+        raise InputFileError(f"{path}: --tf-parent and --tf-child go together; give both frames")
     _check_path(path)
     reader = _open(path)
     try:
+        if tf_parent is not None:
+            from .tf import read_tf
+            with reader:
+                return read_tf(reader, path, reader.topics, tf_parent, tf_child, topic)
         return _read(reader, path, topic)
     except PosekitError:
         raise

@@ -1,0 +1,35 @@
+"""The ceiling camera: its lens (intrinsics, distortion, chessboard calibration) and the
+homography between the ceiling plane and the image (paper §IV-A), with the grid-corner finder
+that feeds it."""
+
+from .grid import CeilingGrid, find_grid_corners
+from .homography import (
+    Calibration,
+    calibrate,
+    load_calibration,
+    point_residuals,
+    radial_pattern,
+    read_points_csv,
+    undistort_calibration_points,
+    write_points_csv,
+)
+from .lens import CameraModel, LensCalibration, calibrate_camera, find_board, load_camera, save_camera
+
+__all__ = [
+    "CameraModel",
+    "LensCalibration",
+    "calibrate_camera",
+    "find_board",
+    "load_camera",
+    "save_camera",
+    "Calibration",
+    "calibrate",
+    "load_calibration",
+    "point_residuals",
+    "radial_pattern",
+    "read_points_csv",
+    "undistort_calibration_points",
+    "write_points_csv",
+    "CeilingGrid",
+    "find_grid_corners",
+]

@@ -1,0 +1,8 @@
+"""The ceiling simulator: a tiled ceiling seen by a fixed camera while a robot's laser dots move
+on it, with what a real installation adds (lens, bloom, exposure, occluders, stray lights,
+compression). Uses the models (camera, calibration), never the tracker's internals."""
+
+from .config import REALISTIC, SceneConfig
+from .render import CeilingScene, iter_frames, render_video, true_homography
+
+__all__ = ["REALISTIC", "SceneConfig", "CeilingScene", "iter_frames", "render_video", "true_homography"]

@@ -1,0 +1,672 @@
+"""Video → track: detect the dot(s), map them to the ceiling plane, filter (the paper's §IV).
+
+Per frame and camera: :class:`~posekit.ceiling.detect.DotDetector` finds the dots (in a
+region of interest around the track's predicted image position when there is one), the
+camera's calibration maps them to the world plane, and a
+:class:`~posekit.ceiling.track.MultiCameraTracker` (one camera is the usual case A/B)
+gates, filters and switches cameras. The result is one row per frame, written by
+:func:`write_track_csv` as ``frame,time_s,x,y,heading_deg,status,std_mm``
+(:func:`iter_track` yields each row as soon as its frame is done, for live use).
+
+With a lens model (``Camera.lens``, ``--camera``) the dot centroids are undistorted before
+the homography (only the few centroids, not the frame). Each candidate is verified before the
+tracker sees it (see :func:`iter_track`); the detections that were not the track teach the
+detector where the static lights are. A frame that could not be decoded is a ``lost`` row.
+
+Camera switch (case D): while the track is confident and the active camera's predicted
+dot lies well inside its image, only that camera is searched; the others are searched
+again as soon as the dot nears the border or is not seen (the paper's "camera switch
+module ... to save energy and computational cost").
+"""
+
+import csv
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import ConfigError, InputFileError
+from .cameras import Camera, MultiCameraTracker, border_distance
+from .types import STATUSES, TrackerConfig, TrackRow
+
+__all__ = ["TRACK_COLUMNS", "TrackResult", "parse_dots", "iter_track", "track_frames", "track_video",
+           "write_track_csv", "read_track_csv"]
+
+TRACK_COLUMNS = ("frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg", "reason")
+"""Columns of the track CSV: the contract's six, then ``std_mm`` (1σ of the position, mm),
+``std_heading_deg`` (1σ of the heading, degrees; empty with one dot) and ``reason`` (why a row
+is not ``ok``; empty when it is)."""
+LEGACY_TRACK_COLUMNS = TRACK_COLUMNS[:6]
+EARLIER_TRACK_COLUMNS = TRACK_COLUMNS[:7]
+KNOWN_COLOURS = ("red", "green")
+LINE_DOTS = ("line",)
+"""``dots`` of case C: one laser line (:class:`~posekit.ceiling.detect.LineDetector` and
+:class:`~posekit.ceiling.linetrack.LineTracker`)."""
+
+
+class _TimedRows:
+    """What every per-frame track result shares: iteration over ``rows`` and the timings.
+
+    Subclasses are dataclasses with ``rows``, ``seconds_total`` (s) and ``seconds_processing``
+    (shape (N,), s per frame) fields; ``_n_frames`` gives the number of frames behind ``rows``.
+    """
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def _n_frames(self) -> int:
+        return len(self.rows)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second end to end (decode + detect + map + filter)."""
+        return self._n_frames() / self.seconds_total if self.seconds_total > 0 else float("nan")
+
+    @property
+    def processing_ms(self) -> float:
+        """Median processing time per frame without decoding, ms."""
+        return float(np.median(self.seconds_processing) * 1e3) if len(self.seconds_processing) else float("nan")
+
+
+@dataclass
+class TrackResult(_TimedRows):
+    """Track of a video, with what is needed to plot and time it.
+
+    Attributes
+    ----------
+    rows : list of TrackRow
+        One per frame (iterate the result directly for the rows).
+    image_uv : ndarray, shape (N, 2)
+        Primary dot detected in the camera used at each frame, px (NaN where none
+        was accepted): the trajectory in the image (the paper's Fig. 8).
+    seconds_total : float
+        Wall time of the whole run, decoding included, s.
+    seconds_processing : ndarray, shape (N,)
+        Wall time of detection + mapping + filtering per frame, s (decoding excluded).
+    fps_source : str
+        Where the frame rate of the timestamps came from.
+    cameras : list of str
+        Camera names.
+    warnings : list of str
+        What the sources reported (a video shorter than its header says, a stream that stopped).
+    stats : dict
+        ``rebuilds`` and ``relights`` of the detectors' backgrounds (a rebuild is a scene
+        change the exposure gain did not explain; 0 on a steady scene), ``static_lights`` held
+        at the end and where they came from (``scene``: ``"learned online"`` or ``"from the
+        scene file"``).
+    """
+
+    rows: list[TrackRow]
+    image_uv: np.ndarray
+    seconds_total: float
+    seconds_processing: np.ndarray
+    fps_source: str = ""
+    cameras: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+    def xy(self) -> np.ndarray:
+        """(N, 2) track in the world plane, mm (NaN where lost)."""
+        return np.array([[r.x, r.y] for r in self.rows], dtype=float).reshape(-1, 2)
+
+    def heading_deg(self) -> np.ndarray:
+        return np.array([r.heading_deg for r in self.rows], dtype=float)
+
+    def status(self) -> np.ndarray:
+        return np.array([r.status for r in self.rows])
+
+    def counts(self) -> dict[str, int]:
+        s = self.status()
+        return {k: int(np.sum(s == k)) for k in STATUSES}
+
+
+def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
+    """``"red"`` or ``"red,green"`` → a tuple of colours, ``"line"`` → ``("line",)`` (one
+    laser line, case C); ConfigError otherwise."""
+    items = [t.strip() for t in (text.split(",") if isinstance(text, str) else text)]
+    if items == ["line"]:
+        return ("line",)
+    if not items or any(c not in KNOWN_COLOURS for c in items) or len(set(items)) != len(items):
+        raise ConfigError(f"--dots: expected 'red' or 'red,green', got {text!r} (or 'line' for a laser line)")
+    return tuple(items)
+
+
+def _as_calibration(cal):
+    if isinstance(cal, (str, Path)):
+        from ..camera.homography import load_calibration
+        return load_calibration(cal)
+    return cal
+
+
+def _dots_by_colour(dots) -> dict[str, np.ndarray]:
+    out: dict[str, list] = {}
+    for d in dots:
+        out.setdefault(d.color, []).append((d.u, d.v))
+    return {c: np.asarray(v, dtype=float) for c, v in out.items()}
+
+
+def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] = ("red",), *,
+               config: TrackerConfig | None = None, detectors: Sequence | None = None,
+               border_margin_px: float = 20.0, use_roi: bool = True, survey_every: int = 30,
+               timings: list | None = None, scenes: Sequence | None = None,
+               stats: dict | None = None) -> Iterator[tuple[TrackRow, np.ndarray]]:
+    """Track frame by frame, yielding each row as soon as its frame is done (live use).
+
+    Per frame and camera: the detector searches a window around the predicted dot while the
+    track is ``ok`` (and the whole frame every ``survey_every`` frames, and whenever the track
+    is not ``ok``: re-acquisition is a whole-frame search); every candidate goes through the
+    camera's model of static lights (:class:`~posekit.ceiling.detect.scene.StaticLights`: a
+    test over several frames of whether its motion is more than its own centroid jitter) and is
+    verified — not a static light, a saturated core, brightness and size like the tracked
+    laser's (:class:`DotSignature`). The tracker accepts only a gated candidate, or re-acquires
+    on the one verified candidate the test found moving.
+
+    Parameters are those of :func:`track_frames`; ``images`` of a frame may be None (or a
+    camera's entry None) for a frame that could not be decoded: its row is ``lost`` with the
+    reason (a fourth item of the frame tuple, a list of one string per camera, when given).
+    ``timings``, if given, receives the processing time of each frame (s, decoding excluded).
+    ``scenes``: per camera the static lights of a learned scene (a list of
+    :class:`~posekit.ceiling.detect.scene.Light`, or None: learned online). ``stats``, if
+    given, is filled with ``rebuilds``, ``relights`` (background), ``static_lights`` and
+    ``scene`` (``"learned online"`` or ``"from the scene file"``) as the run goes.
+
+    Yields
+    ------
+    row : TrackRow
+    uv : ndarray, shape (2,)
+        The primary dot as detected in the camera used, px (NaN when not ``ok``).
+    """
+    from ..detect.dots import DotSignature
+    from ..detect.scene import MOVING, STATIC, StaticLights
+
+    dots = parse_dots(dots)
+    cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
+    if detectors is None:
+        from ..detect.dots import DotDetector
+        detectors = [DotDetector(colors=dots) for _ in cameras]
+    if len(detectors) != len(cameras):
+        raise ConfigError(f"track_frames: {len(detectors)} detectors for {len(cameras)} cameras")
+    if scenes is None:
+        scenes = [None] * len(cameras)
+    lights = [StaticLights(known=s or (), jitter_floor_px=cam.detection_std_px) for s, cam in zip(scenes, cameras)]
+    stats = {} if stats is None else stats
+    stats.update(rebuilds=0, relights=0, static_lights=0,
+                 scene="from the scene file" if any(s is not None for s in scenes) else "learned online")
+    survey_every = max(int(survey_every), 1)
+    signatures = [{c: DotSignature() for c in dots} for _ in cameras]     # per camera and colour
+    mct = MultiCameraTracker(cameras, cfg, border_margin_px=border_margin_px)
+    suspect_cal = [getattr(c.calibration, "status", "ok") == "suspect" for c in cameras]
+    confident = False
+    for item in frames:
+        index, t_s, images = item[:3]
+        errors = item[3] if len(item) > 3 else None
+        t0 = time.perf_counter()
+        if images is None:
+            images = [None] * len(cameras)
+        elif len(cameras) == 1 and isinstance(images, np.ndarray):
+            images = [images]
+        if errors is None or isinstance(errors, str):
+            errors = [errors] * len(cameras)
+        pred = mct.predicted_uv(t_s)
+        search = list(range(len(cameras)))
+        a = mct.active
+        if confident and a >= 0 and dots[0] in pred[a]:
+            bd = border_distance(np.asarray(pred[a][dots[0]])[None], cameras[a].image_size)[0]
+            if bd >= 2 * border_margin_px:
+                search = [a]                        # camera switch: the others can sleep
+        survey = index % survey_every == 0
+        detections, eligible, stds, moving, found = [], [], [], [], {}
+        for i, (det, img) in enumerate(zip(detectors, images)):
+            if i not in search or img is None:
+                detections.append(None)
+                eligible.append(None)
+                stds.append(None)
+                moving.append(None)
+                continue
+            roi = pred[i] if (use_roi and confident and not survey and pred[i]) else None
+            ds = det.detect(img, predicted_uv=roi)
+            found[i] = ds
+            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds],
+                                      [d.saturated for d in ds])
+            by, el, sd, mv = {}, {}, {}, {}
+            for d, s in zip(ds, states):
+                sig = signatures[i][d.color]
+                by.setdefault(d.color, []).append((d.u, d.v))
+                el.setdefault(d.color, []).append(s != STATIC and d.saturated and sig.consistent(d))
+                mv.setdefault(d.color, []).append(s == MOVING)
+                sd.setdefault(d.color, []).append(sig.std_px(d, cameras[i].detection_std_px))
+            detections.append({c: np.asarray(v, dtype=float) for c, v in by.items()})
+            eligible.append({c: np.asarray(v, dtype=bool) for c, v in el.items()})
+            moving.append({c: np.asarray(v, dtype=bool) for c, v in mv.items()})
+            stds.append({c: np.asarray(v, dtype=float) for c, v in sd.items()})
+        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving)
+        if all(img is None for img in images):
+            why = "; ".join(e for e in errors if e) or "the frame could not be decoded"
+            row = replace(row, x=float("nan"), y=float("nan"), heading_deg=float("nan"), status="lost",
+                          std_mm=float("nan"), std_heading_deg=float("nan"), camera=-1, measured={},
+                          reasons=(why,))
+        elif row.status in ("predicted", "lost"):
+            row = _blind_reason(row, pred, detectors, images)
+        elif row.camera >= 0 and suspect_cal[row.camera]:
+            cal = cameras[row.camera].calibration
+            why = "; ".join(getattr(cal, "reasons", ()) or ("the calibration is suspect",))
+            row = replace(row, status="suspect", reasons=row.reasons + (f"calibration: {why}",))
+        uv = np.full(2, np.nan)
+        for i, ds in found.items():
+            if row.camera == i and row.measured:
+                track_uv = cameras[i].to_image(np.array(list(row.measured.values())))
+                for j, c in enumerate(row.measured):
+                    p = track_uv[j]
+                    best = min((d for d in ds if d.color == c), key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2,
+                               default=None)
+                    if best is None:
+                        continue
+                    signatures[i][c].update(best)
+                    if c == dots[0] and row.status in ("ok", "suspect"):
+                        uv = np.array([best.u, best.v])
+        confident = row.status == "ok"
+        stats.update(rebuilds=sum(getattr(d, "rebuilds", 0) for d in detectors),
+                     relights=sum(getattr(d, "relights", 0) for d in detectors),
+                     static_lights=sum(lt.n_static for lt in lights))
+        if timings is not None:
+            timings.append(time.perf_counter() - t0)
+        yield row, uv
+
+
+def _blind_reason(row: TrackRow, pred, detectors, images) -> TrackRow:
+    """Add to a row without a dot that the background at the predicted dot is saturated."""
+    for i, (det, img) in enumerate(zip(detectors, images)):
+        p = pred[i].get(row.dots and next(iter(row.dots)) or "red") if i < len(pred) else None
+        if img is None or p is None or not hasattr(det, "blind_fraction"):
+            continue
+        if det.blind_fraction(p) > 0.5:
+            return replace(row, reasons=row.reasons + ("the background at the predicted dot is saturated: a dot "
+                                                       "there cannot be told from the scene",))
+    return row
+
+
+def track_frames(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] = ("red",), *,
+                 config: TrackerConfig | None = None, detectors: Sequence | None = None,
+                 border_margin_px: float = 20.0, use_roi: bool = True, progress=None,
+                 on_row=None, scenes: Sequence | None = None) -> TrackResult:
+    """Track already-decoded frames of one or more synchronised cameras.
+
+    Parameters
+    ----------
+    frames : iterable
+        Yields ``(index, time_s, images)`` with ``images`` one BGR image (H, W, 3) per
+        camera, or a single image when there is one camera; None (or a None entry) for a
+        frame that could not be decoded (its row is ``lost``).
+    cameras : sequence of Camera
+        Calibration, image size and lens model of each camera.
+    dots : sequence of str
+        Colours to track, primary first (``("red",)`` or ``("red", "green")``), or
+        ``("line",)``: one laser line (case C, :func:`_track_line_frames`).
+    config : TrackerConfig, optional
+        Tracker tuning; its ``dots`` are replaced by ``dots``.
+    detectors : sequence, optional
+        One detector per camera (default ``DotDetector(colors=dots)`` each).
+    border_margin_px : float
+        Camera-switch hysteresis (see :class:`MultiCameraTracker`).
+    use_roi : bool
+        Pass the predicted image position to the detector (region of interest).
+    progress : callable, optional
+        Wraps the frame iterable (a progress bar).
+    on_row : callable, optional
+        Called with each :class:`TrackRow` as soon as its frame is done.
+    scenes : sequence, optional
+        Per camera the static lights of a learned scene (:func:`~posekit.ceiling.detect.scene.load_scene`),
+        or None: learned online.
+
+    Returns
+    -------
+    TrackResult
+    """
+    dots = parse_dots(dots)
+    it = frames if progress is None else progress(frames)
+    if dots == LINE_DOTS:
+        return _track_line_frames(it, cameras, config=config, detectors=detectors,
+                                  border_margin_px=border_margin_px, use_roi=use_roi, on_row=on_row)
+    rows, uvs, proc, stats = [], [], [], {}
+    t_start = time.perf_counter()
+    for row, uv in iter_track(it, cameras, dots, config=config, detectors=detectors,
+                              border_margin_px=border_margin_px, use_roi=use_roi, timings=proc, scenes=scenes,
+                              stats=stats):
+        rows.append(row)
+        uvs.append(uv)
+        if on_row is not None:
+            on_row(row)
+    total = time.perf_counter() - t_start
+    return TrackResult(rows=rows, image_uv=np.array(uvs, dtype=float).reshape(-1, 2), seconds_total=total,
+                       seconds_processing=np.array(proc), cameras=[c.name for c in cameras], stats=stats)
+
+
+def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: TrackerConfig | None = None,
+                       detectors: Sequence | None = None, border_margin_px: float = 20.0,
+                       use_roi: bool = True, on_row=None) -> TrackResult:
+    """:func:`track_frames` for ``dots=("line",)`` (case C): the longest segment of each
+    camera, end points mapped to the world, :class:`~posekit.ceiling.linetrack.LineTracker`.
+    With several cameras, the one whose segment centre is farthest from its image border is
+    used (the previous one while it stays ``border_margin_px`` inside)."""
+    from ..detect.lines import LineDetector
+    from .linetrack import LineTracker, LineTrackerConfig, pick_line
+
+    if detectors is None:
+        detectors = [LineDetector() for _ in cameras]
+    if len(detectors) != len(cameras):
+        raise ConfigError(f"track_frames: {len(detectors)} detectors for {len(cameras)} cameras")
+    lt = LineTracker(LineTrackerConfig(tracker=TrackerConfig() if config is None else config))
+    rows, uvs, proc = [], [], []
+    active = -1
+    t_start = time.perf_counter()
+    for item in frames:
+        index, t_s, images = item[:3]
+        if images is None:
+            images = [None] * len(cameras)
+        elif len(cameras) == 1 and isinstance(images, np.ndarray):
+            images = [images]
+        t0 = time.perf_counter()
+        pred = lt.tracker.predict(t_s).get("red")
+        found = []
+        for i, (det, img, cam) in enumerate(zip(detectors, images, cameras)):
+            if img is None:
+                continue
+            roi = None
+            if use_roi and pred is not None:
+                uv = cam.to_image(pred[0])[0]
+                if np.all(np.isfinite(uv)) and border_distance(uv[None], cam.image_size)[0] > 0:
+                    roi = {det.colors[0]: uv}
+            lines = det.detect(img, predicted_uv=roi)
+            m = pick_line(lines, cam)
+            if m is not None:
+                bd = float(border_distance(np.array([[lines[0].u, lines[0].v]]), cam.image_size)[0])
+                found.append((i, bd, m, lines[0]))
+        choice = None
+        if found:
+            by_cam = {i: f for i, *f in found}
+            if active in by_cam and by_cam[active][0] >= border_margin_px:
+                choice = (active, *by_cam[active])
+            else:
+                choice = max(found, key=lambda f: f[1])
+        if choice is None:
+            row = lt.step(t_s, None, frame=index)
+        else:
+            active = choice[0]
+            row = lt.step(t_s, choice[2][0], choice[2][1], frame=index, camera=active)
+        proc.append(time.perf_counter() - t0)
+        uv = np.full(2, np.nan)
+        if row.status == "ok" and choice is not None:
+            uv = np.array([choice[3].u, choice[3].v], dtype=float)
+        rows.append(row)
+        uvs.append(uv)
+        if on_row is not None:
+            on_row(row)
+    total = time.perf_counter() - t_start
+    return TrackResult(rows=rows, image_uv=np.array(uvs, dtype=float).reshape(-1, 2), seconds_total=total,
+                       seconds_processing=np.array(proc), cameras=[c.name for c in cameras])
+
+
+def _as_lens(lens):
+    if lens is None:
+        return None
+    if isinstance(lens, (str, Path)):
+        from ..camera.lens import load_camera
+        return load_camera(lens)
+    return lens
+
+
+def open_sources(sources, fps: float | None = None, *, loop: int = 1, max_frames: int | None = None,
+                 live: bool = False) -> list:
+    """One frame source per input: :func:`~posekit.ceiling.video_io.open_live` for a camera
+    index, device or URL (or any input when ``live``), else
+    :func:`~posekit.ceiling.video_io.open_frames`."""
+    from .sources import is_live_source, open_frames, open_live
+
+    out = []
+    for s in sources:
+        if live or is_live_source(s):
+            out.append(open_live(s, loop=loop, max_frames=max_frames, fps=fps))
+        else:
+            out.append(open_frames(s, fps, max_frames=max_frames))
+    return out
+
+
+def frame_groups(streams) -> Iterator[tuple[int, float, list, list]]:
+    """``(index, time_s, images, errors)`` of synchronised sources (the shortest ends it); an
+    image that could not be decoded is None and its error says why."""
+    for group in zip(*streams):
+        f0 = group[0]
+        yield f0.index, f0.time_s, [f.image for f in group], [f.error for f in group]
+
+
+def make_cameras(streams, calibrations, lenses=None) -> list[Camera]:
+    """:class:`Camera` of each source from its calibration (object or JSON path) and lens
+    model (``CameraModel``, camera JSON path, or None)."""
+    if not isinstance(calibrations, (list, tuple)):
+        calibrations = [calibrations]
+    if len(streams) != len(calibrations):
+        raise ConfigError(f"track_video: {len(streams)} input(s) but {len(calibrations)} calibration(s); "
+                          "give one calibration per camera")
+    if lenses is None or not isinstance(lenses, (list, tuple)):
+        lenses = [lenses] * len(streams)
+    if len(lenses) != len(streams):
+        raise ConfigError(f"--camera given {len(lenses)} time(s) for {len(streams)} input(s); "
+                          "give one camera model per input, or one for all")
+    cams = []
+    for cal, st, lens in zip(calibrations, streams, lenses):
+        lens = _as_lens(lens)
+        if lens is not None and tuple(lens.image_size) != tuple(st.image_size):
+            raise ConfigError(f"{st.path}: frames are {st.image_size[0]}x{st.image_size[1]} px but the camera model "
+                              f"is for {lens.image_size[0]}x{lens.image_size[1]} px; calibrate the lens at the "
+                              "resolution of the video")
+        cal = fit_calibration(_as_calibration(cal), st.image_size, str(st.path), notes=getattr(st, "warnings", None))
+        cams.append(Camera(cal, st.image_size, name=str(st.path), lens=lens))
+    return cams
+
+
+def fit_calibration(cal, frame_size, source: str = "INPUT", notes: list | None = None):
+    """The calibration for frames of ``frame_size`` (w, h) px.
+
+    A calibration that knows its image size and matches is returned as is; one made at another
+    resolution of the same shape (aspect within 0.5 %) gets its homography scaled (pixel
+    centres: ``u' + ½ = s (u + ½)``) and a note in ``notes``; another shape is a one-line
+    :class:`ConfigError`. Without a size, calibration points beyond the frame are a
+    :class:`ConfigError` too (a calibration made for larger frames).
+    """
+    w, h = int(frame_size[0]), int(frame_size[1])
+    size = getattr(cal, "image_size", None)
+    if size is not None and tuple(size) != (w, h):
+        cw, ch = size
+        s = w / cw
+        if abs(h / ch - s) > 0.005 * s:
+            raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration was made on {cw}x{ch} px "
+                              "images of another shape; calibrate at the resolution of the video")
+        from ..camera.homography import Calibration
+        c = 0.5 / s - 0.5
+        A = np.array([[1.0 / s, 0.0, c], [0.0, 1.0 / s, c], [0.0, 0.0, 1.0]])     # new px -> old px
+        Hwi = cal.H_world_image @ A
+        Hwi = Hwi / Hwi[2, 2]
+        Hiw = np.linalg.inv(Hwi)
+        ext = None if cal.points_extent is None else tuple(s * (v + 0.5) - 0.5 for v in cal.points_extent)
+        if notes is not None:
+            notes.append(f"{source}: the calibration was made on {cw}x{ch} px images, frames are {w}x{h} px: "
+                         f"its homography is scaled by {s:g}")
+        return Calibration(Hiw / Hiw[2, 2], Hwi, cal.rms_px * s, cal.rms_world, cal.inliers, cal.n_points, cal.camera,
+                           (w, h), ext, cal.status, cal.reasons, cal.rms_all_px * s)
+    ext = getattr(cal, "points_extent", None)
+    if size is None and ext is not None and (ext[2] > w - 0.5 + 1.0 or ext[3] > h - 0.5 + 1.0):
+        raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration points reach u={ext[2]:.0f}, "
+                          f"v={ext[3]:.0f} px; was the calibration made at another resolution?")
+    return cal
+
+
+def make_detectors(dots, n: int, detector_options: dict | None = None):
+    """``n`` detectors for ``dots`` (None: the defaults of :func:`track_frames`)."""
+    if detector_options is None:
+        return None
+    from ..detect.dots import DotDetector
+    from ..detect.lines import LineDetector
+    if dots == LINE_DOTS:
+        if detector_options.get("method") == "dotted":          # the §III-C dotted line
+            from .linetrack import DottedLineDetector
+            rest = {k: v for k, v in detector_options.items() if k != "method"}
+            return [DottedLineDetector(**rest) for _ in range(n)]
+        return [LineDetector(**detector_options) for _ in range(n)]
+    return [DotDetector(colors=dots, **detector_options) for _ in range(n)]
+
+
+def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, fps: float | None = None,
+                config: TrackerConfig | None = None, border_margin_px: float = 20.0, use_roi: bool = True,
+                detector_options: dict | None = None, progress=None, camera=None, on_row=None,
+                loop: int = 1, max_frames: int | None = None, live: bool = False, scene=None) -> TrackResult:
+    """Track the laser dot(s) in a video, a folder of images, a camera or a stream per calibrated camera.
+
+    Parameters
+    ----------
+    sources : path, str, int, or a sequence of them
+        Video file or image folder of each camera (case D: several, synchronised
+        frame by frame; the shortest one ends the track), or a camera index (``0``), a
+        device (``/dev/video0``) or a stream URL (``rtsp://``, ``http://``): live input,
+        time-stamped with the capture clock.
+    calibrations : Calibration, path, or sequence of them
+        One per source (``load_calibration`` JSON or a ``Calibration``); with ``camera``, the
+        homography maps undistorted pixels.
+    dots : str or sequence of str
+        ``"red"`` / ``("red",)`` (case A) or ``"red,green"`` (case B, heading).
+    fps : float, optional
+        Frame rate for the timestamps of files (default: from the container, else 15).
+    config : TrackerConfig, optional
+    border_margin_px, use_roi :
+        As in :func:`track_frames`.
+    detector_options : dict, optional
+        Keyword arguments of every ``DotDetector``.
+    progress : callable, optional
+    camera : CameraModel, path, or sequence of them, optional
+        Lens model(s) (``posekit ceiling camera``): dot centroids are undistorted before the
+        homography.
+    on_row : callable, optional
+        Called with each row as soon as its frame is done.
+    loop, max_frames, live :
+        Passes over a video file played live, a frame limit (every kind of source), and
+        whether to read a file through the live path (:func:`~posekit.ceiling.track.sources.open_live`).
+    scene : path, or a sequence of them (one per source), optional
+        Scene file(s) of ``posekit ceiling learn-scene``: the static lights, known from the
+        first frame. Default: learned online.
+
+    Returns
+    -------
+    TrackResult
+        Iterable over its rows (:class:`~posekit.ceiling.track.TrackRow`); ``warnings``
+        lists what the input sources reported (a video shorter than its header says).
+
+    Raises
+    ------
+    InputFileError
+        A source cannot be read (see :func:`~posekit.ceiling.video_io.open_frames`).
+    CalibrationError or InputFileError
+        A calibration or camera file is missing or malformed.
+    ConfigError
+        Sources and calibrations differ in number, bad ``dots`` or ``fps``.
+    """
+    dots = parse_dots(dots)
+    if isinstance(sources, (str, Path, int)):
+        sources = [sources]
+    if not isinstance(calibrations, (list, tuple)):
+        calibrations = [calibrations]
+    if len(sources) != len(calibrations):
+        raise ConfigError(f"track_video: {len(sources)} input(s) but {len(calibrations)} calibration(s); "
+                          "give one calibration per camera")
+    cals = [_as_calibration(c) for c in calibrations]
+    scenes = _as_scenes(scene, len(sources))
+    streams = open_sources(sources, fps, loop=loop, max_frames=max_frames, live=live)
+    cameras = make_cameras(streams, cals, camera)
+    for (lights, size, name), st in zip(scenes, streams):
+        if size is not None and tuple(size) != tuple(st.image_size):
+            raise ConfigError(f"{name}: the scene was learned on {size[0]}x{size[1]} px frames, {st.path} has "
+                              f"{st.image_size[0]}x{st.image_size[1]} px; learn it from this camera at this resolution")
+    detectors = make_detectors(dots, len(cameras), detector_options)
+    result = track_frames(frame_groups(streams), cameras, dots, config=config, detectors=detectors,
+                          border_margin_px=border_margin_px, use_roi=use_roi, progress=progress, on_row=on_row,
+                          scenes=None if scene is None else [s[0] for s in scenes])
+    result.fps_source = streams[0].fps_source
+    result.warnings = [w for st in streams for w in st.warnings]
+    return result
+
+
+def _as_scenes(scene, n: int) -> list:
+    """Per source ``(lights or None, image_size or None, name)`` from ``track_video``'s ``scene``."""
+    if scene is None:
+        return [(None, None, "")] * n
+    items = list(scene) if isinstance(scene, (list, tuple)) else [scene]
+    if len(items) == 1:
+        items = items * n
+    if len(items) != n:
+        raise ConfigError(f"--scene given {len(items)} time(s) for {n} input(s); give it once for all inputs or "
+                          "once per input")
+    from ..detect.scene import load_scene
+    out = []
+    for s in items:
+        lights, size = load_scene(s)
+        out.append((lights, size, str(s)))
+    return out
+
+
+def write_track_csv(rows: Iterable[TrackRow], path: str | Path) -> Path:
+    """Write ``frame,time_s,x,y,heading_deg,status,std_mm,std_heading_deg,reason`` (mm, s,
+    degrees; NaN as empty)."""
+    from ...io import atomic_file
+
+    path = Path(path)
+    with atomic_file(path, "w", newline="") as fh:  # complete or absent, never half-written
+        w = csv.writer(fh)
+        w.writerow(TRACK_COLUMNS)
+        for r in rows:
+            w.writerow(r.csv_fields())
+    return path
+
+
+def read_track_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a track CSV back: ``{column: array}`` (empty fields become NaN).
+
+    Raises
+    ------
+    InputFileError
+        Missing file or header other than
+        ``frame,time_s,x,y,heading_deg,status[,std_mm[,std_heading_deg,reason]][,robot]``
+        (a column a file lacks reads as NaN, or "" for ``reason``).
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            body = list(reader)
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read track CSV ({exc.strerror or exc})") from None
+    names = tuple(h.strip() for h in header) if header is not None else ()
+    if names not in (TRACK_COLUMNS, LEGACY_TRACK_COLUMNS, EARLIER_TRACK_COLUMNS, TRACK_COLUMNS + ("robot",),
+                     EARLIER_TRACK_COLUMNS + ("robot",)):
+        raise InputFileError(f"{path}: expected header {','.join(TRACK_COLUMNS)}, got {','.join(header or [])!r}")
+    bad = next((k for k, r in enumerate(body) if len(r) != len(names)), None)
+    if bad is not None:
+        raise InputFileError(f"{path}: line {bad + 2} has {len(body[bad])} fields, expected {len(names)}")
+    cols = list(zip(*body)) if body else [()] * len(names)
+    out = {}
+    for name, col in zip(names, cols):
+        if name in ("status", "reason"):
+            out[name] = np.array(col, dtype=str)
+        elif name in ("frame", "robot"):
+            out[name] = np.array([int(v) for v in col], dtype=int)
+        else:
+            out[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
+    for name in ("std_mm", "std_heading_deg"):
+        if name not in out:
+            out[name] = np.full(len(body), np.nan)
+    if "reason" not in out:
+        out["reason"] = np.full(len(body), "", dtype=str)
+    return out

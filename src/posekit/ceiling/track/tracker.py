@@ -1,0 +1,633 @@
+"""Motion filter for the laser dots on the ceiling (the filter of the paper's future work).
+
+One constant-velocity Kalman filter per dot colour in the world (ceiling) plane, mm:
+state ``[x, y, vx, vy]``, continuous white-noise acceleration of spectral density
+``accel_psd_mm2_s3`` (a ground robot: smooth motion, turns of a few hundred mm/s²), a
+measurement covariance per detection (from the calibration's reprojection rms pushed
+through the local Jacobian of the image-to-world homography, scaled up when the
+measurements jitter more than that), and a Mahalanobis gate (χ², 2 dof) that rejects
+outliers such as reflections. A detection that fails the gate but lies within
+``gate_floor_mm`` of the prediction is a manoeuvre (the robot stopped, started or turned
+abruptly), not an outlier: the covariance is inflated and the filter follows it at once.
+
+Never ``ok`` on anything but the laser dot (DESIGN.md "Trust"): the gate never reaches
+farther than the robot can move since its last accepted position (``max_speed_mm_s``),
+however long the prediction ran; candidates carry the detector's verification
+(``eligible``: not a learned static light, a laser-like signature) and only verified ones
+start, resume or re-acquire a track; a track that coasted must see its dot moving as
+predicted (or still where it was last seen) before it is ``ok`` again; a lost track (or one
+whose candidates were all rejected ``reinit_after`` times) restarts only on a lone verified
+candidate that has been seen moving — never on the nearest of several blobs, never on a
+static one. A lone verified candidate within reach right after a sharp turn is taken in the
+same frame.
+
+Status of a frame, for the primary dot (red; its x, y are the track):
+
+``ok``
+    a dot was measured **and accepted** this frame; x, y is the filtered estimate.
+``suspect``
+    a dot was accepted, but another verified, moving laser-like spot is in view outside the
+    gate: which of the two is the laser cannot be told (``reasons`` says where the other is).
+``predicted``
+    no accepted dot this frame (the dot fell into an air-conditioning hole, was occluded
+    or gated out) and the last accepted one is at most ``max_predict_s`` old; x, y is the
+    constant-velocity prediction, and its ``std_mm`` grows with the time coasted by
+    ``coast_speed_share`` of the distance travelled (the robot may stop or turn unseen).
+``lost``
+    no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
+    (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
+
+A row is never ``ok`` without a dot. Heading (case B of the paper) is the direction from
+the red to the green dot, filtered by a circular constant-turn-rate filter on the unwrapped
+angle (innovations wrapped to (-π, π]), with its 1σ (``std_heading_deg``, from the two dots'
+covariances: ``σθ² = n̂ᵀ(R_red + R_green)n̂ / d²``); a measured direction more than 3σ from
+the filter's prediction (a turn on the spot) restarts the filter on the measurement, so the
+heading of a frame whose two dots were measured never lies more than 3σ from what they say.
+NaN with one dot, or when the green or red dot has not been seen for ``max_predict_s``.
+
+Every row carries ``reasons``: why it is not ``ok``.
+
+:class:`Tracker` works on world measurements (no video needed).
+:class:`~posekit.ceiling.cameras.MultiCameraTracker` (case D, :mod:`posekit.ceiling.cameras`;
+also importable from here) takes image detections from several calibrated cameras, maps them to the world,
+picks one camera per frame (the active one while its dot stays clear of the image border,
+else the one whose dot is farthest from its border) and feeds one :class:`Tracker`.
+"""
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ...errors import GeometryError, TrajectoryError
+from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
+from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
+
+__all__ = [
+    "STATUSES",
+    "TrackerConfig",
+    "TrackRow",
+    "DotState",
+    "HeadingState",
+    "Tracker",
+    "cv_predict",
+    "kf_update",
+]
+
+
+# --- the world-plane tracker ---------------------------------------------------------------
+
+def _as_candidates(value, colour: str) -> np.ndarray:
+    """(K, 2) float array of candidate world positions (K may be 0)."""
+    if value is None:
+        return np.zeros((0, 2))
+    z = np.asarray(value, dtype=float)
+    if z.ndim == 1 and z.shape == (2,):
+        z = z[None, :]
+    if z.ndim != 2 or z.shape[1] != 2:
+        raise GeometryError(f"Tracker.step: dots_world[{colour!r}] must have shape (2,) or (K, 2) "
+                            f"(x, y in mm), got shape {np.shape(value)}")
+    return z[np.all(np.isfinite(z), axis=1)]
+
+
+def _as_eligible(value, raw, k: int) -> np.ndarray:
+    """(K,) bool flags of the finite candidates (all True by default)."""
+    if value is None:
+        return np.ones(k, bool)
+    e = np.asarray(value, dtype=bool).reshape(-1)
+    if raw is not None:
+        zr = np.asarray(raw, dtype=float).reshape(-1, 2)
+        if e.shape[0] == zr.shape[0]:
+            e = e[np.all(np.isfinite(zr), axis=1)]
+    if e.shape[0] != k:
+        raise GeometryError(f"Tracker.step: eligible flags for {e.shape[0]} candidate(s), expected {k}")
+    return e
+
+
+def _as_covariances(value, k: int, colour: str, default_std: float, floor: float) -> np.ndarray:
+    """(K, 2, 2) measurement covariances (default isotropic), floored at ``floor²``."""
+    if value is None:
+        R = np.broadcast_to(default_std ** 2 * np.eye(2), (k, 2, 2)).copy()
+    else:
+        R = np.asarray(value, dtype=float)
+        if R.shape == (2, 2):
+            R = np.broadcast_to(R, (k, 2, 2)).copy()
+        if R.shape != (k, 2, 2) or not np.all(np.isfinite(R)):
+            raise GeometryError(f"Tracker.step: meas_cov[{colour!r}] must be finite with shape (2, 2) "
+                                f"or ({k}, 2, 2) (mm²), got shape {np.shape(value)}")
+    return R + floor ** 2 * np.eye(2)
+
+
+class Tracker:
+    """Constant-velocity Kalman tracking of the laser dot(s) in the world plane.
+
+    Parameters
+    ----------
+    config : TrackerConfig, optional
+        Tuning; ``config.dots`` names the tracked colours, the first is the track.
+
+    Examples
+    --------
+    >>> tr = Tracker(TrackerConfig(dots=("red",)))
+    >>> tr.step(0.0, {"red": [100.0, 200.0]}).status     # seen once: not yet the laser
+    'lost'
+    >>> tr.step(1 / 15, {"red": [120.0, 200.0]}).status  # moving: a laser on a robot
+    'ok'
+    >>> tr.step(0.1, {}).status                          # dropout: constant-velocity prediction
+    'predicted'
+    >>> tr.step(1.2, None).status                        # longer than max_predict_s
+    'lost'
+    """
+
+    def __init__(self, config: TrackerConfig | None = None):
+        self.config = TrackerConfig() if config is None else config
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every dot and the heading (the next detection re-initialises)."""
+        self.states = {c: DotState() for c in self.config.dots}
+        self.heading = HeadingState()
+        self._sep = (0, 0.0, 0.0)           # separation of the two dots: count, mean, sum of squares (Welford)
+        self.frame = 0
+        self.t_s = float("nan")
+        self._pred_cache = None
+
+    # -- queries ---------------------------------------------------------------------------
+    def _alive(self, st: DotState, t_s: float) -> bool:
+        return st.x is not None and t_s - st.t_meas_s <= self.config.max_predict_s + 1e-9
+
+    def predict(self, t_s: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Predicted position of each live dot at ``t_s`` without changing the state.
+
+        Returns
+        -------
+        dict
+            ``{colour: (xy, cov)}`` with ``xy`` shape (2,) in mm and ``cov`` shape (2, 2)
+            in mm², for every dot that is not lost at ``t_s`` (used to place the
+            detector's region of interest and to choose a camera).
+        """
+        if self._pred_cache is not None and self._pred_cache[0] == t_s:
+            return dict(self._pred_cache[1])
+        out = {}
+        for c, st in self.states.items():
+            if self._alive(st, t_s):
+                x, P = cv_predict(st.x, st.P, max(t_s - st.t_s, 0.0), self.config.accel_psd_mm2_s3)
+                out[c] = (x[:2], P[:2, :2])
+        self._pred_cache = (t_s, out)
+        return dict(out)
+
+    def pending(self) -> dict[str, np.ndarray]:
+        """``{colour: xy (2,) mm}`` of a candidate the tracker is watching to resume a coasting
+        dot (seen once, waiting to be confirmed); it is not a stray light."""
+        return {c: st.pending[1].copy() for c, st in self.states.items() if st.pending is not None}
+
+    # -- one frame -------------------------------------------------------------------------
+    def step(self, t_s: float, dots_world: Mapping | np.ndarray | None,
+             meas_cov: Mapping | None = None, *, frame: int | None = None,
+             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None) -> TrackRow:
+        """Advance to ``t_s`` and fuse this frame's detections.
+
+        Parameters
+        ----------
+        t_s : float
+            Frame time, s; must not decrease from one call to the next.
+        dots_world : mapping, ndarray or None
+            ``{colour: xy}`` with ``xy`` shape (2,) or (K, 2): candidate positions of that
+            dot in the world plane, mm (K candidates: the one closest to the prediction
+            in Mahalanobis distance is used; before the first fix, the first one). A bare
+            array means the primary colour; None or ``{}`` means no dot this frame.
+        meas_cov : mapping, optional
+            ``{colour: R}`` with ``R`` shape (2, 2) or (K, 2, 2): measurement covariance
+            of each candidate, mm². Default ``config.meas_std_mm²·I``.
+        frame : int, optional
+            Frame index of the row (default: a counter starting at 0).
+        camera : int
+            Recorded in the row.
+        eligible : mapping, optional
+            ``{colour: (K,) bool}``: which candidates passed the detector's verification
+            (not a learned static light, a laser-like signature). Only eligible candidates
+            start or re-acquire a track, and only they continue one that has been coasting;
+            an ineligible one continues a track only inside the χ² gate of the very next
+            frame (the dot passing over a lamp). Default: all eligible.
+        moving : mapping, optional
+            ``{colour: (K,) bool}``: which candidates a test over several frames found moving
+            (:class:`~posekit.ceiling.detect.scene.StaticLights`). When given, a lost dot is
+            re-acquired only on the one eligible candidate found moving, and a track is
+            ``suspect`` while another eligible moving candidate is in view outside its gate.
+            Default: the tracker's own test (chained motion of at least ``min_move_mm``).
+
+        Returns
+        -------
+        TrackRow
+            ``ok`` only if a primary dot was measured and accepted this frame.
+
+        Raises
+        ------
+        TrajectoryError
+            ``t_s`` is not finite or goes back in time.
+        GeometryError
+            A candidate array or covariance has the wrong shape.
+        """
+        cfg = self.config
+        t_s = float(t_s)
+        if not np.isfinite(t_s):
+            raise TrajectoryError(f"Tracker.step: frame time must be finite, got {t_s}")
+        if np.isfinite(self.t_s) and t_s < self.t_s:
+            raise TrajectoryError(f"Tracker.step: frame time went back from {self.t_s:.6f} s to {t_s:.6f} s")
+        if dots_world is None:
+            dots_world = {}
+        elif not isinstance(dots_world, Mapping):
+            dots_world = {cfg.dots[0]: dots_world}
+        unknown = set(dots_world) - set(cfg.dots)
+        if unknown:
+            raise GeometryError(f"Tracker.step: dot colour(s) {sorted(unknown)} are not tracked; "
+                                f"tracked: {list(cfg.dots)}")
+        meas_cov = {} if meas_cov is None else meas_cov
+        self.t_s = t_s
+        self._pred_cache = None
+        frame = self.frame if frame is None else int(frame)
+        self.frame = frame + 1
+
+        measured, dots, why = {}, {}, {}
+        for c in cfg.dots:
+            z = _as_candidates(dots_world.get(c), c)
+            R = _as_covariances(meas_cov.get(c), len(z), c, cfg.meas_std_mm, cfg.min_meas_std_mm)
+            el = _as_eligible(None if eligible is None else eligible.get(c), dots_world.get(c), len(z))
+            mv = None
+            if moving is not None and c in moving:
+                mv = _as_eligible(moving[c], dots_world.get(c), len(z)) & el
+            st = self.states[c]
+            had = st.x is not None and self._alive(st, t_s)
+            accepted = self._update_dot(st, t_s, z, R, el, mv)
+            if accepted is not None:
+                measured[c] = accepted
+                other = self._rival(st, z, R, mv, accepted[0])
+                if st.probation is not None and other is not None:
+                    st.probation = (st.probation[0], st.probation[1], True)
+                if st.probation is not None and (t_s <= st.probation[0] + 1e-9 or st.probation[2]):
+                    why[c] = (f"re-acquired {st.probation[1]:.0f} mm from where the track was predicted"
+                              + ("; another moving laser-like spot was seen since: which is the laser cannot be told"
+                                 if st.probation[2] else
+                                 f" ({cfg.max_predict_s:g} s of probation: the previous dot may only be hidden)"),)
+                elif other is not None:
+                    why[c] = (f"another moving laser-like spot at ({other[0]:.0f}, {other[1]:.0f}) mm, outside the "
+                              "gate: which is the laser cannot be told",)
+            else:
+                why[c] = self._why_not(st, t_s, len(z), had, el, mv)
+        self._rigid_second_dot(t_s, dots_world, meas_cov, eligible, measured, why)
+        for c in cfg.dots:
+            st = self.states[c]
+            if c in measured:
+                status = "suspect" if c in why else "ok"
+            elif self._alive(st, t_s):
+                status = "predicted"
+            else:
+                status = "lost"
+                st.x = st.P = None
+            xy = st.x[:2].copy() if st.x is not None else np.full(2, np.nan)
+            dots[c] = (float(xy[0]), float(xy[1]), status)
+
+        heading, heading_std = self._update_heading(t_s, measured)
+        main = self.states[cfg.dots[0]]
+        x, y, status = dots[cfg.dots[0]]
+        std = self._std_mm(main, t_s) if main.x is not None else float("nan")
+        return TrackRow(frame=frame, time_s=t_s, x=x, y=y, heading_deg=heading, status=status, std_mm=std,
+                        std_heading_deg=heading_std, reasons=tuple(why.get(cfg.dots[0], ())),
+                        camera=camera if measured else -1,
+                        measured={c: (float(v[0]), float(v[1])) for c, (v, _) in measured.items()},
+                        dots=dots)
+
+    def _rigid_second_dot(self, t_s, dots_world, meas_cov, eligible, measured, why) -> None:
+        """The two lasers sit on one robot: their distance is fixed. When the first dot was
+        accepted and the second was not (a turn on the spot swings it far outside its own gate),
+        a lone eligible candidate of the second colour at that distance (within 3σ of the
+        separation measured so far, at least ``gate_floor_mm / 2``) is the second dot: its filter
+        restarts there, so the heading follows what the two dots measure. The separation is
+        learned from the frames where both were accepted."""
+        cfg = self.config
+        if len(cfg.dots) < 2:
+            return
+        c0, c1 = cfg.dots[0], cfg.dots[1]
+        if c0 in measured and c1 in measured:
+            d = float(np.hypot(*(measured[c1][0] - measured[c0][0])))
+            n, m, v = self._sep
+            n += 1
+            dm = d - m
+            m += dm / n
+            self._sep = (n, m, v + dm * (d - m))
+            return
+        n, m, v = self._sep
+        if c0 not in measured or c1 in measured or n < 5:
+            return
+        z = _as_candidates(dots_world.get(c1), c1)
+        if len(z) == 0:
+            return
+        el = _as_eligible(None if eligible is None else eligible.get(c1), dots_world.get(c1), len(z))
+        R = _as_covariances((meas_cov or {}).get(c1), len(z), c1, cfg.meas_std_mm, cfg.min_meas_std_mm)
+        sd = max(3.0 * float(np.sqrt(v / (n - 1))), cfg.gate_floor_mm / 2.0)
+        dist = np.hypot(*(z - measured[c0][0]).T)
+        at = np.flatnonzero(el & (np.abs(dist - m) <= sd))
+        if len(at) != 1:
+            return
+        k = int(at[0])
+        st = self.states[c1]
+        self._start(st, t_s, z[k], R[k] * st.noise_scale)
+        measured[c1] = (z[k], R[k])
+        why.pop(c1, None)
+
+    def _coast_var(self, st: DotState, t_s: float) -> float:
+        """Variance per axis (mm²) of the manoeuvre a robot may make unseen since the last
+        accepted dot: ``(coast_speed_share · |v| · t)²``."""
+        since = t_s - st.t_meas_s
+        if st.x is None or not np.isfinite(since) or since <= 0:
+            return 0.0
+        return (self.config.coast_speed_share * float(np.hypot(*st.x[2:])) * since) ** 2
+
+    def _std_mm(self, st: DotState, t_s: float) -> float:
+        """1σ of the position (largest axis), the coasting manoeuvre included, mm."""
+        return float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+
+    def _rival(self, st: DotState, z: np.ndarray, R: np.ndarray, moving, accepted_z):
+        """An eligible, moving candidate outside the gate of the accepted one (or None)."""
+        if moving is None or not moving.any():
+            return None
+        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
+        far = moving & (d2 > self.config.gate_chi2) & (np.hypot(*(z - accepted_z).T) > self.config.gate_floor_mm)
+        if not far.any():
+            return None
+        return z[int(np.flatnonzero(far)[0])]
+
+    def _why_not(self, st: DotState, t_s: float, n: int, had: bool, eligible, moving) -> tuple:
+        """The reason of a row without an accepted dot."""
+        if self._alive(st, t_s):
+            since = t_s - st.t_meas_s
+            if n == 0:
+                return (f"no dot seen this frame; predicted {since:.2f} s after the last one",)
+            if st.pending is not None:
+                return (f"a candidate near the prediction waits to be seen moving with the track ({since:.2f} s "
+                        "coasted)",)
+            return (f"{n} candidate(s), none inside the gate of the prediction ({since:.2f} s coasted)",)
+        if had:
+            return (f"no dot accepted for more than {self.config.max_predict_s:g} s",)
+        if n == 0:
+            return ("no dot seen",)
+        k = int(np.count_nonzero(eligible))
+        if moving is not None:
+            m = int(np.count_nonzero(moving))
+            if m > 1:
+                return (f"{m} moving laser-like spots: which is the laser cannot be told",)
+            return (f"{n} candidate(s), {k} laser-like, none seen moving yet (static lights are never acquired)",)
+        return (f"{n} candidate(s), {k} laser-like, none seen moving by {self.config.min_move_mm:g} mm yet",)
+
+    def _start(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray) -> None:
+        st.pending = st.seen = st.probation = None
+        st.x = np.array([z[0], z[1], 0.0, 0.0])
+        st.P = np.zeros((4, 4))
+        st.P[:2, :2] = R
+        st.P[2:, 2:] = self.config.init_speed_std_mm_s ** 2 * np.eye(2)
+        st.t_meas_s, st.n_rejected, st.last_d2 = t_s, 0, 0.0
+        st.z_meas = np.array(z, dtype=float)
+
+    def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
+                    moving: np.ndarray | None = None):
+        """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None.
+
+        While the track is fresh (the previous frame was accepted): (1) the candidate of
+        smallest Mahalanobis distance inside the χ² gate and within physical reach of the last
+        accepted position; else (2) a verified candidate within ``gate_floor_mm`` of the
+        prediction (a manoeuvre: the covariance is inflated); else (3) the only verified
+        candidate, if within reach (a sharp turn: the filter restarts there in this frame).
+
+        While it coasts (no dot for a while): only verified candidates inside the gate count,
+        and after ``confirm_after_s`` of coasting one sighting is not enough — the next frame
+        must show the candidate moving as the track was (a static lamp or glint that appears
+        where the dot is expected is not the dot).
+
+        When lost, or after ``reinit_after`` frames of rejected candidates: the one verified
+        candidate that moved by at least ``min_move_mm`` (and at most the reach) since the
+        previous frame's verified candidates starts the track — or the one that stayed still
+        within ``gate_floor_mm`` of where the dot was last accepted (the robot stopped while
+        hidden). Never a static blob elsewhere, never the nearest of several; two moving
+        candidates are ambiguous and start nothing.
+        """
+        cfg = self.config
+        if st.x is not None and not self._alive(st, t_s):
+            st.x = st.P = None                      # lost: the next detection starts afresh
+        dt_pred = max(t_s - st.t_s, 0.0) if np.isfinite(st.t_s) else 0.0
+        if st.x is not None:
+            st.x, st.P = cv_predict(st.x, st.P, dt_pred, cfg.accel_psd_mm2_s3)
+        st.t_s = t_s
+        if len(z) == 0:
+            st.last_d2 = float("nan")
+            return None
+        R = R * st.noise_scale
+        if st.x is None:
+            return self._acquire(st, t_s, z, R, eligible, moving)
+        since = t_s - st.t_meas_s
+        fresh = since <= 1.5 * dt_pred + 1e-9
+        reach = cfg.gate_floor_mm + cfg.max_speed_mm_s * since
+        dist_last = np.hypot(*(z - st.z_meas).T) if st.z_meas is not None else np.zeros(len(z))
+        dist_pred = np.hypot(*(z - st.x[:2]).T)
+        coast = 0.0 if fresh else self._coast_var(st, t_s)
+        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R + coast * np.eye(2))
+        st.last_d2 = float(d2.min())
+        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach)
+        near = eligible & (dist_pred <= cfg.gate_floor_mm)
+        lone = np.flatnonzero(eligible)
+        if fresh:
+            if in_gate.any():
+                k = int(np.argmin(np.where(in_gate, d2, np.inf)))
+                self._fuse(st, z[k], R[k], t_s=t_s)
+                return self._accepted(st, t_s, z[k], R[k])
+            if near.any():                          # a manoeuvre: inflate until consistent
+                k = int(np.argmin(np.where(near, d2, np.inf)))
+                self._fuse(st, z[k], R[k], inflate=d2[k] / cfg.gate_chi2, t_s=t_s)
+                return self._accepted(st, t_s, z[k], R[k])
+            if len(lone) == 1 and dist_last[lone[0]] <= reach:     # a sharp turn, unambiguous
+                k = int(lone[0])
+                self._start(st, t_s, z[k], R[k])
+                return z[k], R[k]
+        else:
+            rest = dist_last <= cfg.gate_floor_mm       # where the dot was last seen (the robot stopped)
+            usable = (in_gate | near | rest) & eligible
+            if usable.any():
+                k = int(np.argmin(np.where(usable, d2, np.inf)))
+                if (cfg.min_move_mm == 0 or (since <= cfg.confirm_after_s + 1e-9 and (in_gate[k] or near[k]))
+                        or self._moves_with_track(st, t_s, z[k]) or self._rests_where_last_seen(st, t_s, z[k])):
+                    self._fuse(st, z[k], R[k], t_s=t_s)
+                    st.pending = None
+                    return self._accepted(st, t_s, z[k], R[k])
+                st.pending = (t_s, z[k].copy())
+                return None
+        st.n_rejected += 1
+        if st.n_rejected < cfg.reinit_after:
+            return None
+        pred = st.x[:2].copy()
+        got = self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
+            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - pred))), False)
+        return got
+
+    def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
+        st.t_meas_s, st.n_rejected = t_s, 0
+        st.z_meas = np.array(z, dtype=float)
+        return z, R
+
+    def _moves_with_track(self, st: DotState, t_s: float, z: np.ndarray) -> bool:
+        """True if the pending sighting and ``z`` move as the coasting track predicts."""
+        if st.pending is None:
+            return False
+        t0, z0 = st.pending
+        dt = t_s - t0
+        if not 0 < dt <= 0.5:
+            return False
+        v_obs = (z - z0) / dt
+        v_pred = st.x[2:]
+        speed = float(np.hypot(*v_pred))
+        return float(np.hypot(*(v_obs - v_pred))) <= max(self.config.min_move_mm / dt, 0.5 * speed)
+
+    def _rests_where_last_seen(self, st: DotState, t_s: float, z: np.ndarray) -> bool:
+        """True if the pending sighting and ``z`` are the same still blob, within
+        ``gate_floor_mm`` of the last accepted position (the robot stopped while its dot was
+        hidden, e.g. turning on the spot behind an occluder)."""
+        if st.pending is None or st.z_meas is None:
+            return False
+        t0, z0 = st.pending
+        return (0 < t_s - t0 <= 1.0 and float(np.hypot(*(z - z0))) < self.config.min_move_mm
+                and float(np.hypot(*(z - st.z_meas))) <= self.config.gate_floor_mm)
+
+    def _acquire(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
+                 moving: np.ndarray | None = None):
+        """Start the track on the one verified candidate seen moving (or still where the dot
+        was last accepted) over the last second; None while there is none, or more than one.
+
+        With ``moving`` (the caller's test over several frames), the candidates it found
+        moving replace the chain test below for "moving"; "resting" is still the chain's.
+
+        Each current candidate is chained back through the verified candidates of the
+        previous frames (nearest within reach at each step, at most 1 s back); it is moving
+        when the chain's far end is at least ``min_move_mm`` away (a slow robot qualifies after
+        a few frames, a static lamp never), resting when the chain is at least two frames long,
+        still, and within ``gate_floor_mm`` of the last accepted position.
+        """
+        cfg = self.config
+        cand = np.flatnonzero(eligible)
+        if cfg.min_move_mm == 0:                    # no confirmation asked for: a lone one starts at once
+            if len(cand) != 1:
+                return None
+            k = int(cand[0])
+            self._start(st, t_s, z[k], R[k])
+            return z[k], R[k]
+        hist = [h for h in (st.seen or []) if 0 < t_s - h[0] <= 1.0]
+        st.seen = hist + [(t_s, z[cand].copy())]
+        if len(cand) == 0 or (not hist and (moving is None or not moving.any())):
+            return None
+        moving_chain, resting, vel = [], [], []
+        for k in cand:
+            p, t_p, length = z[k], t_s, 0
+            far = p
+            for t_h, z_h in reversed(hist):
+                if len(z_h) == 0:
+                    break
+                d = np.hypot(*(z_h - p).T)
+                m = int(np.argmin(d))
+                if d[m] > cfg.gate_floor_mm + cfg.max_speed_mm_s * (t_p - t_h):
+                    break
+                p, t_p, length = z_h[m], t_h, length + 1
+                far = p
+            move = float(np.hypot(*(z[k] - far)))
+            moving_chain.append(length >= 1 and move >= cfg.min_move_mm)
+            resting.append(length >= 2 and move < cfg.min_move_mm and st.z_meas is not None
+                           and float(np.hypot(*(z[k] - st.z_meas))) <= cfg.gate_floor_mm)
+            vel.append((z[k] - far) / max(t_s - t_p, 1e-9))
+        chain = list(moving_chain)
+        if moving is not None:                      # the caller's test over several frames
+            moving_chain = [bool(moving[k]) for k in cand]
+        ok = np.array(moving_chain) | np.array(resting)
+        if np.count_nonzero(ok) != 1:
+            return None
+        n = int(np.flatnonzero(ok)[0])
+        k = int(cand[n])
+        self._start(st, t_s, z[k], R[k])
+        if chain[n]:
+            st.x[2:] = vel[n]
+        return z[k], R[k]
+
+    def _fuse(self, st: DotState, z: np.ndarray, R: np.ndarray, inflate: float = 1.0,
+              t_s: float | None = None) -> None:
+        """Kalman update (the prior covariance inflated by ``inflate`` for a manoeuvre), and the
+        running scale of the measurement noise.
+
+        The scale comes from the jitter of the accepted measurements themselves: for three
+        consecutive, evenly spaced ones the second difference ``z₀ - 2 z₁ + z₂`` has covariance
+        ``6 σ² I`` (plus the motion's ``a Δt²``, which only errs on the safe side), so
+        ``σ² ≈ median |Δ²z|² / (6 · 2 ln 2)`` over the last 25; ``scale = σ² / (tr R / 2)``, at
+        least 1. Unlike innovation statistics it does not depend on the process noise, which
+        dominates the prediction at 15 frames/s.
+        """
+        if inflate > 1.0:
+            st.P = st.P * inflate
+        st.x, st.P = kf_update(st.x, st.P, z, R)
+        if not self.config.adapt_noise or t_s is None:
+            return
+        hist = st.noise_stats
+        if hist is None:
+            hist = st.noise_stats = {"z": [], "d2": []}
+        zs = hist["z"]
+        if zs:
+            gap = t_s - zs[-1][0]
+            prev = zs[-1][0] - zs[-2][0] if len(zs) > 1 else gap
+            if not 0 < gap <= 1.5 * prev:            # not consecutive frames: start again
+                zs.clear()
+        zs.append((t_s, np.array(z, dtype=float)))
+        if len(zs) == 3:
+            (t0, z0), (t1, z1), (t2, z2) = zs
+            if abs((t2 - t1) - (t1 - t0)) <= 0.2 * (t1 - t0):
+                dd = z0 - 2.0 * z1 + z2
+                hist["d2"].append(float(dd @ dd))
+                del hist["d2"][:-25]
+            zs.pop(0)
+        if len(hist["d2"]) >= 8:
+            var = float(np.median(hist["d2"])) / (6.0 * 2.0 * np.log(2.0))
+            trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
+            st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
+
+    def _update_heading(self, t_s: float, measured: dict) -> tuple[float, float]:
+        """Circular filter of the red→green direction; returns (degrees in (-180, 180], 1σ in
+        degrees), NaN without a heading.
+
+        The measured direction's variance is ``n̂ᵀ(R₀ + R₁)n̂ / d²`` (n̂ perpendicular to the
+        red→green segment of length d). A measurement more than 3σ from the prediction (the
+        robot turned faster than the filter's model) restarts the filter on it: the heading of
+        a frame whose two dots were measured is what they say, within its σ.
+        """
+        cfg = self.config
+        nan = float("nan")
+        if len(cfg.dots) < 2:
+            return nan, nan
+        h = self.heading
+        c0, c1 = cfg.dots[0], cfg.dots[1]
+        if h.x is not None and t_s - h.t_meas_s > cfg.max_predict_s + 1e-9:
+            h.x = h.P = None
+        if h.x is not None:
+            h.x, h.P = cv_predict(h.x, h.P, max(t_s - h.t_s, 0.0), cfg.heading_psd_rad2_s3)
+        h.t_s = t_s
+        if c0 in measured and c1 in measured:
+            (z0, R0), (z1, R1) = measured[c0], measured[c1]
+            d = z1 - z0
+            dist = float(np.hypot(*d))
+            if dist > 0:
+                theta = float(np.arctan2(d[1], d[0]))
+                n = np.array([-d[1], d[0]]) / dist          # perpendicular: the direction of angle error
+                var = float(n @ (R0 + R1) @ n) / dist ** 2   # small-angle law: σθ² = σ⊥² / d²
+                nu = _wrap(theta - h.x[0]) if h.x is not None else 0.0
+                if h.x is None or nu * nu > 9.0 * (h.P[0, 0] + var):
+                    h.x = np.array([theta, 0.0])
+                    h.P = np.diag([var, cfg.init_rate_std_rad_s ** 2])
+                else:
+                    h.x, h.P = kf_update(h.x, h.P, np.array([h.x[0] + nu]), np.array([[var]]),
+                                         innovation=np.array([nu]))
+                h.t_meas_s = t_s
+        if h.x is None or any(self.states[c].x is None for c in (c0, c1)):
+            return nan, nan
+        deg = float(np.degrees(_wrap(h.x[0])))
+        return (180.0 if deg == -180.0 else deg), float(np.degrees(np.sqrt(max(h.P[0, 0], 0.0))))
