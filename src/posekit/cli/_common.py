@@ -10,13 +10,13 @@ __all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_over
            "add_dask_args", "check_dask_args"]
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
-OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
-                  "is complete)")
+OVERWRITE_HELP = ("replace an existing non-empty --out folder, files posekit did not write included (the old one "
+                  "is removed only after the new run is complete)")
 
 
 def add_overwrite(parser, out_default: str | None = None) -> None:
     """Add ``--overwrite`` to a verb that writes a run's folder to ``--out``; a verb with a default
-    folder (``out_default``) replaces that one on every run."""
+    folder (``out_default``) replaces that one on every run while posekit wrote everything in it."""
     parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(out_default=out_default)
 
@@ -50,19 +50,25 @@ def parse_triplet(text: str, name: str) -> tuple[float, float, float]:
 
 
 def out_folder(args) -> Path:
-    """Check ``args.out`` before the (long) runs: a new or empty folder (or ``--overwrite``) whose
-    parent is writable; a one-line ConfigError otherwise. The run then writes through
-    :func:`posekit.io.staged_folder`, so the folder appears whole or not at all."""
+    """Check ``args.out`` before the (long) runs: a new or empty folder (or ``--overwrite``, or the
+    verb's default folder holding only an earlier posekit run) whose parent is writable; a one-line
+    ConfigError otherwise. The run then writes through :func:`posekit.io.staged_folder`, so the
+    folder appears whole or not at all."""
     from ..io import check_out_folder
 
-    return check_out_folder(args.out, overwrite=_overwrite(args))
+    return check_out_folder(args.out, overwrite=_overwrite(args), replace_own=_replace_own(args))
 
 
 def _overwrite(args) -> bool:
-    """``--overwrite``, or the verb's own default folder (a demo's ``posekit-demo``), which each run
-    replaces."""
+    """``--overwrite``: replace the ``--out`` folder whatever it holds."""
+    return bool(getattr(args, "overwrite", False))
+
+
+def _replace_own(args) -> bool:
+    """The verb's own default folder (a demo's ``posekit-demo``) is in use: each run replaces it
+    while everything in it was written by posekit (its marker says so)."""
     default = getattr(args, "out_default", None)
-    return bool(getattr(args, "overwrite", False)) or (default is not None and str(args.out) == default)
+    return default is not None and str(args.out) == default
 
 
 def staged(args):
@@ -70,7 +76,7 @@ def staged(args):
     that becomes ``--out`` when the block succeeds."""
     from ..io import staged_folder
 
-    return staged_folder(args.out, overwrite=_overwrite(args))
+    return staged_folder(args.out, overwrite=_overwrite(args), replace_own=_replace_own(args))
 
 
 class _Deprecated(argparse.Action):

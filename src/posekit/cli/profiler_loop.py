@@ -27,7 +27,7 @@ def add_loop_arguments(p, out_default=None):
     p.add_argument("--gauge", default="demo-5", help="gauge YAML file or bundled name (default demo-5)")
     p.add_argument("--out", required=out_default is None, default=out_default,
                    help="output folder: table3.csv, table4.csv, figures, report.html"
-                        + (f" (default {out_default}, replaced on each run)" if out_default else ""))
+                        + (f" (default {out_default}, replaced on each run while it holds only posekit's files)" if out_default else ""))
     add_overwrite(p, out_default)
     p.add_argument("--runs", dest="repeats", type=_RUNS, default=3,
                    help=f"runs per axis, step and mode, 1..{MAX_RUNS} (default 3)")

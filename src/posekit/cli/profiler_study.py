@@ -66,7 +66,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
 
 def _common(p, out_default):
     p.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same numbers; default 0)")
-    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run)")
+    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run while it holds only posekit's files)")
     add_overwrite(p, out_default)
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address tcp://HOST:PORT, or 'serial' (default: a local cluster)")

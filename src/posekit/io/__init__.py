@@ -5,7 +5,9 @@ image dimensions included, checked before anything is allocated), encoding (UTF-
 without a byte-order mark, the same rule everywhere), nesting depth and number size of YAML and
 JSON, and a suffix/content mismatch named as such — each failure one line,
 ``FILE: what was wrong; what was expected``. Every writer of a run's folder or a single file
-goes through :func:`staged_folder` / :func:`atomic_file`, so nothing is ever half-written.
+goes through :func:`staged_folder` / :func:`atomic_file` (a ``--jsonl`` stream through
+:func:`open_stream`), so nothing is ever half-written, no special file (a device, a named pipe)
+is ever replaced, and no file posekit did not write is ever deleted without ``--overwrite``.
 The limits are in :class:`Limits` (``--max-input-mb`` / ``--max-image-mp`` raise them).
 """
 
@@ -13,7 +15,7 @@ from ._arrays import load_npy, load_npz_member, npz_members
 from ._files import check_input_file, read_bytes, read_text, sniff
 from ._images import check_frame_size, image_size, read_image
 from ._limits import Limits, get_limits, quote, set_limits
-from ._output import atomic_file, check_out_folder, staged_folder, write_text_atomic
+from ._output import MARKER, atomic_file, check_out_folder, open_stream, staged_folder, write_error, write_text_atomic
 from ._structured import check_document, load_json, load_yaml, parse_json, parse_yaml
 
 __all__ = [
@@ -45,4 +47,7 @@ __all__ = [
     "atomic_file",
     "check_out_folder",
     "write_text_atomic",
+    "open_stream",
+    "write_error",
+    "MARKER",
 ]

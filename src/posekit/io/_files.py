@@ -54,10 +54,11 @@ def read_bytes(path, *, expected: str, error=InputFileError, limit: int | None =
     """
     path = Path(path)
     size = check_input_file(path, expected=expected, error=error)
+    own = limit is not None                  # a reader's own limit is not raised by --max-input-mb
     limit = get_limits().text_bytes if limit is None else limit
     if size > limit:
-        raise error(f"{path}: {mib(size)}, above the {mib(limit)} limit for {expected} "
-                    "(raise it with --max-input-mb)")
+        raise error(f"{path}: {mib(size)}, above the {mib(limit)} limit for {expected}"
+                    + ("" if own else " (raise it with --max-input-mb)"))
     try:
         return path.read_bytes()
     except PermissionError:
