@@ -28,7 +28,7 @@ import numpy as np
 
 from .._extras import lazy
 from ..errors import CalibrationError
-from ..io import load_json, write_text_atomic
+from ..io import load_json, number_array, write_text_atomic
 
 cv2 = lazy("cv2", "vision", "the ceiling system (lens undistortion)")
 
@@ -261,12 +261,9 @@ def _is_scalar(v) -> bool:
 
 def _numbers(value, source: str, key: str) -> np.ndarray:
     try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
+        return number_array(value, "", CalibrationError)     # never a boolean read as 1
+    except CalibrationError:
         raise CalibrationError(f"{source}: {key}: expected numbers") from None
-    if arr.dtype == object:
-        raise CalibrationError(f"{source}: {key}: expected numbers")
-    return arr
 
 
 def _check_values(K, dist, size, rms, source: str) -> None:

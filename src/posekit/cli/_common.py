@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..io._numbers import parse_number
 
 __all__ = ["resolve_gauge", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged", "add_deprecated",
            "add_dask_args", "check_dask_args"]
@@ -41,7 +42,7 @@ def progress(iterable, total=None, desc=None, unit: str = "profile"):
 def parse_triplet(text: str, name: str) -> tuple[float, float, float]:
     """'10,10,40' → (10.0, 10.0, 40.0); a ConfigError naming the option otherwise."""
     try:
-        vals = tuple(float(v) for v in text.split(","))
+        vals = tuple(parse_number(v) for v in text.split(","))
     except ValueError:
         raise ConfigError(f"--{name}: expected three comma-separated numbers, got '{text}'") from None
     if len(vals) != 3:

@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..io._numbers import parse_number
 from ._common import add_overwrite, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
@@ -91,7 +92,7 @@ def parse_distortion(text: str) -> tuple:
     """'k1,k2,p1,p2,k3' (or 4 values) -> 5 floats; one-line ConfigError naming --distortion."""
     import math
     try:
-        vals = tuple(float(v) for v in text.split(","))
+        vals = tuple(parse_number(v) for v in text.split(","))
     except ValueError:
         vals = ()
     if len(vals) not in (4, 5) or not all(math.isfinite(v) and abs(v) <= 10 for v in vals):

@@ -6,6 +6,7 @@ import shlex
 import sys
 
 from ..errors import ConfigError, EstimationError
+from ..io._numbers import parse_number
 from ._common import add_overwrite, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed, workers
 
@@ -130,7 +131,7 @@ def _robot_options(args) -> dict:
     start = None
     if args.start_q_deg is not None:
         try:
-            values = [float(v) for v in args.start_q_deg.split(",")]
+            values = [parse_number(v) for v in args.start_q_deg.split(",")]
         except ValueError:
             raise ConfigError(f"--start-q-deg: expected comma-separated numbers, got '{args.start_q_deg[:80]}'") from None
         if not all(math.isfinite(v) for v in values):

@@ -4,6 +4,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from ..io._numbers import parse_number
 from ._common import add_deprecated, add_overwrite, out_folder, progress, resolve_gauge, staged
 from ._flags import MAX_NOISE_UM, bounded_float, bounded_int, check_flags, seed
 
@@ -52,7 +53,7 @@ def run_loop(args) -> int:
     from ..profiler.loop.loop_report import format_table3, format_table4, write_loop_report
 
     try:
-        steps = tuple(float(v) for v in args.steps_mm.split(","))
+        steps = tuple(parse_number(v) for v in args.steps_mm.split(","))
     except ValueError:
         raise ConfigError(f"--steps-mm: expected comma-separated numbers, got '{args.steps_mm}'") from None
     if not all(np.isfinite(s) and s != 0 for s in steps):

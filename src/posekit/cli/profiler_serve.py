@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 
+from ..io._numbers import parse_number
 from ._common import add_deprecated, resolve_gauge
 from ._flags import bounded_float, bounded_int, check_flags
 
@@ -111,7 +112,7 @@ def _numbers(text: str, flag: str, sizes: tuple[int, ...], what: str) -> list[fl
 
     from ..errors import ConfigError
     try:
-        vals = [float(v) for v in str(text).split(",")]
+        vals = [parse_number(v) for v in str(text).split(",")]
     except ValueError:
         vals = []
     if len(vals) not in sizes or not all(math.isfinite(v) for v in vals):

@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..io._numbers import parse_number
 from ._common import add_deprecated, add_overwrite, out_folder, parse_triplet, staged
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed, workers
 
@@ -35,7 +36,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
     bad = ConfigError(f"--{name}: expected comma-separated numbers or START:STOP:STEP, got '{text[:80]}'")
     if ":" in text:
         try:
-            start, stop, step = (float(v) for v in text.split(":"))
+            start, stop, step = (parse_number(v) for v in text.split(":"))
         except ValueError:
             raise bad from None
         if not (math.isfinite(start) and math.isfinite(stop) and math.isfinite(step)) or step <= 0 or stop < start:
@@ -49,7 +50,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
         if len(parts) > max_count:
             raise ConfigError(f"--{name}: {len(parts)} values; expected at most {max_count}")
         try:
-            values = np.array([float(v) for v in parts])
+            values = np.array([parse_number(v) for v in parts])
         except ValueError:
             raise bad from None
     if integer:

@@ -15,6 +15,7 @@ from ._arrays import load_npy, load_npz_member, npz_members
 from ._files import check_input_file, read_bytes, read_text, sniff
 from ._images import check_frame_size, image_size, read_image
 from ._limits import Limits, get_limits, quote, set_limits
+from ._numbers import number_array, parse_int, parse_number
 from ._output import MARKER, atomic_file, check_out_folder, open_stream, staged_folder, write_error, write_text_atomic
 from ._structured import check_document, load_json, load_yaml, parse_json, parse_yaml
 
@@ -34,6 +35,10 @@ __all__ = [
     "parse_yaml",
     "parse_json",
     "check_document",
+    # numbers by value
+    "parse_number",
+    "parse_int",
+    "number_array",
     # arrays
     "load_npy",
     "load_npz_member",

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.errors import ConfigError
+from posekit.io import quote
 
 from .chain import PRISMATIC, REVOLUTE, SerialChain
 
@@ -55,6 +56,10 @@ def _read_xml(path: Path) -> bytes:
             raise ConfigError(f"{path}: <{el.tag}> number {i + 1} has no name attribute; expected name=\"...\"")
     if any(el.prefix == "xacro" or "xacro" in str(el.tag).split("}")[0] for el in root.iter()) or b"${" in data:
         raise ConfigError(f"{path}: a xacro file; expected plain URDF (run xacro first)")
+    for el in root.iter("origin", "axis", "limit", "mimic"):       # numbers by value: not '١٢' or '1_0'
+        for key, value in el.attrib.items():
+            if key != "joint" and (not value.isascii() or "_" in value):
+                raise ConfigError(f"{path}: <{el.tag}> {key}={quote(value, 40)}: expected plain decimal numbers")
     return data
 
 

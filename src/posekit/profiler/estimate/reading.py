@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ConfigError, InputFileError
-from ...io import check_input_file, quote, read_text
+from ...io import check_input_file, parse_number, quote, read_text
 
 __all__ = ["ReadOptions", "read_csv", "read_profile_file", "check_units", "units_hint", "apply_roi",
            "parse_columns", "parse_delimiter", "parse_roi", "METRES_LIMIT", "METRES_SPAN"]
@@ -88,7 +88,7 @@ def parse_roi(text: str | None, flag: str) -> tuple[float, float] | None:
         return None
     parts = str(text).split(":")
     try:
-        a, b = (float(p) for p in parts)
+        a, b = (parse_number(p) for p in parts)
         good = math.isfinite(a) and math.isfinite(b) and a < b
     except ValueError:
         good = False
@@ -166,7 +166,7 @@ def read_csv(path: Path, opts: ReadOptions) -> np.ndarray:
                 out[i, j] = np.nan
                 continue
             try:
-                out[i, j] = float(cell)
+                out[i, j] = parse_number(cell)
             except ValueError:
                 hint = " (a decimal comma? posekit reads a decimal point)" if "," in cell else ""
                 raise InputFileError(f"{path}: line {line}: {quote(cell)} is not a number (mm) or empty/nan"

@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from posekit.errors import InputFileError
 from posekit.geometry import invert_transform, quaternion_from_matrix, transform_from_quaternion
+from posekit.io import parse_number
 from posekit.seam.frontend.config import (
     MAX_STEPS,
     FilterConfig,
@@ -265,7 +266,7 @@ def _number(path: Path, lineno: int, name: str, field: str, *, empty_ok: bool) -
             return math.nan
         raise InputFileError(f"{path} line {lineno}: {name} is empty; expected a number")
     try:
-        v = float(field)
+        v = parse_number(field)
     except ValueError:
         raise InputFileError(f"{path} line {lineno}: {name} is '{field[:30]}'; expected a number") from None
     if not math.isfinite(v):

@@ -5,6 +5,7 @@ import numpy as np
 
 from posekit.errors import InputFileError
 from posekit.geometry import transform_from_quaternion
+from posekit.io import parse_number
 
 from ..tum import QUATERNION_NORM_TOL, Trajectory, _is_float
 
@@ -49,7 +50,7 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
         if len(fields) < n_fields or (not at_least and len(fields) != n_fields):
             raise InputFileError(f"{path}:{number}: expected {what}, found {len(fields)} fields")
         try:
-            rows.append([float(f) for f in fields[:n_fields]])
+            rows.append([parse_number(f) for f in fields[:n_fields]])
         except ValueError:
             bad = next(f for f in fields[:n_fields] if not _is_float(f))
             shown = bad if len(bad) <= 40 else bad[:37] + "..."
