@@ -74,6 +74,8 @@ def _kind(path: Path, flag: str) -> str:
         st = os.stat(path)
     except FileNotFoundError:
         return "new"          # (also a dangling link: the file it points to is created)
+    except NotADirectoryError as exc:
+        raise ConfigError(f"{flag} {path}: cannot write in {path.absolute().parent} ({_why(exc)})") from None
     except OSError as exc:
         raise ConfigError(f"{flag} {path}: cannot write ({_why(exc)})") from None
     mode = st.st_mode
