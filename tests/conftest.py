@@ -1,4 +1,4 @@
-"""Shared fixtures: the bundled gauges and a cached simulation of each."""
+"""Shared fixtures: the bundled gauges and a cached simulation of each; the ``--slow`` option."""
 
 from pathlib import Path
 
@@ -22,3 +22,17 @@ def gauge5():
 @pytest.fixture(scope="session")
 def gauge4():
     return bundled_gauge("demo-4")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--slow", action="store_true", default=False,
+                     help="also run the tests marked slow (the whole fuzz corpus)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--slow"):
+        return
+    skip = pytest.mark.skip(reason="slow: run with --slow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)

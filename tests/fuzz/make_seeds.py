@@ -58,12 +58,13 @@ def main() -> None:
 
     SEEDS.mkdir(exist_ok=True)
     gauge = bundled_gauge("demo-5")
-    prof = render_profiles(gauge, nominal_pose(gauge), NoiseModel(), rng=0)[::20]      # 160 points
+    prof = render_profiles(gauge, nominal_pose(gauge), NoiseModel(), rng=0)[::4]      # 800 points
     np.save(SEEDS / "profile.npy", prof)
-    batch = render_profiles(gauge, sample_poses(gauge, 3, rng=1), NoiseModel(), rng=1)[:, ::20]
+    batch = render_profiles(gauge, sample_poses(gauge, 3, rng=1), NoiseModel(), rng=1)[:, ::4]
     buf = io.BytesIO()
     np.savez_compressed(buf, profiles=batch)
     (SEEDS / "profiles.npz").write_bytes(buf.getvalue())
+    (SEEDS / "pose.bag").unlink(missing_ok=True)          # (the bag writer does not overwrite)
     _bag(SEEDS / "pose.bag", 1)
     with tempfile.TemporaryDirectory() as tmp:
         for storage, suffix in (("sqlite3", ".db3"), ("mcap", ".mcap")):

@@ -129,8 +129,11 @@ def scene_config(args, dots):
             values[key] = getattr(args, flag)
     try:
         return SceneConfig(**values)
-    except TypeError as exc:
-        raise ConfigError(f"--config: {exc}") from None
+    except (TypeError, ValueError, OverflowError) as exc:   # a setting of the wrong kind (text for a number, ...)
+        if isinstance(exc, ConfigError):
+            raise ConfigError(f"{args.config}: {exc}" if args.config else str(exc)) from None
+        raise ConfigError(f"{args.config or '--config'}: {str(exc)[:120]}; expected each setting as in "
+                          "SceneConfig (numbers, lists of numbers, names)") from None
 
 
 def run_simulate(args) -> int:
