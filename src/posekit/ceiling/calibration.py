@@ -28,7 +28,7 @@ from ..geometry import (
     normalize_homography,
     refine_homography,
 )
-from ..io import load_json, number_array, parse_number, read_text, write_text_atomic
+from ..io import check_rows, load_json, number_array, parse_number, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
@@ -522,6 +522,8 @@ def read_points_csv(path) -> CalibrationPoints:
     """
     path = Path(path)
     text = read_text(path, expected="a CSV of calibration points 'X,Y,u,v'", error=CalibrationError)
+    check_rows(text, str(path), "lines (points, comments and blank lines)", error=CalibrationError,
+               limit=2 * MAX_POINTS + 1000)         # before splitting the text into lines
     rows, lines, header_seen = [], [], False
     for lineno, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()

@@ -135,6 +135,7 @@ def _limits(found: dict) -> dict:
             raise ConfigError(f"{flag}: expected {lo:g} to {hi:g} {unit}, got {found[flag][:40]}")
         if flag == "--max-input-mb":
             changes["array_bytes"] = changes["text_bytes"] = int(value * 2**20)
+            changes["rows"] = max(1000, int(value * 2**20) // 128)
         else:
             changes["image_pixels"] = int(value * 1e6)
     return changes

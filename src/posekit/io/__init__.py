@@ -14,7 +14,7 @@ The limits are in :class:`Limits` (``--max-input-mb`` / ``--max-image-mp`` raise
 from ._arrays import load_npy, load_npz_member, npz_members
 from ._files import check_input_file, read_bytes, read_text, sniff
 from ._images import check_frame_size, image_size, read_image
-from ._limits import Limits, get_limits, quote, set_limits
+from ._limits import Limits, check_rows, get_limits, quote, set_limits
 from ._numbers import number_array, parse_int, parse_number
 from ._output import MARKER, atomic_file, check_out_folder, open_stream, staged_folder, write_error, write_text_atomic
 from ._structured import check_document, load_json, load_yaml, parse_json, parse_yaml
@@ -25,6 +25,7 @@ __all__ = [
     "get_limits",
     "set_limits",
     "quote",
+    "check_rows",
     # files, text, structured documents
     "check_input_file",
     "read_bytes",

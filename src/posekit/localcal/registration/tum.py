@@ -13,7 +13,7 @@ import numpy as np
 
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.geometry import quaternion_from_matrix, transform_from_quaternion
-from posekit.io import parse_number, read_text
+from posekit.io import check_rows, parse_number, read_text
 
 __all__ = ["Trajectory", "read_tum", "write_tum"]
 
@@ -97,6 +97,7 @@ def read_tum(path) -> Trajectory:
     """
     path = Path(path)
     text = read_text(path, expected="a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)")
+    check_rows(text, str(path), "poses (one per line)", error=InputFileError)
     fast = _read_tum_fast(text)
     if fast is not None:
         return fast

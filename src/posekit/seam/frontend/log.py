@@ -240,9 +240,11 @@ def write_episode_log(folder, cfg: SeamConfig, data, seed: int) -> Path:
 
 def _csv_rows(path: Path, expected: str, max_rows: int):
     """``(header, [(line number, fields)])`` of a small CSV (comma-separated, ``#`` comments)."""
-    from posekit.io import read_text
+    from posekit.io import check_rows, read_text
 
     text = read_text(path, expected=expected, error=InputFileError)
+    check_rows(text, str(path), "lines (rows, comments and blank lines)", error=InputFileError,
+               limit=2 * max_rows + 1000)          # before splitting: comments and blank lines leave room
     header, rows = None, []
     for lineno, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
