@@ -151,7 +151,9 @@ class Terminated(BaseException):
 
 
 #: The signal that ended the run (a library may turn the exception it raised into another one,
-#: e.g. an ImportError of an interrupted import: the exit still says what happened).
+#: e.g. an ImportError of an interrupted import: the exit still says what happened). A verb that
+#: catches the interrupt as its own stop request (``profiler serve``, a live ``ceiling track``)
+#: returns normally, and its exit code stands.
 _received: int | None = None
 
 
@@ -204,7 +206,7 @@ def main(argv=None) -> int:
         if debug or _received is None and not isinstance(sys.exc_info()[1], KeyboardInterrupt | Terminated):
             raise
         code = None
-    if _received is None and code is not None:
+    if code is not None:      # the verb returned: it took the signal as its stop request (serve, a live track)
         return code
     signum = _received if _received is not None else signal.SIGINT
     _quiet_print("posekit: interrupted" if signum == signal.SIGINT else "posekit: terminated")
