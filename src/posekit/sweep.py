@@ -51,6 +51,8 @@ __all__ = ["run_tasks", "task_seed", "SERIAL", "DEFAULT_CONNECT_TIMEOUT_S"]
 SERIAL = "serial"
 #: Seconds to wait for a remote scheduler before giving up.
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
+#: Seconds a local cluster may take to close (its workers are killed after that).
+_CLOSE_TIMEOUT_S = 10.0
 
 
 def _distributed(desc: str = ""):
@@ -171,7 +173,7 @@ def _local_cluster(n_workers: int):
             logging.getLogger("asyncio").setLevel(logging.CRITICAL)
             for half in set(SpecCluster._instances) - before:
                 try:
-                    half.close()
+                    half.close(timeout=_CLOSE_TIMEOUT_S)
                 except Exception:   # noqa: BLE001 -- already failing; the first exception is the one to report
                     pass
             raise
@@ -247,8 +249,8 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence, *, scheduler=None, n_wo
                 return _gather_in_order(client, fn, tasks, bar)
             finally:
                 with _quiet_stderr():
-                    client.close()
-                    cluster.close()
+                    client.close(timeout=_CLOSE_TIMEOUT_S)
+                    cluster.close(timeout=_CLOSE_TIMEOUT_S)
         if isinstance(scheduler, str):
             client = _connect(scheduler, connect_timeout_s)
             try:

@@ -210,7 +210,25 @@ def main(argv=None) -> int:
         return code
     signum = _received if _received is not None else signal.SIGINT
     _quiet_print("posekit: interrupted" if signum == signal.SIGINT else "posekit: terminated")
+    _exit_within(EXIT_GRACE_S, 128 + signum)
     return 128 + signum
+
+
+#: After a signal, the most the interpreter's own shutdown may take (a library's threads or exit
+#: hooks, e.g. a Dask cluster interrupted while it started) before the process exits anyway, s.
+EXIT_GRACE_S = 15.0
+
+
+def _exit_within(seconds: float, code: int) -> None:
+    """Make sure an interrupted process ends: exit with ``code`` after ``seconds`` if it is still
+    shutting down (a daemon timer: it never delays a shutdown that finishes)."""
+    import os
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    t = threading.Timer(seconds, os._exit, args=(code,))
+    t.daemon = True
+    t.start()
 
 
 def _quiet_print(line: str) -> None:
