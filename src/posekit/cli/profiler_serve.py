@@ -215,8 +215,8 @@ def _summary(elapsed: float, st: dict, tim: dict) -> str:
     import numpy as np
     lines = [(f"summary after {elapsed:.1f} s: received {st['received']}, processed {st['processed']} "
              f"(ok {st['ok']}, errors {st['errors']}), dropped {st['dropped']}, rejected {st['rejected']}, "
-             f"sensor connections {st['connections']} (disconnects {st['disconnects']}: timeouts "
-             f"{st['timeouts']}, refused {st['auth_failures']}, evicted {st['evictions']}), "
+             f"connections {st['connections']} (disconnects {st['disconnects']}: timeouts "
+             f"{st['timeouts']}, refused {st['auth_failures']}, shed {st['shed']}, evicted {st['evictions']}), "
              f"records sent {st['sent']} (unsent {st['unsent']})")]
     if st["reasons"]:
         lines.append("  rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(st["reasons"].items())))
