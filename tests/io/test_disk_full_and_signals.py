@@ -140,3 +140,24 @@ def test_ctrl_c_during_a_dask_study(tmp_path):
     assert rc in (130, -signal.SIGINT) and "Traceback" not in err, err
     assert err.strip().splitlines()[-1:] == ["posekit: interrupted"], err
     assert not (tmp_path / "study").exists() and _hidden(tmp_path) == []
+
+
+def test_a_process_started_during_the_clean_up_can_still_be_terminated():
+    """After the first signal posekit ignores further ones while it cleans up, with a handler, not
+    SIG_IGN: a process started meanwhile (a Dask nanny restarting a worker that the Ctrl-C ended)
+    inherited SIG_IGN and could not be terminated, so the command hung at exit waiting for it."""
+    from posekit.cli import main as cli_main
+
+    with pytest.raises(KeyboardInterrupt):
+        with cli_main._signals():
+            cli_main._on_signal(signal.SIGINT, None)
+    # (inside the clean-up now) a child starts with the default dispositions
+    with cli_main._signals():
+        try:
+            cli_main._on_signal(signal.SIGTERM, None)
+        except cli_main.Terminated:
+            out = subprocess.run([sys.executable, "-c", "import signal as s; print(s.getsignal(s.SIGTERM) == s.SIG_DFL, "
+                                  "s.getsignal(s.SIGINT) is s.default_int_handler)"], capture_output=True,
+                                 text=True).stdout
+    assert out.split() == ["True", "True"]
+    assert signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN

@@ -158,14 +158,20 @@ _received: int | None = None
 
 
 def _on_signal(signum, frame):
-    # The first signal ends the run; further ones are ignored so that the clean-up finishes.
+    # The first signal ends the run; further ones are ignored so that the clean-up finishes. Not
+    # with SIG_IGN: a process started during the clean-up (a Dask nanny restarting a worker the
+    # Ctrl-C ended) would inherit it and could then not be terminated; a handler is not inherited.
     global _received
     _received = signum
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(s, signal.SIG_IGN)
+        signal.signal(s, _ignore)
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     raise Terminated(signum)
+
+
+def _ignore(signum, frame):
+    """A later signal during the clean-up: nothing to do (the run is already ending)."""
 
 
 @contextlib.contextmanager
