@@ -387,12 +387,27 @@ def seam_frame_errors(T_est, ep: Episode) -> np.ndarray:
 
 
 def scores(T_est, spread, status, ep: Episode) -> dict:
-    """2-sigma coverage per axis, the share of ``tracking`` steps and of confident-wrong steps (tracking while
+    """2-sigma coverage per axis (and per step: ``covered (T, 6)``), the share of ``tracking`` steps and of confident-wrong steps (tracking while
     beyond 3 sigma on some axis), computed here from the estimates, spreads (mm, rad) and statuses."""
     err = np.abs(seam_frame_errors(np.asarray(T_est), ep))
     spread = np.asarray(spread)
     status = np.asarray(status)
-    return {"coverage": np.mean(err <= 2.0 * spread, axis=0),
+    return {"coverage": np.mean(err <= 2.0 * spread, axis=0), "covered": err <= 2.0 * spread,
             "tracking": float(np.mean(status == "tracking")),
             "confident_wrong": float(np.mean((status == "tracking") & np.any(err > 3.0 * spread, axis=1))),
             "rmse": np.sqrt(np.mean(err ** 2, axis=0))}
+
+
+def write_training(root, seeds=(0, 1, 2)) -> list:
+    """The training episodes of the checked-in profile tests/seam/data/independent_cell_profile.yaml: episodes
+    ``seeds`` of the default cell, latency not declared, written to ``root/train{seed}``."""
+    cell = Cell()
+    return [write_episode(Path(root) / f"train{s}", cell, episode(cell, s), declare_latency=False) for s in seeds]
+
+
+if __name__ == "__main__":
+    # python -m tests.seam.independent_cell DIR: write the training episodes into DIR (see write_training)
+    import sys
+
+    for folder in write_training(sys.argv[1]):
+        print(folder)
