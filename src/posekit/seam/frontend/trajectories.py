@@ -21,8 +21,11 @@ The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sen
 ahead of the tool keep seeing it.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,7 +37,10 @@ from posekit.robots import (
     resolved_rate_step,
     robot_model,
 )
-from posekit.seam.frontend.config import RobotConfig, TrajectoryConfig
+
+if TYPE_CHECKING:  # annotations only: the configuration validates programs with this module (no import circle)
+    from posekit.seam.frontend.config import TrajectoryConfig
+    from posekit.seam.frontend.config_cell import RobotConfig
 
 __all__ = [
     "IK_SEED_DEG",
