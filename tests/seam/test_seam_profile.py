@@ -24,7 +24,7 @@ def test_round_trip_keeps_values_stds_notes_and_provenance(tmp_path):
     back = load_profile(write_profile(tmp_path / "p.yaml", p, "a header"))
     assert back == p
     assert (tmp_path / "p.yaml").read_text().startswith("# a header\n")
-    assert p.fitted.method == "truth" and len(p.fitted.episodes) == 8
+    assert p.fitted.method == "truth" and len(p.fitted.episodes) == 12
     assert all(len(e.sha256) == 64 and e.steps == 500 for e in p.fitted.episodes)
     assert p.walk.x_mm.std is not None and float(p.walk.x_mm) > 0.0
     m = p.to_model()

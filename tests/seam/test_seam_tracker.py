@@ -38,7 +38,13 @@ def test_online_steps_equal_the_recorded_run(tmp_path):
         assert np.allclose(est.T_base_tool, offline.estimate[k], atol=1e-9)
         assert est.status in ("tracking", "degraded", "lost")
         assert est.spread.shape == (6,)
+        v = est.verdict                          # the core verdict type: the status, its reason, the 1σ with units
+        assert v.status == est.status and v.reason == (est.raw.reason or "") and v.is_ok == (est.status == "tracking")
+        assert list(v.std) == ["x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg"]
+        np.testing.assert_allclose(list(v.std.values()), np.r_[est.spread[:3], np.degrees(est.spread[3:])])
     assert tracker.steps == 40
+    counts = track_metrics(offline)["status_counts"]       # posekit.verdict.status_counts: present words, any order
+    assert counts == {w: list(offline.status).count(w) for w in set(offline.status)}
 
 
 def test_urdf_robot_with_4x4_tool_and_mounts_tracks(tmp_path):

@@ -78,4 +78,6 @@ def run_track(args) -> int:
                         m["plateau_ratio_max"])
     print(f"wrote {args.out}: estimates.csv, metrics.json, ess.png" + (", errors_time.png" if "rmse_mm" in m else ""))
     sys.stdout.flush()
-    return 0
+    from ..verdict import track_exit_code
+
+    return track_exit_code(read_whole=True)  # read_episode_log read every row (it raises otherwise)

@@ -35,12 +35,14 @@ from posekit.geometry import (
 from posekit.robots import KinematicChain
 from posekit.seam.engine.densities import bending_stretch
 from posekit.seam.engine.filter import SeamParticleFilter
+from posekit.seam.engine.integrity import STATUSES
 from posekit.seam.engine.particles import systematic_resample
 from posekit.seam.engine.seamline import SeamLine
 from posekit.seam.engine.step import StepInputs
 from posekit.seam.engine.trend import TrendResult, trend_filter
 from posekit.seam.frontend.config import RobotConfig, SeamConfig, TrajectoryConfig, cell_from_config
 from posekit.seam.frontend.trajectories import NominalTrajectory, nominal_trajectory
+from posekit.verdict import status_counts
 
 __all__ = [
     "AXES",
@@ -615,7 +617,7 @@ def integrity_summary(results: list[EpisodeResult]) -> tuple[np.ndarray, dict, f
     err, spr, status, beyond = _pooled_steps(results)
     with np.errstate(invalid="ignore"):
         coverage = np.mean(err <= 2.0 * spr, axis=0)
-    counts = {k: int(np.sum(status == k)) for k in ("tracking", "degraded", "lost")}
+    counts = status_counts(np.asarray(status).tolist(), STATUSES)
     frac = float(np.mean(status[beyond] == "tracking")) if beyond.any() else None
     return coverage, counts, frac
 

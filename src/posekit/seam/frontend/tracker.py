@@ -35,9 +35,11 @@ from posekit.errors import ConfigError
 from posekit.geometry import invert_transform
 from posekit.seam.engine.densities import joint_compliance
 from posekit.seam.engine.filter import SeamParticleFilter
+from posekit.seam.engine.integrity import STATUSES
 from posekit.seam.engine.step import StepEstimate, StepInputs
 from posekit.seam.engine.trend import trend_filter
 from posekit.seam.frontend.config import SeamConfig, cell_from_config
+from posekit.verdict import Verdict, status_counts
 
 __all__ = ["SPREAD_COLUMNS", "SeamTrackResult", "SeamTracker", "TrackEstimate", "step_record", "track_columns",
            "track_log", "track_metrics", "write_track"]
@@ -83,6 +85,14 @@ class TrackEstimate:
     T_nominal: np.ndarray
     step_ms: float
     raw: StepEstimate
+
+    @property
+    def verdict(self) -> Verdict:
+        """The step's :class:`posekit.verdict.Verdict`: its status, the failing test as the reason, and the
+        spread as ``std`` (``x_mm``, ``y_mm``, ``z_mm``, ``rx_deg``, ``ry_deg``, ``rz_deg``; tool frame)."""
+        names = ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
+        std = [float(v) for v in self.spread[:3]] + [math.degrees(float(v)) for v in self.spread[3:]]
+        return Verdict(self.status, (self.raw.reason,) if self.raw.reason else (), dict(zip(names, std)))
 
 
 class SeamTracker:
@@ -297,17 +307,15 @@ def track_metrics(result: SeamTrackResult) -> dict:
     kinematic pose in radii of the filter's robot plateau, and the fraction of steps outside it:
     :func:`posekit.seam.frontend.simulate.plateau_ratio`; outside, the filter's ``d0``/``kd`` do not
     describe the robot, paper eq. 7))."""
-    from collections import Counter
-
     from posekit.seam.frontend.simulate import AXES, confident_wrong_share, plateau_ratio, seam_frame_errors
 
     def fl(v):
         return float(round(float(v), 6))
 
-    counts = Counter(result.status)
+    counts = status_counts((s for s in result.status if s), STATUSES)
     out = {
         "steps": len(result.time_s),
-        "status_counts": {k: int(v) for k, v in sorted(counts.items()) if k},
+        "status_counts": {k: v for k, v in counts.items() if v},
         "step_ms_median": fl(np.median(result.step_ms)),
         "step_ms_p99": fl(np.percentile(result.step_ms, 99)),
         "interpolated_steps": int(result.interpolated.sum()),
