@@ -17,6 +17,17 @@ from posekit.seam.frontend.trajectories import nominal_trajectory, tool_chain
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
+def _episodes(config, sensors):
+    """``metrics.json`` of what ``_simulate`` runs, by the library (no figures)."""
+    from posekit.seam.frontend.compare import episode_seeds
+    from posekit.seam.frontend.config import apply_overrides
+    from posekit.seam.frontend.simulate import metrics, run_episode
+
+    cfg = apply_overrides(load_config(config), {"cell.sensors.count": sensors, "trajectory.steps": 150,
+                                                 "filter.particles": 200})
+    return json.loads(json.dumps(metrics([run_episode(cfg, s) for s in episode_seeds(3, 2)])))
+
+
 def _simulate(tmp_path, config, sensors, out):
     rc = main(["seam", "simulate", "--config", str(config), "--sensors", str(sensors), "--steps", "150",
                "--particles", "200", "--runs", "2", "--seed", "3", "--out", str(tmp_path / out)])
@@ -34,7 +45,7 @@ def test_urdf_config_two_sensors_beat_none_on_x_and_z(tmp_path):
     cfg["cell"]["robot"]["urdf"] = "robots/my_arm.urdf"
     cfg["profile"] = str(EXAMPLES / "seam" / "ur10-profile.yaml")
     (folder / "setup.yaml").write_text(yaml.safe_dump(cfg))
-    none = _simulate(tmp_path, folder / "setup.yaml", 0, "s0")
+    none = _episodes(folder / "setup.yaml", 0)
     two = _simulate(tmp_path, folder / "setup.yaml", 2, "s2")
     for axis in ("x", "z"):
         assert two["rmse_mm"][axis] < 0.4 * none["rmse_mm"][axis], axis
@@ -45,8 +56,8 @@ def test_urdf_config_two_sensors_beat_none_on_x_and_z(tmp_path):
 
 
 def test_bundled_industrial_arm_two_sensors_beat_none(tmp_path):
-    none = _simulate(tmp_path, EXAMPLES / "seam" / "abb_irb6640.yaml", 0, "a0")
-    two = _simulate(tmp_path, EXAMPLES / "seam" / "abb_irb6640.yaml", 2, "a2")
+    none = _episodes(EXAMPLES / "seam" / "abb_irb6640.yaml", 0)
+    two = _episodes(EXAMPLES / "seam" / "abb_irb6640.yaml", 2)
     for axis in ("x", "z"):
         assert two["rmse_mm"][axis] < 0.3 * none["rmse_mm"][axis], axis
 
