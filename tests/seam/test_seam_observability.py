@@ -27,12 +27,18 @@ def _rmse(results, field="error"):
     return dict(zip(("x", "y", "z", "rx", "ry", "rz"), np.sqrt((e ** 2).mean(axis=0))))
 
 
-@pytest.fixture(scope="module")
-def xy():
+def _xy():
     return {s: [run_episode(_cfg("xy", s), seed) for seed in SEEDS] for s in (0, 1, 2)}
 
 
-def test_a_two_sensors_beat_kinematics_in_the_measurable_directions(xy):
+def test_a_and_b_on_the_xy_seam():
+    """(a) and (b) on the same six episodes (one test: a module fixture would run them once per xdist worker)."""
+    xy = _xy()
+    _check_a(xy)
+    _check_b(xy)
+
+
+def _check_a(xy):
     none, two = _rmse(xy[0]), _rmse(xy[2])
     kin = _rmse(xy[2], "kinematic_error")
     # without sensors the filter is no better than the kinematics (robot density only)
@@ -45,7 +51,7 @@ def test_a_two_sensors_beat_kinematics_in_the_measurable_directions(xy):
     assert two["ry"] > 0.5 * kin["ry"]
 
 
-def test_b_one_sensor_confuses_translation_and_rotation_two_do_not(xy):
+def _check_b(xy):
     one, two = _rmse(xy[1]), _rmse(xy[2])
     # one stripe fixes z_S = z + d rx (and x_S = x - d rz) but not the parts: rotations stay wrong
     assert one["rx"] > 2.0 * two["rx"]
