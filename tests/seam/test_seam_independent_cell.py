@@ -1,7 +1,7 @@
 """The seam filter judged on a cell posekit's simulator did not make (tests/seam/independent_cell.py: its own
 UR10-like arm, seam, deflection, drift and two lasers 13 / 17 ms late).
 
-``seam tune --with-truth`` recovers the lasers' latencies from two short training episodes (run here). The held-out
+``seam tune --with-truth`` recovers the lasers' latencies from two short training episodes (2 x 120 steps, run here). The held-out
 episodes are tracked with the profile the same command fitted on three full training episodes, checked in as
 tests/seam/data/independent_cell_profile.yaml (a ~60 s fit; made by ``python -m tests.seam.independent_cell DIR``,
 then in DIR ``posekit seam tune train0 train1 train2 --with-truth --out independent_cell_profile.yaml``; a test
@@ -37,7 +37,7 @@ def _track(cell, root, seed, profile, name, **kw):
 
 def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
     cell = ic.Cell()
-    train = [ic.write_episode(tmp_path / f"train{s}", cell, ic.episode(cell, s, steps=200), declare_latency=False)
+    train = [ic.write_episode(tmp_path / f"train{s}", cell, ic.episode(cell, s, steps=120), declare_latency=False)
              for s in (0, 1)]
     got = {v.key: v for v in tune_profile(train, with_truth=True).values}
     for i, true in enumerate(cell.latency_s):
