@@ -55,7 +55,7 @@ def test_metrics_report_runs_leaving_the_plateau():
 def test_cli_warns_when_the_truth_leaves_the_plateau(tmp_path, capsys):
     cfg = tmp_path / "small.yaml"
     cfg.write_text("profile:\n  plateau:\n    d0_mm: 0.3\n    kd_mm_per_n: 4.5e-5\n")
-    rc = main(["seam", "simulate", "--config", str(cfg), "--runs", "1", "--steps", "100", "--particles", "100",
+    rc = main(["seam", "simulate", "--config", str(cfg), "--runs", "1", "--steps", "40", "--particles", "50",
                "--out", str(tmp_path / "o")])
     assert rc == 0
     err = capsys.readouterr().err.strip().splitlines()
