@@ -10,6 +10,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 #: Libraries a one-profile estimate never calls; importing them cost 0.1-1 s each
 #: (``scipy.optimize`` through the closed-loop response fit took 1 s of a 2.6 s estimate).
 HEAVY = ("scipy.optimize", "scipy.stats", "scipy.spatial", "scipy.special", "scipy.signal", "scipy.interpolate",
@@ -32,8 +34,9 @@ def _heavy(modules: set[str]) -> list[str]:
     return sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in HEAVY))
 
 
-def test_help_imports_no_numpy():
-    loaded = _loaded("from posekit.cli.main import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass")
+@pytest.mark.parametrize("argv", [["--help"], ["profiler", "estimate", "--help"]])
+def test_help_imports_no_numpy(argv):
+    loaded = _loaded(f"from posekit.cli.main import main\ntry:\n    main({argv!r})\nexcept SystemExit:\n    pass")
     assert "posekit.cli.main" in loaded                    # the code ran
     assert not {"numpy", "numba", "yaml", "scipy"} & loaded, sorted({"numpy", "numba", "yaml", "scipy"} & loaded)
 
