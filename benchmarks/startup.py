@@ -13,9 +13,12 @@ and its CPU time (user + system of the child process, which a loaded machine inf
 than the wall time; on an idle machine the two are close, start-up runs on one core). The
 machines are shared and noisy, so compare with the peer of the same run; the load average
 before and after is printed and kept in every row. With ``verbose`` the slowest imports of the
-estimate (``python -X importtime``, cumulative) follow the table.
+estimate (``python -X importtime``, cumulative) follow the table, then where the estimate's time
+goes, step by step in one process (:data:`_STAGES`: NumPy, numba, the ``scipy.linalg`` numba
+imports to check for BLAS, posekit, numba's registries, the gauge, the estimate).
 """
 
+import json
 import os
 import statistics
 import subprocess
@@ -76,6 +79,34 @@ def _one_profile(folder: Path) -> Path:
     return path
 
 
+#: One fresh process that does what a one-profile estimate does, step by step, and prints each
+#: step's CPU and wall seconds as JSON (``posekit bench startup``'s "where the time goes").
+_STAGES = """
+import io, json, sys, time
+marks = [("", time.perf_counter(), time.process_time())]
+def mark(name):
+    marks.append((name, time.perf_counter(), time.process_time()))
+import numpy; mark("import numpy")
+import numba; mark("import numba")
+import scipy.linalg; mark("import scipy.linalg (numba's BLAS check)")
+import posekit._jit, posekit.profiler, posekit.profiler.stream.files; mark("import posekit.profiler")
+from numba.core.registry import cpu_target
+cpu_target.target_context.refresh(); mark("numba's registries")
+from posekit.profiler.gauge.model import resolve_gauge
+resolve_gauge("demo-5"); mark("load the gauge (3 cached kernels)")
+from posekit.profiler.stream.files import estimate_file
+estimate_file(sys.argv[1], "demo-5", stream=io.StringIO()); mark("estimate_file (7 cached kernels)")
+estimate_file(sys.argv[1], "demo-5", stream=io.StringIO()); mark("estimate_file again")
+print(json.dumps([(b[0], b[2] - a[2], b[1] - a[1]) for a, b in zip(marks, marks[1:])]))
+"""
+
+
+def _stages(py, one: Path) -> list[tuple[str, float, float]]:
+    """(step, CPU s, wall s) of :data:`_STAGES` in a fresh process."""
+    out = subprocess.run([py, "-c", _STAGES, str(one)], capture_output=True, text=True)
+    return [tuple(r) for r in json.loads(out.stdout)] if out.returncode == 0 else []
+
+
 def _slowest_imports(cmd, n: int = 6) -> list[tuple[str, float]]:
     """The ``n`` top-level imports with the largest cumulative time, ``python -X importtime``."""
     out = subprocess.run([cmd[0], "-X", "importtime", *cmd[1:]], capture_output=True, text=True)
@@ -112,6 +143,7 @@ def run(count=None, verbose=True):
         for r in rows:
             r["load_avg"] = list(load)
         slowest = _slowest_imports(estimate) if verbose else []
+        stages = _stages(py, one) if verbose else []
     if verbose:
         print(f"posekit bench startup: a fresh process, median of {runs} runs, beside {PEER} "
               f"(load average {load[0]:.1f} -> {load[1]:.1f} on {os.cpu_count()} cores)")
@@ -124,6 +156,8 @@ def run(count=None, verbose=True):
                   f"{r['ours_ms'] / r['baseline_ms']:>7.2f}  {target}")
         print("slowest imports of the one-profile estimate (python -X importtime, cumulative): "
               + ", ".join(f"{m} {ms / 1e3:.2f} s" for m, ms in slowest))
+        print("where a one-profile estimate's time goes (one process, step by step, CPU / wall): "
+              + ", ".join(f"{name} {cpu:.3f} / {wall:.3f} s" for name, cpu, wall in stages))
         if os.environ.get("PYTHONDONTWRITEBYTECODE"):
             print("note: PYTHONDONTWRITEBYTECODE is set: every process compiles posekit's byte code again "
                   "(0.1-0.2 s more than an installed package takes)")
