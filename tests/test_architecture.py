@@ -35,18 +35,10 @@ ALLOWED_CIRCLES = {
     frozenset({"posekit.seam.frontend.config", "posekit.seam.frontend.trajectories"}),
 }
 
-#: Simulator imports of an estimator package that are being removed on other branches (issue 27
-#: aligns localcal with the model / estimator / simulator / studies layout); (importer, imported).
-ALLOWED_SIM_IMPORTS = {
-    # the episode runs the adjustment methods: an experiment, which moves to localcal's studies
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.line_method"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.orientation"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.trajectory_method"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.registration.handeye"),
-    # the trajectory type lives in registration/tum.py; it belongs with the model
-    ("posekit.localcal.sim.episode", "posekit.localcal.registration.tum"),
-    ("posekit.localcal.sim.vo", "posekit.localcal.registration.tum"),
-}
+#: Simulator imports of an estimator package that are being removed on other branches;
+#: (importer, imported). Empty: localcal's episode moved to its studies and its trajectory type
+#: to its model (issue 29).
+ALLOWED_SIM_IMPORTS: set[tuple[str, str]] = set()
 
 
 def _module_name(path: Path) -> tuple[str, bool]:
@@ -208,9 +200,9 @@ def test_systems_import_only_the_core_and_nothing_imports_the_cli():
 # --------------------------------------------------------------------------- explicit APIs
 
 #: ``__init__`` files that must list their public API explicitly (the profiler, the ceiling,
-#: the core and the CLI; seam and localcal follow on their own branches).
+#: localcal, the core and the CLI; seam follows on its own branch).
 EXPLICIT = ["posekit", "posekit.cli", "posekit.geometry", "posekit.robots", "posekit.io"] + sorted(
-    m for m in import_graph() if m.startswith(("posekit.profiler", "posekit.ceiling"))
+    m for m in import_graph() if m.startswith(("posekit.profiler", "posekit.ceiling", "posekit.localcal"))
     and (SRC / Path(*m.split("."))).is_dir())
 
 

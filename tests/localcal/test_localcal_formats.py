@@ -15,14 +15,15 @@ from scipy.spatial.transform import Rotation
 from posekit.cli.localcal_inputs import add_trajectory_args, read_trajectory_args
 from posekit.errors import InputFileError, PosekitError, TrajectoryError
 from posekit.io import set_limits
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.formats import (
     detect_format,
     read_trajectory,
     write_euroc,
     write_kitti,
 )
+from posekit.localcal.registration.formats.tum import write_tum
 from posekit.localcal.registration.match import match_trajectories
-from posekit.localcal.registration.tum import Trajectory, write_tum
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from posekit.cli.main import main
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.alignment import umeyama
 from posekit.localcal.registration.association import associate
-from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
+from posekit.localcal.registration.formats.tum import read_tum, write_tum
 from tests.localcal.synth_trajectories import (
     TUM_DATA as DATA,
 )

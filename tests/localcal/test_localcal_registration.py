@@ -7,12 +7,13 @@ from pycpd import RigidRegistration
 from scipy.spatial.transform import Rotation
 
 from posekit.errors import GeometryError, TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.alignment import check_path_shape, robust_umeyama, umeyama
 from posekit.localcal.registration.association import associate, estimate_time_offset
 from posekit.localcal.registration.coarse import coarse_align, pca_candidates
 from posekit.localcal.registration.cpd import rigid_cpd
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.localcal.registration.match import Registration, match_trajectories
-from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import (
     TUM_DATA as DATA,
 )

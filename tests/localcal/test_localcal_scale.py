@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.alignment import umeyama
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.localcal.registration.match import match_trajectories
-from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import TUM_DATA
 
 

@@ -169,8 +169,8 @@ def test_bad_distortion_is_a_config_error():
 # --------------------------------------------------------------------------- episodes
 
 def test_correspondence_free_episode_and_fig5(tmp_path):
-    from posekit.localcal.plots import plot_orientation_errors
-    from posekit.localcal.sim.episode import EpisodeConfig, run_localcal_episode
+    from posekit.localcal.studies.episode import EpisodeConfig, run_localcal_episode
+    from posekit.localcal.studies.plots import plot_orientation_errors
 
     cfg = EpisodeConfig(camera_hz=2.0, plot_hz=1.0, use_timestamps=False)
     ep = run_localcal_episode("trajectory", 4, updates=2, config=cfg)
@@ -205,7 +205,7 @@ def test_tilted_calibration_path_rotates_the_inner_waypoints():
 def test_rotating_path_with_the_camera_off_the_tool_needs_hand_eye():
     """The camera is ~0.47 m from the tool point: on a tilting path the paper's position matching
     is centimetres off (and its verdict says so); hand-eye recovers sub-centimetre XY."""
-    from posekit.localcal.sim.episode import EpisodeConfig, run_localcal_episode
+    from posekit.localcal.studies.episode import EpisodeConfig, run_localcal_episode
 
     base = {"camera_hz": 2.0, "plot_hz": 0.0, "calibration_tilt_deg": 15.0}
     he = run_localcal_episode("trajectory", 2, updates=1, config=EpisodeConfig(**base))

@@ -1,6 +1,7 @@
 """``posekit localcal handeye``: the camera mount (camera-to-tool) and the camera's world frame in
 the robot base, together, for a camera that is not at the tool point."""
 
+from ._config import add_config_arguments
 from ._flags import bounded_float
 from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
 
@@ -33,6 +34,7 @@ def add_handeye_parser(verbs):
     p.add_argument("--max-std-deg", type=bounded_float(0.0, 180.0, "deg", lo_open=True), default=0.5, metavar="DEG",
                    help="suspect when the camera mount's rotation std exceeds this, (0, 180] deg (default 0.5)")
     add_trajectory_args(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_handeye)
     return p
 

@@ -79,7 +79,7 @@ def read_trajectory_args(args, path, role: str | None = None):
 
     Returns
     -------
-    posekit.localcal.registration.tum.Trajectory
+    posekit.localcal.model.trajectory.Trajectory
         Timestamps in s, poses in mm. What the reader decided for the user (a format the rows
         chose against the suffix) is appended to ``args._input_notes``.
     """
@@ -123,7 +123,7 @@ def read_pair_args(args):
 
     Returns
     -------
-    camera, kinematic : posekit.localcal.registration.tum.Trajectory
+    camera, kinematic : posekit.localcal.model.trajectory.Trajectory
         Timestamps in s, poses in mm.
     """
     check_flags(args)

@@ -1,5 +1,6 @@
 """``posekit localcal match``: the transform that maps a camera trajectory into the robot base."""
 
+from ._config import add_config_arguments
 from ._flags import bounded_float
 from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
 
@@ -38,6 +39,7 @@ def add_match_parser(verbs):
                         "the error of every pair over time) to the folder DIR")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --plot folder")
     add_trajectory_args(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_match)
     return p
 

@@ -5,22 +5,32 @@ using local calibration" (Advanced Robotics, 2023). Frames (mm, rad): B robot ba
 C the eye-in-hand camera (OpenCV optical axes), M the tool marker, O the object of interest,
 W the VO world frame (the camera frame at the first VO pose).
 
-Modules
--------
-orientation, line_method, trajectory_method
-    The methods: orientation adjustment (eq. 7–8), line-equation range adjustment with the
-    circular path (eq. 10–16), trajectory-matching range adjustment (eq. 17–22).
-tum, registration (alignment, association, coarse, cpd)
-    TUM trajectories and trajectory matching (timestamped robust Umeyama; correspondence-free
-    never-mirrored coarse alignment + rigid CPD).
-arm, camera, scene, vo
-    The simulator: hydraulic long-reach arm with non-kinematic errors, ZED2-like camera with
-    lens distortion and OpenCV ArUco rendering and detection, the work cell (camera ~0.5 m off
-    the tool point), a stereo VO whose noise and drift grow with depth.
-episode, experiments, plots
-    One look-then-move episode (:func:`run_localcal_episode` → :class:`LocalcalEpisode`),
-    repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and ``report.html``
-    (``plots`` imports matplotlib only when drawing; not re-exported here).
+Layout (model · estimator · simulator · studies)
+------------------------------------------------
+model/
+    What the world is, as plain data: :class:`Trajectory` (s, mm, 4x4 poses), exchanged by
+    every other part.
+registration/, methods/
+    The estimator, pure on its inputs. ``registration``: trajectory files (TUM, KITTI, EuRoC,
+    ROS bags), timestamp association, robust Umeyama alignment, correspondence-free coarse
+    alignment and rigid CPD, the verdict on a match, hand-eye calibration
+    (:func:`match_trajectories`, ``calibrate_handeye``). ``methods``: orientation adjustment
+    (eq. 7–8), line-equation range adjustment with the circular path (eq. 10–16),
+    trajectory-matching range adjustment (eq. 17–22).
+sim/
+    The simulator, every part seeded: hydraulic long-reach arm with non-kinematic errors,
+    ZED2-like camera with lens distortion and OpenCV ArUco rendering and detection, the work
+    cell (camera ~0.5 m off the tool point), a stereo VO whose noise and drift grow with depth.
+studies/
+    Experiments: one look-then-move episode (:func:`run_localcal_episode` →
+    :class:`LocalcalEpisode`), repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and
+    ``report.html`` (``studies.plots`` imports matplotlib only when drawing; not re-exported here).
+match_report
+    The figures and residual CSV of ``posekit localcal match --plot/--residuals``.
+
+The rule (tested by ``tests/test_architecture.py``): the simulator may import the model, never
+the estimator; the estimator never imports the simulator or the studies; the studies may import
+everything; localcal imports only posekit's core, never another system.
 """
 
 from .methods.line_method import (
@@ -41,8 +51,11 @@ from .methods.trajectory_method import (
     calibrate_trajectories,
     trajectory_reference,
 )
-from .registration.match import Registration, associate, match_trajectories, umeyama
-from .registration.tum import Trajectory, read_tum, write_tum
+from .model.trajectory import Trajectory
+from .registration.alignment import umeyama
+from .registration.association import associate
+from .registration.formats.tum import read_tum, write_tum
+from .registration.match import Registration, match_trajectories
 from .sim.arm import (
     DEFAULT_Q0,
     ArmLog,
@@ -58,23 +71,6 @@ from .sim.camera import (
     render_markers,
     zed2_720p,
 )
-from .sim.episode import (
-    METHODS,
-    OCCLUSIONS,
-    START_Q,
-    EpisodeConfig,
-    LocalcalEpisode,
-    run_localcal_episode,
-)
-from .sim.experiments import (
-    PAPER_TABLE2_MEAN,
-    PAPER_TABLE3,
-    PAPER_TABLE4_MEAN,
-    ExperimentResult,
-    format_table,
-    run_experiment,
-    table_columns,
-)
 from .sim.marker_detector import MarkerDetector
 from .sim.scene import (
     GroundTruth,
@@ -87,6 +83,24 @@ from .sim.scene import (
     ooi_pose,
 )
 from .sim.vo import StereoNoise, VONoise, depth_along_axis, simulate_vo
+from .studies.episode import (
+    METHODS,
+    OCCLUSIONS,
+    START_Q,
+    EpisodeConfig,
+    LocalcalEpisode,
+    run_localcal_episode,
+)
+from .studies.experiments import (
+    PAPER_TABLE2_MEAN,
+    PAPER_TABLE3,
+    PAPER_TABLE4_MEAN,
+    ExperimentResult,
+    format_table,
+    run_experiment,
+    table_columns,
+)
+from .studies.simulate import demo, episode_config, robot_options, simulate
 
 __all__ = [
     # methods
@@ -153,4 +167,9 @@ __all__ = [
     "PAPER_TABLE2_MEAN",
     "PAPER_TABLE3",
     "PAPER_TABLE4_MEAN",
+    # one function per command (posekit localcal simulate, demo)
+    "simulate",
+    "demo",
+    "episode_config",
+    "robot_options",
 ]

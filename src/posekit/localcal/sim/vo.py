@@ -48,7 +48,7 @@ from posekit.geometry import (
     invert_transform,
     matrix_from_rotation_vector,
 )
-from posekit.localcal.registration.tum import Trajectory
+from posekit.localcal.model.trajectory import Trajectory
 
 __all__ = ["StereoNoise", "VONoise", "depth_along_axis", "simulate_vo"]
 

@@ -217,7 +217,7 @@ class LocalcalEpisode:
         unseen), ``rot_deg`` (K, 3) the signed XYZ Euler rotation errors (deg, Fig. 5),
         ``events``: list of (t_s, label).
     logs : dict
-        Paths for the figures (base-frame positions, mm; see :mod:`posekit.localcal.plots`).
+        Paths for the figures (base-frame positions, mm; see :mod:`posekit.localcal.studies.plots`).
     images : list of (str, ndarray of shape (720, 1280), uint8)
         The label and camera image of every labelled look (only with ``config.keep_images``).
     """
@@ -473,7 +473,7 @@ def _handeye_record(he, t_vo, p_B_vo, kinematic) -> dict:
 
 
 def _trajectory(arm, cell, camera, config, updates, vo_seed):
-    from posekit.localcal.registration.tum import Trajectory
+    from posekit.localcal.model.trajectory import Trajectory
 
     T_start = arm.nominal_pose()
     path = asymmetric_path(T_start, config.path_lengths_mm, tilt_rad=np.deg2rad(config.calibration_tilt_deg))

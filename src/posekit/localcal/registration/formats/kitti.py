@@ -9,8 +9,8 @@ import numpy as np
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.geometry import nearest_rotation, transform_from
 from posekit.io import read_text
+from posekit.localcal.model.trajectory import Trajectory
 
-from ..tum import Trajectory
 from ._rows import parse_numbers
 
 __all__ = ["ROTATION_TOL", "read_kitti", "write_kitti"]
