@@ -11,7 +11,7 @@ suffix.
 
 from ._flags import bounded_float, check_flags
 
-__all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "finish_result", "read_pair_args", "read_trajectory_args"]
+__all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "print_result", "read_options", "read_trajectory_args"]
 
 #: The positional arguments the per-input flags are named after.
 ROLES = ("camera", "kinematic")
@@ -62,6 +62,18 @@ def _role(args, path, role):
     return matches[0] if matches else None
 
 
+def read_options(args, role: str | None) -> dict:
+    """``read_trajectory``'s keyword arguments for the input ``role`` (``camera``/``kinematic``): its
+    own ``--<role>-format`` etc. where given, else the shared ``--format`` etc. (only those with
+    ``role`` None)."""
+    def pick(name):
+        own = getattr(args, f"{role}_{name}", None) if role else None
+        return own if own is not None else getattr(args, name, None)
+
+    return {"fmt": pick("format"), "topic": pick("topic"), "rate_hz": pick("rate"), "tf_parent": pick("tf_parent"),
+            "tf_child": pick("tf_child")}
+
+
 def read_trajectory_args(args, path, role: str | None = None):
     """Read ``path`` with the format flags in ``args``.
 
@@ -88,13 +100,8 @@ def read_trajectory_args(args, path, role: str | None = None):
     check_flags(args)
     role = _role(args, path, role)
 
-    def pick(name):
-        own = getattr(args, f"{role}_{name}", None) if role else None
-        return own if own is not None else getattr(args, name, None)
-
     notes = []
-    traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"),
-                           tf_parent=pick("tf_parent"), tf_child=pick("tf_child"), notes=notes)
+    traj = read_trajectory(path, **read_options(args, role), notes=notes)
     args._input_notes = getattr(args, "_input_notes", []) + notes
     if role is not None:
         args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
@@ -118,45 +125,13 @@ def add_pair_args(parser, *, kinematic_help: str, out_metavar: str) -> None:
     parser.add_argument("--out", required=True, metavar=out_metavar, help="result file to write")
 
 
-def read_pair_args(args):
-    """Read ``args.camera`` and ``args.kinematic`` with the format flags in ``args``.
-
-    Returns
-    -------
-    camera, kinematic : posekit.localcal.model.trajectory.Trajectory
-        Timestamps in s, poses in mm.
-    """
-    check_flags(args)
-    return (read_trajectory_args(args, args.camera, role="camera"),
-            read_trajectory_args(args, args.kinematic, role="kinematic"))
-
-
-def finish_result(out, result, summary: list[str], what: str) -> int:
-    """Write ``result.to_json()`` to ``out``, print ``summary`` and ``wrote OUT``, and give the exit code.
-
-    Parameters
-    ----------
-    out : str or Path
-        The JSON file to write (atomically).
-    result : object
-        Has ``to_json()``, ``status`` and ``reasons``.
-    summary : list of str
-        Lines printed before ``wrote OUT``.
-    what : str
-        Named in ``posekit: suspect WHAT: reasons`` on stderr.
-
-    Returns
-    -------
-    int
-        0 when ``result.status`` is ``"ok"``, 1 otherwise (the file is written first).
-    """
-    import json
+def print_result(path, result, summary: list[str], what: str) -> int:
+    """Print ``summary`` and ``wrote PATH``; ``posekit: suspect WHAT: reasons`` on stderr and exit
+    code 1 unless ``result`` is ok (:func:`posekit.verdict.batch_exit_code`)."""
     import sys
 
-    from ..io import write_text_atomic
     from ..verdict import batch_exit_code
 
-    path = write_text_atomic(out, json.dumps(result.to_json(), indent=2) + "\n")
     for line in summary:
         print(line)
     print(f"wrote {path}")

@@ -25,14 +25,16 @@ studies/
     Experiments: one look-then-move episode (:func:`run_localcal_episode` →
     :class:`LocalcalEpisode`), repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and
     ``report.html`` (``studies.plots`` imports matplotlib only when drawing; not re-exported here).
-match_report
-    The figures and residual CSV of ``posekit localcal match --plot/--residuals``.
+commands, match_report
+    The ``match`` and ``handeye`` commands on files (:func:`match_files`, :func:`handeye_files`:
+    read, register, write) and what ``match --plot/--residuals`` writes.
 
 The rule (tested by ``tests/test_architecture.py``): the simulator may import the model, never
 the estimator; the estimator never imports the simulator or the studies; the studies may import
 everything; localcal imports only posekit's core, never another system.
 """
 
+from .commands import handeye_files, match_files
 from .methods.line_method import (
     CIRCLE_POINTS,
     CIRCLE_RADIUS_MM,
@@ -167,7 +169,9 @@ __all__ = [
     "PAPER_TABLE2_MEAN",
     "PAPER_TABLE3",
     "PAPER_TABLE4_MEAN",
-    # one function per command (posekit localcal simulate, demo)
+    # one function per command (posekit localcal match, handeye, simulate, demo)
+    "match_files",
+    "handeye_files",
     "simulate",
     "demo",
     "episode_config",
