@@ -147,7 +147,7 @@ def _workers(args):
 
 def run_simulate(args) -> int:
     """Run ``posekit localcal simulate``; the exit code is 0 if every run succeeded, else 1."""
-    from ..localcal.studies.episode import METHODS, OCCLUSIONS
+    from ..localcal.studies.episode_config import METHODS, OCCLUSIONS
     from ..localcal.studies.plots import tables_text
     from ..localcal.studies.simulate import all_failed_error, simulate, view_hint
 

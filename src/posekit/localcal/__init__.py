@@ -9,7 +9,8 @@ Layout (model · estimator · simulator · studies)
 ------------------------------------------------
 model/
     What the world is, as plain data: :class:`Trajectory` (s, mm, 4x4 poses), exchanged by
-    every other part.
+    every other part, and the camera's intrinsics with lens distortion (:class:`CameraIntrinsics`,
+    :func:`zed2_720p`).
 registration/, methods/
     The estimator, pure on its inputs. ``registration``: trajectory files (TUM, KITTI, EuRoC,
     ROS bags), timestamp association, robust Umeyama alignment, correspondence-free coarse
@@ -19,12 +20,15 @@ registration/, methods/
     trajectory-matching range adjustment (eq. 17–22).
 sim/
     The simulator, every part seeded: hydraulic long-reach arm with non-kinematic errors,
-    ZED2-like camera with lens distortion and OpenCV ArUco rendering and detection, the work
-    cell (camera ~0.5 m off the tool point), a stereo VO whose noise and drift grow with depth.
+    OpenCV ArUco rendering and detection in the model's camera, the work cell (camera ~0.5 m off
+    the tool point), a stereo VO whose noise and drift grow with depth.
 studies/
     Experiments: one look-then-move episode (:func:`run_localcal_episode` →
-    :class:`LocalcalEpisode`), repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and
-    ``report.html`` (``studies.plots`` imports matplotlib only when drawing; not re-exported here).
+    :class:`LocalcalEpisode`, settings :class:`EpisodeConfig`), repeated runs with the paper's
+    Tables 2–4 (:func:`run_experiment`; every run's :class:`posekit.verdict.Verdict` in
+    :attr:`ExperimentResult.verdicts`), figures (Figs. 5–9) and ``report.html`` (``studies.plots``
+    imports matplotlib only when drawing; not re-exported here); the ``simulate`` and ``demo``
+    commands as :func:`simulate` and :func:`demo`.
 commands, match_report
     The ``match`` and ``handeye`` commands on files (:func:`match_files`, :func:`handeye_files`:
     read, register, write) and what ``match --plot/--residuals`` writes.
@@ -53,26 +57,15 @@ from .methods.trajectory_method import (
     calibrate_trajectories,
     trajectory_reference,
 )
+from .model.camera import ZED2_720P_DISTORTION, CameraIntrinsics, zed2_720p
 from .model.trajectory import Trajectory
 from .registration.alignment import umeyama
 from .registration.association import associate
 from .registration.formats.tum import read_tum, write_tum
 from .registration.match import Registration, match_trajectories
-from .sim.arm import (
-    DEFAULT_Q0,
-    ArmLog,
-    LongReachArm,
-    NonKinematicErrors,
-    sample_nonkinematic_errors,
-)
-from .sim.camera import (
-    ARUCO_DICTIONARY,
-    ZED2_720P_DISTORTION,
-    CameraIntrinsics,
-    marker_corners,
-    render_markers,
-    zed2_720p,
-)
+from .sim.arm import DEFAULT_Q0, ArmLog, LongReachArm
+from .sim.arm_errors import NonKinematicErrors, sample_nonkinematic_errors
+from .sim.camera import ARUCO_DICTIONARY, marker_corners, render_markers
 from .sim.marker_detector import MarkerDetector
 from .sim.scene import (
     GroundTruth,
@@ -85,14 +78,8 @@ from .sim.scene import (
     ooi_pose,
 )
 from .sim.vo import StereoNoise, VONoise, depth_along_axis, simulate_vo
-from .studies.episode import (
-    METHODS,
-    OCCLUSIONS,
-    START_Q,
-    EpisodeConfig,
-    LocalcalEpisode,
-    run_localcal_episode,
-)
+from .studies.episode import LocalcalEpisode, run_localcal_episode
+from .studies.episode_config import METHODS, OCCLUSIONS, START_Q, EpisodeConfig
 from .studies.experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,

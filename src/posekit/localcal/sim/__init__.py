@@ -1,9 +1,10 @@
 """The simulator part of localcal: the world the methods are tried on, each part seeded.
 
-:mod:`.arm`
-    The hydraulic long-reach arm with non-kinematic errors (and its compiled kernel).
+:mod:`.arm`, :mod:`.arm_errors`
+    The hydraulic long-reach arm (and its compiled kernel) and its non-kinematic errors.
 :mod:`.camera`, :mod:`.marker_detector`
-    The ZED2-like eye-in-hand camera with lens distortion, OpenCV ArUco rendering and detection.
+    OpenCV ArUco rendering and detection for the eye-in-hand camera of the model
+    (:mod:`posekit.localcal.model.camera`: ZED2-like, with lens distortion).
 :mod:`.scene`
     The work cell (markers, object of interest) and what the camera observes in it.
 :mod:`.vo`
@@ -14,4 +15,4 @@ The simulator may use the model (:mod:`posekit.localcal.model`) and never the es
 simulated data is a study (:mod:`posekit.localcal.studies.episode`).
 """
 
-__all__ = ["arm", "camera", "marker_detector", "scene", "vo"]
+__all__ = ["arm", "arm_errors", "camera", "marker_detector", "scene", "vo"]

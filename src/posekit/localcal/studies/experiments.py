@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, PosekitError
-from posekit.localcal.studies.episode import METHODS, EpisodeConfig, LocalcalEpisode, run_localcal_episode
+from posekit.localcal.studies.episode import LocalcalEpisode, run_localcal_episode
+from posekit.localcal.studies.episode_config import METHODS, EpisodeConfig
 from posekit.sweep import SERIAL, run_tasks, task_seed
 from posekit.verdict import Verdict, status_counts
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from posekit.errors import ConfigError, EstimationError
 from posekit.io import parse_number
 from posekit.localcal.sim.vo import VONoise
-from posekit.localcal.studies.episode import EpisodeConfig
+from posekit.localcal.studies.episode_config import EpisodeConfig
 from posekit.localcal.studies.experiments import ExperimentResult, run_experiment
 
 __all__ = ["DEMO_METHODS", "DEMO_UPDATES", "MAX_START_Q", "VO_MODELS", "RobotOptions", "all_failed_error", "check_rates",
