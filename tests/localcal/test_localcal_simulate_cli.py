@@ -257,7 +257,7 @@ def test_every_run_has_a_verdict_of_the_shared_type():
 @pytest.mark.parametrize("verb", [["simulate", "--method", "trajectory", "--runs", "3", "--vo", "isotropic",
                                    "--start-q-deg", "1,2,3,4,5"], ["demo", "--seed", "4", "--camera-hz", "3"],
                                   ["match", "cam.tum", "kin.tum", "--no-timestamps", "--max-dt", "0.05"],
-                                  ["handeye", "cam.tum", "kin.tum", "--noise-mm", "3", "--camera-rate", "30"]])
+                                  ["handeye", "cam.tum", "kin.tum", "--noise-mm", "3", "--camera-rate-hz", "30"]])
 def test_dump_config_round_trips_and_flags_win_over_the_file(tmp_path, capsys, verb):
     """``--dump-config`` of a localcal verb is a file ``--config`` reads back to the same parameters;
     a flag given with ``--config`` wins over the file's value."""

@@ -1,14 +1,15 @@
 """Trajectory input flags shared by the ``localcal`` verbs that read two trajectories.
 
-``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC``, ``--rate HZ`` and ``--tf-parent`` /
+``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC``, ``--rate-hz HZ`` and ``--tf-parent`` /
 ``--tf-child`` apply to both inputs; ``--camera-format``/``--kinematic-format``,
-``--camera-topic``/``--kinematic-topic``, ``--camera-rate``/``--kinematic-rate`` and
+``--camera-topic``/``--kinematic-topic``, ``--camera-rate-hz``/``--kinematic-rate-hz`` and
 ``--camera-tf-parent``/``--kinematic-tf-parent`` (``-tf-child`` likewise) override them for one
 input (e.g. two topics of the same bag, or a KITTI camera file beside a TUM kinematic log). The
 format defaults to the file's content (TUM, KITTI and EuRoC rows tell themselves apart) and its
 suffix.
 """
 
+from ._common import add_deprecated
 from ._flags import bounded_float, check_flags
 
 __all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "print_result", "read_options", "read_trajectory_args"]
@@ -37,8 +38,10 @@ def add_trajectory_args(parser, roles=ROLES) -> None:
     g.add_argument("--topic", default=None, metavar="TOPIC",
                    help="pose topic of a bag input: PoseStamped, Odometry or TransformStamped "
                         "(default: the bag's only pose topic)")
-    g.add_argument("--rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None, metavar="HZ",
+    rate = bounded_float(0.0, 1e6, "Hz", lo_open=True, flag="--rate-hz")
+    g.add_argument("--rate-hz", dest="rate", type=rate, default=None, metavar="HZ",
                    help="frame rate of a KITTI input (which carries no time), (0, 1e6] Hz")
+    add_deprecated(g, "--rate", "--rate-hz", "rate", rate)
     g.add_argument("--tf-parent", default=None, metavar="FRAME",
                    help="bag input: read the transform FRAME -> --tf-child from /tf and /tf_static "
                         "(composed along the frame tree at each stamp) instead of a pose topic")
@@ -46,8 +49,10 @@ def add_trajectory_args(parser, roles=ROLES) -> None:
     for role in roles:
         g.add_argument(f"--{role}-format", choices=_FORMATS, default=None, help=f"format of {role.upper()} only")
         g.add_argument(f"--{role}-topic", default=None, metavar="TOPIC", help=f"bag topic of {role.upper()} only")
-        g.add_argument(f"--{role}-rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None,
-                       metavar="HZ", help=f"KITTI frame rate of {role.upper()} only")
+        rate = bounded_float(0.0, 1e6, "Hz", lo_open=True, flag=f"--{role}-rate-hz")
+        g.add_argument(f"--{role}-rate-hz", dest=f"{role}_rate", type=rate, default=None, metavar="HZ",
+                       help=f"KITTI frame rate of {role.upper()} only")
+        add_deprecated(g, f"--{role}-rate", f"--{role}-rate-hz", f"{role}_rate", rate)
         g.add_argument(f"--{role}-tf-parent", default=None, metavar="FRAME", help=f"tf parent frame of {role.upper()} only")
         g.add_argument(f"--{role}-tf-child", default=None, metavar="FRAME", help=f"tf child frame of {role.upper()} only")
 

@@ -129,7 +129,7 @@ def read_trajectory(path, fmt: str | None = None, topic: str | None = None,
         fmt = detect_format(path, notes)
     if fmt == "kitti" and rate_hz is None and sniffed:
         raise TrajectoryError(f"{path}: rows of 12 numbers, a KITTI pose file, which carries no time: give its "
-                              "frame rate with --rate HZ")
+                              "frame rate with --rate-hz HZ")
     if fmt == "tum":
         return read_tum(path)
     if fmt == "kitti":

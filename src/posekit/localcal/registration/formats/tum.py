@@ -65,7 +65,7 @@ def read_tum(path) -> Trajectory:
             continue
         fields = s.replace(",", " ").split()
         if len(fields) != 8:
-            hint = ("; 12 numbers per line look like a KITTI pose file: give --format kitti --rate HZ"
+            hint = ("; 12 numbers per line look like a KITTI pose file: give --format kitti --rate-hz HZ"
                     if len(fields) == 12 else "")
             raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
                                       f"found {len(fields)} fields{hint}")
