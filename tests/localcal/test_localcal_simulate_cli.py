@@ -238,14 +238,19 @@ def test_every_run_has_a_verdict_of_the_shared_type():
     """``ExperimentResult.verdicts``: ``posekit.verdict.Verdict`` per run — the failure as the
     reason of ``error``, the registration's reasons for ``suspect`` — and the statuses, counts and
     exit code follow from them."""
-    from types import SimpleNamespace
+    from dataclasses import fields
 
+    from posekit.localcal.studies.episode import LocalcalEpisode
     from posekit.localcal.studies.experiments import ExperimentResult
     from posekit.verdict import Level, Verdict, batch_exit_code
 
-    ok = SimpleNamespace(matching={"status": "ok", "reasons": []})
-    suspect = SimpleNamespace(matching={"status": "suspect", "reasons": ["a", "b"]})
-    line = SimpleNamespace(matching=None)                     # the line method registers nothing
+    def episode(matching):
+        return LocalcalEpisode(**{f.name: None for f in fields(LocalcalEpisode) if f.name not in ("logs", "images")}
+                               | {"matching": matching})
+
+    ok = episode({"status": "ok", "reasons": []})
+    suspect = episode({"status": "suspect", "reasons": ["a", "b"]})
+    line = episode(None)                                      # the line method registers nothing
     result = ExperimentResult("trajectory", 0, 2, [ok, suspect, None, line], [None, None, "X: broke", None])
     assert result.verdicts == [Verdict("ok"), Verdict("suspect", ("a", "b")), Verdict.failed("X: broke"), Verdict("ok")]
     assert [v.level for v in result.verdicts] == [Level.OK, Level.SUSPECT, Level.FAILED, Level.OK]

@@ -44,6 +44,7 @@ from posekit.localcal.methods.trajectory_method import (
 )
 from posekit.localcal.sim.vo import depth_along_axis, simulate_vo
 from posekit.localcal.studies.episode_config import METHODS, START_Q, EpisodeConfig
+from posekit.verdict import Verdict
 
 __all__ = ["LocalcalEpisode", "run_localcal_episode"]
 
@@ -91,6 +92,14 @@ class LocalcalEpisode:
     timeline: dict
     logs: dict = field(default_factory=dict)
     images: list = field(default_factory=list)
+
+    @property
+    def verdict(self) -> Verdict:
+        """``suspect`` with the registration's reasons when the trajectory registration (match or
+        hand-eye) was, else ``ok`` (an episode that could not run raises instead)."""
+        if self.matching and self.matching.get("status") not in (None, "ok"):
+            return Verdict("suspect", tuple(self.matching.get("reasons", ())))
+        return Verdict("ok")
 
 
 # --------------------------------------------------------------------------- simulator glue

@@ -107,9 +107,7 @@ def episode_verdict(ep: LocalcalEpisode | None, failure: str | None = None) -> V
     suspect, else ``ok``. The run's numbers are the simulation's (no std)."""
     if ep is None:
         return Verdict.failed(failure or "the episode failed")
-    if ep.matching and ep.matching.get("status") not in (None, "ok"):
-        return Verdict("suspect", tuple(ep.matching.get("reasons", ())))
-    return Verdict("ok")
+    return ep.verdict
 
 
 def episode_status(ep: LocalcalEpisode | None) -> str:
