@@ -174,6 +174,17 @@ def test_estimators_never_import_their_simulator_or_studies(system):
     assert not bad, f"{system}: estimator modules import the simulator or the studies: {bad}"
 
 
+@pytest.mark.parametrize("system", [s for s in SYSTEMS if (SRC / "posekit" / s / "model").is_dir()])
+def test_the_model_imports_only_the_core(system):
+    """``<system>/model`` is plain data: it imports the core and its own model, nothing else of
+    the system (no estimator, simulator or studies)."""
+    graph = import_graph()
+    own = f"posekit.{system}.model"
+    bad = sorted((m, t) for m in _system_modules(system, "model") for t in graph[m]
+                 if t.startswith(f"posekit.{system}") and not (t == own or t.startswith(own + ".")))
+    assert not bad, f"{system}: the model imports other parts of the system: {bad}"
+
+
 def test_allowed_sim_imports_still_exist():
     graph = import_graph()
     stale = sorted(pair for pair in ALLOWED_SIM_IMPORTS if pair[0] in graph and pair[1] not in graph[pair[0]])
