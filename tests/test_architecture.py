@@ -32,18 +32,10 @@ ESTIMATORS = {"profiler": ("estimate",), "ceiling": ("detect", "track"), "localc
 #: circle fails the test, so the list cannot outlive its circles.
 ALLOWED_CIRCLES: set = set()
 
-#: Simulator imports of an estimator package that are being removed on other branches (issue 27
-#: aligns localcal with the model / estimator / simulator / studies layout); (importer, imported).
-ALLOWED_SIM_IMPORTS = {
-    # the episode runs the adjustment methods: an experiment, which moves to localcal's studies
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.line_method"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.orientation"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.methods.trajectory_method"),
-    ("posekit.localcal.sim.episode", "posekit.localcal.registration.handeye"),
-    # the trajectory type lives in registration/tum.py; it belongs with the model
-    ("posekit.localcal.sim.episode", "posekit.localcal.registration.tum"),
-    ("posekit.localcal.sim.vo", "posekit.localcal.registration.tum"),
-}
+#: Simulator imports of an estimator package that are being removed on other branches;
+#: (importer, imported). Empty: localcal's episode moved to its studies and its trajectory type
+#: to its model (issue 29).
+ALLOWED_SIM_IMPORTS: set[tuple[str, str]] = set()
 
 
 def _module_name(path: Path) -> tuple[str, bool]:
@@ -179,6 +171,17 @@ def test_estimators_never_import_their_simulator_or_studies(system):
     assert not bad, f"{system}: estimator modules import the simulator or the studies: {bad}"
 
 
+@pytest.mark.parametrize("system", [s for s in SYSTEMS if (SRC / "posekit" / s / "model").is_dir()])
+def test_the_model_imports_only_the_core(system):
+    """``<system>/model`` is plain data: it imports the core and its own model, nothing else of
+    the system (no estimator, simulator or studies)."""
+    graph = import_graph()
+    own = f"posekit.{system}.model"
+    bad = sorted((m, t) for m in _system_modules(system, "model") for t in graph[m]
+                 if t.startswith(f"posekit.{system}") and not (t == own or t.startswith(own + ".")))
+    assert not bad, f"{system}: the model imports other parts of the system: {bad}"
+
+
 def test_allowed_sim_imports_still_exist():
     graph = import_graph()
     stale = sorted(pair for pair in ALLOWED_SIM_IMPORTS if pair[0] in graph and pair[1] not in graph[pair[0]])
@@ -204,10 +207,11 @@ def test_systems_import_only_the_core_and_nothing_imports_the_cli():
 
 # --------------------------------------------------------------------------- explicit APIs
 
-#: ``__init__`` files that must list their public API explicitly (the profiler, the ceiling,
-#: the core and the CLI; seam and localcal follow on their own branches).
+#: ``__init__`` files that must list their public API explicitly: every system's package and
+#: sub-package, the core's and the CLI's.
 EXPLICIT = ["posekit", "posekit.cli", "posekit.geometry", "posekit.robots", "posekit.io"] + sorted(
-    m for m in import_graph() if m.startswith(("posekit.profiler", "posekit.ceiling", "posekit.seam"))
+    m for m in import_graph() if m.startswith(("posekit.profiler", "posekit.ceiling", "posekit.localcal",
+                                               "posekit.seam"))
     and (SRC / Path(*m.split("."))).is_dir())
 
 

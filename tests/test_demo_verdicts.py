@@ -2,7 +2,7 @@
 
 import pytest
 
-from posekit.localcal.plots import verdict_line
+from posekit.localcal.studies.plots import verdict_line
 from posekit.profiler.loop.loop_report import PAPER_TABLE3, PAPER_TABLE4
 from posekit.profiler.loop.loop_verdict import second_order_mf, table3_verdict, table4_verdicts
 from posekit.profiler.loop.response import zeta_from_overshoot

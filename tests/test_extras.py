@@ -121,7 +121,7 @@ def test_vision_commands_without_opencv(monkeypatch, capsys, tmp_path):
 
     importlib.reload(detect)  # the module-level name is a lazy stand-in: importing works
     importlib.reload(camera)
-    importlib.reload(marker_detector)  # it holds camera's CameraIntrinsics class: the reloaded one
+    importlib.reload(marker_detector)  # it holds camera's cv2 stand-in: the reloaded one
     try:
         cal = tmp_path / "cal.json"
         cal.write_text('{"H_image_world": [[1,0,0],[0,1,0],[0,0,1]], "H_world_image": [[1,0,0],[0,1,0],[0,0,1]], '

@@ -55,7 +55,7 @@ def one_line(text, limit: int = MAX_MESSAGE) -> str:
     bidirectional overrides) are escaped. A text longer than ``limit`` first has its longest
     runs of non-space characters (paths, quoted values) abbreviated in their middle, down to
     40 characters each; a text still too long keeps its beginning and its last third (where
-    "expected ..." usually is) around `` ... ``.
+    "expected ..." usually is) around ``" ... "``.
 
     Examples
     --------

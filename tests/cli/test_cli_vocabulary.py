@@ -50,6 +50,16 @@ def test_deprecated_spellings_still_work_with_a_note(capsys):
     assert parser.parse_args(["profiler", "serve", "--gauge", "demo-5", "--listen", "127.0.0.1:0",
                               "--duration-s", "4"]).duration == 4.0
     assert parser.parse_args(["localcal", "simulate", "--method", "line", "--out", "o", "--workers", "2"]).workers == 2
+    # localcal's KITTI frame rate: --rate-hz (as profiler replay's), per input --camera-rate-hz, --kinematic-rate-hz
+    capsys.readouterr()
+    for old, new, dest in [("--rate", "--rate-hz", "rate"), ("--camera-rate", "--camera-rate-hz", "camera_rate"),
+                           ("--kinematic-rate", "--kinematic-rate-hz", "kinematic_rate")]:
+        for verb in ("match", "handeye"):
+            args = parser.parse_args(["localcal", verb, "c.txt", "k.txt", "--out", "r.json", old, "30"])
+            assert getattr(args, dest) == 30.0
+            assert capsys.readouterr().err == f"posekit: note: {old} is deprecated and will be removed; use {new}\n"
+            assert getattr(parser.parse_args(["localcal", verb, "c.txt", "k.txt", "--out", "r.json", new, "25"]),
+                           dest) == 25.0
 
 
 def test_estimate_out_with_an_unknown_suffix_is_an_error(capsys, tmp_path):

@@ -85,7 +85,7 @@ def _tum_cases():
          "4: position 1e+300 m is implausible; expected metres"),
         # the rows decide the format (issue 30): a .txt of KITTI rows is KITTI, which needs a rate
         ("kitti_as_tum", None, "rows of 12 numbers, a KITTI pose file, which carries no time: give its frame rate "
-                               "with --rate HZ"),
+                               "with --rate-hz HZ"),
     ]
 
 
@@ -152,12 +152,12 @@ def test_kitti(capsys, pair):
     tmp, _, kin = pair
     k = tmp / "poses.kitti"
     k.write_text(_kitti_text())
-    no_rate = f"{k}: a KITTI pose file carries no time; give its frame rate with --rate HZ"
+    no_rate = f"{k}: a KITTI pose file carries no time; give its frame rate with --rate-hz HZ"
     _both(capsys, tmp, k, kin, "--format", "kitti", message=no_rate)
-    _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--kinematic-rate", 10, message=no_rate)
+    _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--kinematic-rate-hz", 10, message=no_rate)
     for rate in ("0", "nan", "-5", "1e7"):
-        _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--rate", rate,
-              message=f"--rate: expected a number > 0 and <= 1000000 Hz, got {rate}")
+        _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--rate-hz", rate,
+              message=f"--rate-hz: expected a number > 0 and <= 1000000 Hz, got {rate}")
     lines = _kitti_text().splitlines(keepends=True)
     for text, message in [
         (_replace(lines, 2, " ".join(lines[2].split()[:11]) + "\n"),
@@ -169,7 +169,7 @@ def test_kitti(capsys, pair):
         (_replace(lines, 2, "1 0 0 1e300 0 1 0 0 0 0 1 0\n"), "3: position 1e+300 m is implausible; expected metres"),
     ]:
         k.write_text(text)
-        _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--camera-rate", 10, message=f"{k}:{message}")
+        _both(capsys, tmp, k, kin, "--camera-format", "kitti", "--camera-rate-hz", 10, message=f"{k}:{message}")
 
 
 def test_euroc(capsys, pair):

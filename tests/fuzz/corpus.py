@@ -105,8 +105,8 @@ def _consumers():
     from posekit.ceiling.camera import load_camera
     from posekit.ceiling.camera.homography import load_calibration
     from posekit.geometry import apply_homography
+    from posekit.localcal.registration.formats.tum import read_tum
     from posekit.localcal.registration.match import match_trajectories
-    from posekit.localcal.registration.tum import read_tum
     from posekit.profiler import bundled_gauge, estimate_pose, estimate_profiles, nominal_pose, render_profiles
     from posekit.profiler.gauge.model import load_gauge
     from posekit.profiler.stream.reading import read_profile_file

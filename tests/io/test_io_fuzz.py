@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from posekit.ceiling.camera.homography import load_calibration, read_points_csv
 from posekit.errors import PosekitError
-from posekit.localcal.registration.tum import read_tum
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.profiler.gauge.model import bundled_gauge_path, load_gauge
 from posekit.profiler.stream.reading import read_profiles
 from posekit.robots import bundled_robot_path, load_urdf

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from posekit.localcal.registration.tum import Trajectory
+from posekit.localcal.model.trajectory import Trajectory
 
 #: The real TUM RGB-D trajectory pairs (SLAM estimate and ground truth) of ``tests/data/tum``.
 TUM_DATA = Path(__file__).resolve().parents[1] / "data" / "tum"

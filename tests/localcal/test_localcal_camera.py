@@ -5,7 +5,8 @@ import pytest
 
 from posekit.errors import ConfigError, GeometryError, InputFileError
 from posekit.geometry import matrix_from_rotation_vector, rotation_angle_between
-from posekit.localcal.sim.camera import marker_corners, render_markers, zed2_720p
+from posekit.localcal.model.camera import zed2_720p
+from posekit.localcal.sim.camera import marker_corners, render_markers
 from posekit.localcal.sim.marker_detector import MarkerDetector
 
 INTR = zed2_720p()

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from posekit.errors import ConfigError, EstimationError
-from posekit.localcal.sim.episode import EpisodeConfig, run_localcal_episode
-from posekit.localcal.sim.experiments import run_experiment, table_columns
+from posekit.localcal.studies.episode import run_localcal_episode
+from posekit.localcal.studies.episode_config import EpisodeConfig
+from posekit.localcal.studies.experiments import run_experiment, table_columns
 
 FAST = EpisodeConfig(camera_hz=2.0, plot_hz=0.0)
 # the OOI is hidden while the calibration path runs: the trajectory method does not need it

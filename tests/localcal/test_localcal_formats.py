@@ -15,14 +15,15 @@ from scipy.spatial.transform import Rotation
 from posekit.cli.localcal_inputs import add_trajectory_args, read_trajectory_args
 from posekit.errors import InputFileError, PosekitError, TrajectoryError
 from posekit.io import set_limits
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.formats import (
     detect_format,
     read_trajectory,
     write_euroc,
     write_kitti,
 )
+from posekit.localcal.registration.formats.tum import write_tum
 from posekit.localcal.registration.match import match_trajectories
-from posekit.localcal.registration.tum import Trajectory, write_tum
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -203,19 +204,19 @@ def test_kitti_and_tum_from_the_cli_parser(tmp_path, pair):
     parser.add_argument("camera")
     parser.add_argument("kinematic")
     add_trajectory_args(parser)
-    args = parser.parse_args([str(k), str(t), "--camera-format", "kitti", "--rate", "25"])
+    args = parser.parse_args([str(k), str(t), "--camera-format", "kitti", "--rate-hz", "25"])
     got = read_trajectory_args(args, args.camera)
     np.testing.assert_allclose(got.t_s, np.arange(len(cam)) / 25.0)
     assert len(read_trajectory_args(args, args.kinematic)) == len(kin)
     args = parser.parse_args([str(k), str(t), "--camera-format", "kitti"])
     with pytest.raises(TrajectoryError) as exc:
         read_trajectory_args(args, args.camera)
-    assert str(exc.value) == f"{k}: a KITTI pose file carries no time; give its frame rate with --rate HZ"
+    assert str(exc.value) == f"{k}: a KITTI pose file carries no time; give its frame rate with --rate-hz HZ"
     with pytest.raises(TrajectoryError) as exc:
         read_trajectory(k, fmt="kitti", rate_hz=float("nan"))
     assert str(exc.value) == f"{k}: expected a KITTI frame rate > 0 Hz, got nan"
-    args = parser.parse_args([str(k), str(t), "--format", "kitti", "--rate", "-3"])
-    with pytest.raises(PosekitError, match="--rate"):
+    args = parser.parse_args([str(k), str(t), "--format", "kitti", "--rate-hz", "-3"])
+    with pytest.raises(PosekitError, match="^--rate-hz: "):
         read_trajectory_args(args, args.camera)
 
 
@@ -359,11 +360,11 @@ def test_a_kitti_file_read_as_tum_says_so(tmp_path, pair):
     with pytest.raises(TrajectoryError) as exc:            # the rows say KITTI, whatever the suffix says
         read_trajectory(k)
     assert str(exc.value) == (f"{k}: rows of 12 numbers, a KITTI pose file, which carries no time: give its "
-                              "frame rate with --rate HZ")
+                              "frame rate with --rate-hz HZ")
     with pytest.raises(InputFileError) as exc:              # forced to TUM: the TUM reader names the line
         read_trajectory(k, fmt="tum")
     assert str(exc.value) == (f"{k}:1: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', found 12 fields; "
-                              "12 numbers per line look like a KITTI pose file: give --format kitti --rate HZ")
+                              "12 numbers per line look like a KITTI pose file: give --format kitti --rate-hz HZ")
 
 
 def test_the_rows_decide_the_format_and_a_note_says_so(tmp_path, pair):

@@ -14,10 +14,11 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from posekit.cli.main import main
 from posekit.errors import TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
+from posekit.localcal.registration.formats.tum import write_tum
 from posekit.localcal.registration.handeye import calibrate_handeye
 from posekit.localcal.registration.handeye_closed import park_martin, solve_world
 from posekit.localcal.registration.handeye_time import PoseInterpolator
-from posekit.localcal.registration.tum import Trajectory, write_tum
 
 KEYS = ["R_tool_camera", "t_tool_camera_mm", "R", "t_mm", "rmse_mm", "status", "reasons", "std_rot_deg", "std_t_mm"]
 
@@ -303,7 +304,7 @@ def test_real_tum_pair_camera_is_at_the_ground_truth_body():
     """TUM RGB-D fr2/desk: ORB-SLAM2 camera poses against motion-capture poses of the same camera's
     optical centre (tests/data/tum/README.md), so the true mount is the identity up to the
     benchmark's own calibration (mm, a fraction of a degree)."""
-    from posekit.localcal.registration.tum import read_tum
+    from posekit.localcal.registration.formats.tum import read_tum
     from tests.localcal.synth_trajectories import TUM_DATA as data
 
     cam, gt = read_tum(data / "fr2_desk_ORB.txt"), read_tum(data / "fr2_desk_groundtruth.txt")

@@ -14,8 +14,8 @@ import pytest
 from posekit.errors import ConfigError
 from posekit.localcal.registration.alignment import umeyama
 from posekit.localcal.registration.association import associate
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.localcal.registration.match import match_trajectories
-from posekit.localcal.registration.tum import read_tum
 from tests.localcal.synth_trajectories import TUM_DATA as DATA
 from tests.localcal.synth_trajectories import rotation_error_deg
 from tests.localcal.test_localcal_verdict import base, good_cases, lever

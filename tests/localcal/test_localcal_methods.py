@@ -267,7 +267,8 @@ def test_calibration_from_tum_files_recovers_the_camera_rotation(tmp_path):
     """VO (noise, no drift) written to / read from TUM files (metres, qx qy qz qw) gives R_B_W
     within 0.2 degrees."""
     from posekit.localcal.methods.trajectory_method import calibrate_trajectories
-    from posekit.localcal.registration.tum import Trajectory, write_tum
+    from posekit.localcal.model.trajectory import Trajectory
+    from posekit.localcal.registration.formats.tum import write_tum
 
     T_B_C, t = _camera_path(600)
     vo = simulate_vo(T_B_C, t, 3, stride=2, drift_mm_per_sqrt_m=0.0, drift_rad_per_sqrt_m=0.0)
@@ -284,7 +285,7 @@ def test_calibration_from_tum_files_recovers_the_camera_rotation(tmp_path):
 
 def test_calibration_of_a_straight_line_is_an_error():
     from posekit.localcal.methods.trajectory_method import calibrate_trajectories
-    from posekit.localcal.registration.tum import Trajectory
+    from posekit.localcal.model.trajectory import Trajectory
 
     T = np.broadcast_to(T_B_F, (50, 4, 4)).copy()
     T[:, :3, 3] += np.linspace(0.0, 400.0, 50)[:, None] * T_B_F[:3, 0]

@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from posekit.cli.main import main
-from posekit.localcal.sim.episode import START_Q
+from posekit.localcal.studies.episode_config import START_Q
 from posekit.robots import hiab033, load_urdf
 
 #: The crane's DH rows (a mm, alpha rad, d mm, theta0 rad) and limits (deg), from models.py's docs.

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.alignment import umeyama
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.localcal.registration.match import match_trajectories
-from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import TUM_DATA
 
 
@@ -73,30 +74,37 @@ def _run(n, seed0):
     return rows
 
 
+#: Cases of the study: 15 drifting, 5 without drift (was 40, 11 s of the suite; the bounds below
+#: are fractions of N or a binomial tail at this N).
+N_CASES = 20
+
+
 @pytest.fixture(scope="module")
 def study():
-    return _run(40, 1000)
+    return _run(N_CASES, 1000)
 
 
 def test_ok_cases_are_within_3_sigma_and_drifting_ones_suspect(study):
-    """Measured: seeds 1000-1039, 14 ok of 40, all 14 within 3 sigma (largest 2.96); 26 of 30
-    drifting cases suspect (the four ok at 10-20 mm of noise); 0 of 10 without drift suspect.
-    Seeds 2000-2039: 13 of 14 ok within 3 sigma, 26 of 30 drifting suspect, 0 of 10 false."""
+    """Measured: seeds 1000-1019, 7 ok of 20, all 7 within 3 sigma; 13 of 15 drifting cases
+    suspect (the two ok at 10-20 mm of noise); 0 of 5 without drift suspect (seeds 2000-2019 the
+    same counts). With 40 cases (seeds 1000-1039): 14 ok, all within 3 sigma; 26 of 30 drifting
+    suspect; 0 of 10 false. A 1 % test gives 2 or more false alarms in 5 with probability 1e-3."""
     ok = [r for r in study if r["status"] == "ok"]
     assert {r["status"] for r in study} <= {"ok", "suspect"}
-    assert len(ok) >= 8
+    assert len(ok) >= N_CASES // 5
     assert sum(r["z"] <= 3.0 for r in ok) >= 0.85 * len(ok)
     drifting = [r for r in study if r["drift"]]
     # the drift is found wherever the noise leaves it measurable (<= 5 mm: every case)
     assert all(r["status"] == "suspect" for r in drifting if r["noise"] <= 5.0)
     assert sum(r["status"] == "suspect" for r in drifting) >= 0.8 * len(drifting)
-    # without drift: at most one false alarm in 10 (the test's level is 1 %)
+    # without drift: at most one false alarm (the test's level is 1 %)
     assert sum(r["status"] == "suspect" for r in study if not r["drift"]) <= 1
 
 
 def test_the_drift_is_measured_with_an_honest_sigma(study):
-    """|measured - true drift| <= 2 sigma in >= 85 % of the cases (measured: 39 of 40; seeds
-    2000-2039: 37 of 40)."""
+    """|measured - true drift| <= 2 sigma in >= 85 % of the cases (measured: 19 of 20, seeds
+    1000-1019 and 2000-2019; of 40: 39 and 37). An honest sigma misses 2 sigma 4.6 % of the
+    time: 4 or more misses in 20 then has a probability of about 1.5 %."""
     z = np.array([r["z_drift"] for r in study])
     assert np.mean(z <= 2.0) >= 0.85
 

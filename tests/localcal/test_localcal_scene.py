@@ -5,8 +5,8 @@ import pytest
 
 from posekit.errors import ConfigError, GeometryError
 from posekit.geometry import rotation_angle_between
+from posekit.localcal.model.camera import zed2_720p
 from posekit.localcal.sim.arm import LongReachArm
-from posekit.localcal.sim.camera import zed2_720p
 from posekit.localcal.sim.marker_detector import MarkerDetector
 from posekit.localcal.sim.scene import (
     Workcell,

@@ -9,13 +9,8 @@ import pytest
 
 from posekit.errors import ConfigError
 from posekit.geometry import invert_transform, matrix_from_rotation_vector
-from posekit.localcal.sim.camera import (
-    ZED2_720P_DISTORTION,
-    CameraIntrinsics,
-    _ideal_pixel_map,
-    render_markers,
-    zed2_720p,
-)
+from posekit.localcal.model.camera import ZED2_720P_DISTORTION, CameraIntrinsics, zed2_720p
+from posekit.localcal.sim.camera import _ideal_pixel_map, render_markers
 from posekit.localcal.sim.marker_detector import MarkerDetector
 from posekit.localcal.sim.vo import StereoNoise, depth_along_axis, simulate_vo
 
@@ -169,8 +164,9 @@ def test_bad_distortion_is_a_config_error():
 # --------------------------------------------------------------------------- episodes
 
 def test_correspondence_free_episode_and_fig5(tmp_path):
-    from posekit.localcal.plots import plot_orientation_errors
-    from posekit.localcal.sim.episode import EpisodeConfig, run_localcal_episode
+    from posekit.localcal.studies.episode import run_localcal_episode
+    from posekit.localcal.studies.episode_config import EpisodeConfig
+    from posekit.localcal.studies.plots import plot_orientation_errors
 
     cfg = EpisodeConfig(camera_hz=2.0, plot_hz=1.0, use_timestamps=False)
     ep = run_localcal_episode("trajectory", 4, updates=2, config=cfg)
@@ -205,7 +201,8 @@ def test_tilted_calibration_path_rotates_the_inner_waypoints():
 def test_rotating_path_with_the_camera_off_the_tool_needs_hand_eye():
     """The camera is ~0.47 m from the tool point: on a tilting path the paper's position matching
     is centimetres off (and its verdict says so); hand-eye recovers sub-centimetre XY."""
-    from posekit.localcal.sim.episode import EpisodeConfig, run_localcal_episode
+    from posekit.localcal.studies.episode import run_localcal_episode
+    from posekit.localcal.studies.episode_config import EpisodeConfig
 
     base = {"camera_hz": 2.0, "plot_hz": 0.0, "calibration_tilt_deg": 15.0}
     he = run_localcal_episode("trajectory", 2, updates=1, config=EpisodeConfig(**base))
@@ -225,7 +222,8 @@ def test_rotating_path_with_the_camera_off_the_tool_needs_hand_eye():
 def test_boom_vibration_is_the_damped_second_order_response():
     """Constant commanded acceleration of the lift joint from rest: the deflection follows the
     closed-form step response of δ̈ + 2ζωδ̇ + ω²δ = -gα; the encoders never see it."""
-    from posekit.localcal.sim.arm import LongReachArm, NonKinematicErrors
+    from posekit.localcal.sim.arm import LongReachArm
+    from posekit.localcal.sim.arm_errors import NonKinematicErrors
 
     errors = NonKinematicErrors(np.zeros(6), np.zeros(6), [0.0, 0.0], flex_hz=1.5, flex_damping=0.08, flex_gain=0.7)
     arm = LongReachArm(errors=errors, seed=0)

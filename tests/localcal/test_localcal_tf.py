@@ -16,8 +16,9 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from posekit.cli.main import main
 from posekit.errors import InputFileError
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.formats import read_trajectory
-from posekit.localcal.registration.tum import Trajectory, write_tum
+from posekit.localcal.registration.formats.tum import write_tum
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402

@@ -7,7 +7,8 @@ from pytransform3d.rotations import (
 )
 
 from posekit.errors import InputFileError, TrajectoryError
-from posekit.localcal.registration.tum import Trajectory, read_tum, write_tum
+from posekit.localcal.model.trajectory import Trajectory
+from posekit.localcal.registration.formats.tum import read_tum, write_tum
 from tests.localcal.synth_trajectories import TUM_DATA as DATA
 
 FR1_SLAM = DATA / "freiburg1_xyz-rgbdslam.txt"

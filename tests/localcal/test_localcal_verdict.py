@@ -13,9 +13,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from posekit.errors import TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
+from posekit.localcal.registration.formats.tum import read_tum
 from posekit.localcal.registration.match import match_trajectories
 from posekit.localcal.registration.quality import check_units, lever_arm_fit
-from posekit.localcal.registration.tum import Trajectory, read_tum
 from tests.localcal.synth_trajectories import (
     TUM_DATA as DATA,
 )

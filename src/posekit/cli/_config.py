@@ -124,7 +124,9 @@ def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
             raise ConfigError(f"{path}: unknown key '{str(raw)[:60]}'; expected one of {known}"[:300])
         if value is None and action.default is None:
             continue                                 # null: not given (a required flag must then be given)
-        values[action.dest] = _convert(action, key, value, path)
+        value = _convert(action, key, value, path)
+        # a store_false flag (--no-timestamps -> timestamps) is keyed by its flag: true means "given"
+        values[action.dest] = (not value) if isinstance(action, argparse._StoreFalseAction) else value
         action.required = False
         if not action.option_strings and action.nargs is None:
             action.nargs = "?"
@@ -140,6 +142,8 @@ def dump_config(parser: argparse.ArgumentParser, argv: list[str], args) -> str:
         value = getattr(args, action.dest, None)
         if isinstance(value, _OutOfRange):
             value = float(value) if isinstance(value, float) else int(value)
+        if isinstance(action, argparse._StoreFalseAction):
+            value = not value                        # keyed by the flag: true means "--no-x given"
         out[key] = value
     return yaml.safe_dump(out, sort_keys=False, allow_unicode=True)
 

@@ -1,8 +1,9 @@
 """``posekit localcal handeye``: the camera mount (camera-to-tool) and the camera's world frame in
 the robot base, together, for a camera that is not at the tool point."""
 
-from ._flags import bounded_float
-from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
+from ._config import add_config_arguments
+from ._flags import bounded_float, check_flags
+from .localcal_inputs import add_pair_args, add_trajectory_args, print_result, read_options
 
 __all__ = ["add_handeye_parser", "run_handeye"]
 
@@ -33,31 +34,31 @@ def add_handeye_parser(verbs):
     p.add_argument("--max-std-deg", type=bounded_float(0.0, 180.0, "deg", lo_open=True), default=0.5, metavar="DEG",
                    help="suspect when the camera mount's rotation std exceeds this, (0, 180] deg (default 0.5)")
     add_trajectory_args(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_handeye)
     return p
 
 
 def run_handeye(args) -> int:
-    """Run ``posekit localcal handeye``; returns the exit code (0 ok, 1 suspect)."""
+    """Run ``posekit localcal handeye`` (:func:`posekit.localcal.handeye_files`); returns the exit code
+    (0 ok, 1 suspect)."""
     import numpy as np
 
     from ..geometry import rotation_angle_between
-    from ..localcal.registration.handeye import calibrate_handeye
+    from ..localcal.commands import handeye_files
 
-    cam, kin = read_pair_args(args)
-    res = calibrate_handeye(cam, kin, max_dt_s=args.max_dt, time_offset_s=args.time_offset,
-                            max_offset_s=args.max_offset, noise_mm=args.noise_mm, noise_deg=args.noise_deg,
-                            max_std_t_mm=args.max_std_mm, max_std_rot_deg=args.max_std_deg,
-                            names=(str(args.camera), str(args.kinematic)))
-    from dataclasses import replace
-
-    res = replace(res, notes=list(getattr(args, "_input_notes", ())) + list(res.notes))
+    check_flags(args)
+    run = handeye_files(args.camera, args.kinematic, args.out, camera_read=read_options(args, "camera"),
+                        kinematic_read=read_options(args, "kinematic"), max_dt_s=args.max_dt,
+                        time_offset_s=args.time_offset, max_offset_s=args.max_offset, noise_mm=args.noise_mm,
+                        noise_deg=args.noise_deg, max_std_t_mm=args.max_std_mm, max_std_rot_deg=args.max_std_deg)
+    res = run.result
     X, Z = res.T_tool_camera, res.T_base_world
     ax = np.rad2deg(float(rotation_angle_between(np.eye(3), X[:3, :3], check=False)))
     az = np.rad2deg(float(rotation_angle_between(np.eye(3), Z[:3, :3], check=False)))
     offset = ("a clock offset the data do not determine (paired at 0)" if res.time_offset_source == "undetermined"
               else f"a clock offset of {res.time_offset_s * 1000:+.1f} ms")
-    return finish_result(args.out, res, [
+    return print_result(run.written["json"], res, [
         f"hand-eye from {res.n_pairs} pose pairs ({int(res.inliers.sum())} inliers) at {offset}",
         f"camera in tool: {ax:.3f} deg rotation, t [{X[0, 3]:.2f}, {X[1, 3]:.2f}, {X[2, 3]:.2f}] mm "
         f"(|t| {np.linalg.norm(X[:3, 3]):.2f} mm); std " + ", ".join(f"{v:.3g}" for v in res.std_rot_deg)

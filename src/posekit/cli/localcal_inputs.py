@@ -1,17 +1,18 @@
 """Trajectory input flags shared by the ``localcal`` verbs that read two trajectories.
 
-``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC``, ``--rate HZ`` and ``--tf-parent`` /
+``--format tum|kitti|euroc|rosbag``, ``--topic TOPIC``, ``--rate-hz HZ`` and ``--tf-parent`` /
 ``--tf-child`` apply to both inputs; ``--camera-format``/``--kinematic-format``,
-``--camera-topic``/``--kinematic-topic``, ``--camera-rate``/``--kinematic-rate`` and
+``--camera-topic``/``--kinematic-topic``, ``--camera-rate-hz``/``--kinematic-rate-hz`` and
 ``--camera-tf-parent``/``--kinematic-tf-parent`` (``-tf-child`` likewise) override them for one
 input (e.g. two topics of the same bag, or a KITTI camera file beside a TUM kinematic log). The
 format defaults to the file's content (TUM, KITTI and EuRoC rows tell themselves apart) and its
 suffix.
 """
 
+from ._common import add_deprecated
 from ._flags import bounded_float, check_flags
 
-__all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "finish_result", "read_pair_args", "read_trajectory_args"]
+__all__ = ["ROLES", "add_pair_args", "add_trajectory_args", "print_result", "read_options", "read_trajectory_args"]
 
 #: The positional arguments the per-input flags are named after.
 ROLES = ("camera", "kinematic")
@@ -37,8 +38,10 @@ def add_trajectory_args(parser, roles=ROLES) -> None:
     g.add_argument("--topic", default=None, metavar="TOPIC",
                    help="pose topic of a bag input: PoseStamped, Odometry or TransformStamped "
                         "(default: the bag's only pose topic)")
-    g.add_argument("--rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None, metavar="HZ",
+    rate = bounded_float(0.0, 1e6, "Hz", lo_open=True, flag="--rate-hz")
+    g.add_argument("--rate-hz", dest="rate", type=rate, default=None, metavar="HZ",
                    help="frame rate of a KITTI input (which carries no time), (0, 1e6] Hz")
+    add_deprecated(g, "--rate", "--rate-hz", "rate", rate)
     g.add_argument("--tf-parent", default=None, metavar="FRAME",
                    help="bag input: read the transform FRAME -> --tf-child from /tf and /tf_static "
                         "(composed along the frame tree at each stamp) instead of a pose topic")
@@ -46,8 +49,10 @@ def add_trajectory_args(parser, roles=ROLES) -> None:
     for role in roles:
         g.add_argument(f"--{role}-format", choices=_FORMATS, default=None, help=f"format of {role.upper()} only")
         g.add_argument(f"--{role}-topic", default=None, metavar="TOPIC", help=f"bag topic of {role.upper()} only")
-        g.add_argument(f"--{role}-rate", type=bounded_float(0.0, 1e6, "Hz", lo_open=True), default=None,
-                       metavar="HZ", help=f"KITTI frame rate of {role.upper()} only")
+        rate = bounded_float(0.0, 1e6, "Hz", lo_open=True, flag=f"--{role}-rate-hz")
+        g.add_argument(f"--{role}-rate-hz", dest=f"{role}_rate", type=rate, default=None, metavar="HZ",
+                       help=f"KITTI frame rate of {role.upper()} only")
+        add_deprecated(g, f"--{role}-rate", f"--{role}-rate-hz", f"{role}_rate", rate)
         g.add_argument(f"--{role}-tf-parent", default=None, metavar="FRAME", help=f"tf parent frame of {role.upper()} only")
         g.add_argument(f"--{role}-tf-child", default=None, metavar="FRAME", help=f"tf child frame of {role.upper()} only")
 
@@ -60,6 +65,18 @@ def _role(args, path, role):
         done = getattr(args, "_trajectory_roles_read", set())
         matches = [r for r in matches if r not in done] or matches
     return matches[0] if matches else None
+
+
+def read_options(args, role: str | None) -> dict:
+    """``read_trajectory``'s keyword arguments for the input ``role`` (``camera``/``kinematic``): its
+    own ``--<role>-format`` etc. where given, else the shared ``--format`` etc. (only those with
+    ``role`` None)."""
+    def pick(name):
+        own = getattr(args, f"{role}_{name}", None) if role else None
+        return own if own is not None else getattr(args, name, None)
+
+    return {"fmt": pick("format"), "topic": pick("topic"), "rate_hz": pick("rate"), "tf_parent": pick("tf_parent"),
+            "tf_child": pick("tf_child")}
 
 
 def read_trajectory_args(args, path, role: str | None = None):
@@ -79,7 +96,7 @@ def read_trajectory_args(args, path, role: str | None = None):
 
     Returns
     -------
-    posekit.localcal.registration.tum.Trajectory
+    posekit.localcal.model.trajectory.Trajectory
         Timestamps in s, poses in mm. What the reader decided for the user (a format the rows
         chose against the suffix) is appended to ``args._input_notes``.
     """
@@ -88,13 +105,8 @@ def read_trajectory_args(args, path, role: str | None = None):
     check_flags(args)
     role = _role(args, path, role)
 
-    def pick(name):
-        own = getattr(args, f"{role}_{name}", None) if role else None
-        return own if own is not None else getattr(args, name, None)
-
     notes = []
-    traj = read_trajectory(path, fmt=pick("format"), topic=pick("topic"), rate_hz=pick("rate"),
-                           tf_parent=pick("tf_parent"), tf_child=pick("tf_child"), notes=notes)
+    traj = read_trajectory(path, **read_options(args, role), notes=notes)
     args._input_notes = getattr(args, "_input_notes", []) + notes
     if role is not None:
         args._trajectory_roles_read = getattr(args, "_trajectory_roles_read", set()) | {role}
@@ -118,45 +130,13 @@ def add_pair_args(parser, *, kinematic_help: str, out_metavar: str) -> None:
     parser.add_argument("--out", required=True, metavar=out_metavar, help="result file to write")
 
 
-def read_pair_args(args):
-    """Read ``args.camera`` and ``args.kinematic`` with the format flags in ``args``.
-
-    Returns
-    -------
-    camera, kinematic : posekit.localcal.registration.tum.Trajectory
-        Timestamps in s, poses in mm.
-    """
-    check_flags(args)
-    return (read_trajectory_args(args, args.camera, role="camera"),
-            read_trajectory_args(args, args.kinematic, role="kinematic"))
-
-
-def finish_result(out, result, summary: list[str], what: str) -> int:
-    """Write ``result.to_json()`` to ``out``, print ``summary`` and ``wrote OUT``, and give the exit code.
-
-    Parameters
-    ----------
-    out : str or Path
-        The JSON file to write (atomically).
-    result : object
-        Has ``to_json()``, ``status`` and ``reasons``.
-    summary : list of str
-        Lines printed before ``wrote OUT``.
-    what : str
-        Named in ``posekit: suspect WHAT: reasons`` on stderr.
-
-    Returns
-    -------
-    int
-        0 when ``result.status`` is ``"ok"``, 1 otherwise (the file is written first).
-    """
-    import json
+def print_result(path, result, summary: list[str], what: str) -> int:
+    """Print ``summary`` and ``wrote PATH``; ``posekit: suspect WHAT: reasons`` on stderr and exit
+    code 1 unless ``result`` is ok (:func:`posekit.verdict.batch_exit_code`)."""
     import sys
 
-    from ..io import write_text_atomic
     from ..verdict import batch_exit_code
 
-    path = write_text_atomic(out, json.dumps(result.to_json(), indent=2) + "\n")
     for line in summary:
         print(line)
     print(f"wrote {path}")

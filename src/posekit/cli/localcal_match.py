@@ -1,7 +1,8 @@
 """``posekit localcal match``: the transform that maps a camera trajectory into the robot base."""
 
-from ._flags import bounded_float
-from .localcal_inputs import add_pair_args, add_trajectory_args, finish_result, read_pair_args
+from ._config import add_config_arguments
+from ._flags import bounded_float, check_flags
+from .localcal_inputs import add_pair_args, add_trajectory_args, print_result, read_options
 
 __all__ = ["add_match_parser", "run_match"]
 
@@ -38,29 +39,29 @@ def add_match_parser(verbs):
                         "the error of every pair over time) to the folder DIR")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --plot folder")
     add_trajectory_args(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_match)
     return p
 
 
 def run_match(args) -> int:
-    """Run ``posekit localcal match``; returns the exit code (0 ok, 1 suspect)."""
-    from dataclasses import replace
-
+    """Run ``posekit localcal match`` (:func:`posekit.localcal.match_files`); returns the exit code
+    (0 ok, 1 suspect)."""
     import numpy as np
 
     from ..geometry import rotation_angle_between
     from ..io import check_out_folder
-    from ..localcal.registration.match import match_trajectories
+    from ..localcal.commands import match_files
 
-    if args.plot is not None:                      # before the work: a plot folder we may not write is one line
+    if args.plot is not None:                      # first, as the library does: a plot folder we may not write
         check_out_folder(args.plot, overwrite=args.overwrite, flag="--plot")
-    src, dst = read_pair_args(args)
-    names = (str(args.camera), str(args.kinematic))
-    reg = match_trajectories(src, dst, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
-                             time_offset_s=args.time_offset, max_offset_s=args.max_offset,
-                             with_scale=args.with_scale, outlier_fraction=args.outlier_fraction,
-                             matcher=args.matcher, names=names)
-    reg = replace(reg, notes=tuple(getattr(args, "_input_notes", ())) + tuple(reg.notes))
+    check_flags(args)
+    run = match_files(args.camera, args.kinematic, args.out, camera_read=read_options(args, "camera"),
+                      kinematic_read=read_options(args, "kinematic"), residuals=args.residuals, plot=args.plot,
+                      overwrite=args.overwrite, use_timestamps=args.timestamps, max_dt_s=args.max_dt,
+                      time_offset_s=args.time_offset, max_offset_s=args.max_offset, with_scale=args.with_scale,
+                      outlier_fraction=args.outlier_fraction, matcher=args.matcher)
+    reg, src, dst = run.result, run.camera, run.kinematic
     angle = np.rad2deg(float(rotation_angle_between(np.eye(3), reg.R, check=False)))
     how = (f"{reg.n_pairs} pose pairs ({reg.pairing} stamps within {args.max_dt:g} s) at a clock offset of "
            f"{reg.time_offset_s * 1000:+.1f} ms" if args.timestamps
@@ -79,15 +80,8 @@ def run_match(args) -> int:
         d = reg.scale_drift
         lines.append(f"scale drift along the path {d.relative:+.2%} (1 sigma {d.std:.2%}, {d.segments} segments)")
     lines += [f"note: {n}" for n in reg.notes]
-    if args.residuals is not None:
-        from ..localcal.match_report import write_residuals
-
-        lines.append(f"wrote {write_residuals(reg, args.residuals)} ({reg.n_pairs} rows)")
-    if args.plot is not None:
-        from ..io import staged_folder
-        from ..localcal.match_report import plot_match
-
-        with staged_folder(args.plot, overwrite=args.overwrite, flag="--plot") as tmp:
-            plot_match(reg, src, dst, tmp, names=names)
+    if "residuals" in run.written:
+        lines.append(f"wrote {run.written['residuals']} ({reg.n_pairs} rows)")
+    if "plot" in run.written:
         lines.append(f"wrote trajectories.png and error.png to {args.plot}")
-    return finish_result(args.out, reg, lines, "match")
+    return print_result(run.written["json"], reg, lines, "match")

@@ -5,18 +5,16 @@ import contextlib
 import shlex
 import sys
 
-from .._numbers import parse_number
-from ..errors import ConfigError, EstimationError
+from ..errors import ConfigError
 from ..verdict import batch_exit_code
 from ._common import add_overwrite, out_folder, staged
+from ._config import add_config_arguments
 from ._flags import bounded_float, bounded_int, check_flags, seed, workers
 
 #: Most episodes of one simulate run (a few seconds each), most look-then-move updates per episode.
 MAX_RUNS, MAX_UPDATES = 10_000, 100
 #: Fastest camera, Hz (a VO camera runs at 10-60 Hz; the images along a motion grow with it).
 MAX_CAMERA_HZ = 100.0
-#: Largest start joint value, deg (mm for a prismatic joint).
-MAX_START_Q = 1e6
 
 __all__ = ["add_demo_parser", "add_simulate_parser", "run_demo", "run_simulate"]
 
@@ -73,6 +71,7 @@ def add_simulate_parser(verbs):
     s.add_argument("--truth", action="store_true", help="also print the simulator's true errors")
     s.add_argument("--out", required=True, help="output folder")
     add_overwrite(s)
+    add_config_arguments(s)
     s.set_defaults(func=run_simulate)
     return s
 
@@ -88,6 +87,7 @@ def add_demo_parser(verbs):
     _camera_options(s)
     s.add_argument("--out", default=None, help="write tables, figures and report.html to OUT/line and OUT/trajectory")
     add_overwrite(s)
+    add_config_arguments(s)
     s.set_defaults(func=run_demo)
     return s
 
@@ -107,76 +107,24 @@ def _camera_options(s):
 
 
 def _config(args, **extra):
-    import math
+    """The episode settings of the camera options (and ``extra`` fields), made by the library."""
+    from ..localcal.studies.simulate import check_rates, episode_config
 
-    from ..localcal.sim.episode import EpisodeConfig
-    if not (math.isfinite(args.camera_hz) and args.camera_hz > 0):
-        raise ConfigError(f"--camera-hz: expected a rate > 0, got {args.camera_hz:g}")
-    if not (math.isfinite(args.plot_hz) and args.plot_hz >= 0):
-        raise ConfigError(f"--plot-hz: expected a rate >= 0, got {args.plot_hz:g}")
+    check_rates(args.camera_hz, args.plot_hz)     # its own message first, as before the flag ranges
     check_flags(args)
-    vo = {}
-    if args.vo == "isotropic":
-        from ..localcal.sim.vo import VONoise
-        vo = {"vo_stereo": None, "vo_noise_mm": VONoise.noise_mm, "vo_noise_rad": VONoise.noise_rad,
-              "vo_drift_mm_per_sqrt_m": VONoise.drift_mm_per_sqrt_m,
-              "vo_drift_rad_per_sqrt_m": VONoise.drift_rad_per_sqrt_m}
-    elif args.vo != "stereo":
-        raise ConfigError(f"--vo: expected stereo or isotropic, got '{args.vo}'")
-    return EpisodeConfig(camera_hz=args.camera_hz, plot_hz=args.plot_hz, lens_distortion=not args.no_distortion,
-                         **vo, **extra)
+    return episode_config(vo=args.vo, camera_hz=args.camera_hz, plot_hz=args.plot_hz,
+                          lens_distortion=not args.no_distortion, **extra)
 
 
 def _robot_options(args) -> dict:
-    """``robot``, ``base_link``, ``tip_link``, ``start_q`` of EpisodeConfig from the flags, with the
-    robot loaded once here so that a bad file or link is a one-line error before any run."""
-    import math
+    """``robot``, ``base_link``, ``tip_link``, ``start_q`` of EpisodeConfig from the flags (the robot
+    loaded once by the library, so that a bad file or link is a one-line error before any run)."""
+    from ..localcal.studies.simulate import robot_options
 
-    from ..robots import load_robot
-
-    start = None
-    if args.start_q_deg is not None:
-        try:
-            values = [parse_number(v) for v in args.start_q_deg.split(",")]
-        except ValueError:
-            raise ConfigError(f"--start-q-deg: expected comma-separated numbers, got '{args.start_q_deg[:80]}'") from None
-        if not all(math.isfinite(v) for v in values):
-            raise ConfigError(f"--start-q-deg: expected finite values, got '{args.start_q_deg[:80]}'")
-        if not all(abs(v) <= MAX_START_Q for v in values):
-            raise ConfigError(f"--start-q-deg: expected values in -{MAX_START_Q:.0e}..{MAX_START_Q:.0e} deg (mm for a "
-                              f"prismatic joint), got '{args.start_q_deg[:80]}'")
-        start = values
-    options = {"robot": args.robot, "base_link": args.base_link, "tip_link": args.tip_link}
-    model = load_robot(args.robot, args.base_link, args.tip_link)
-    if start is not None:
-        if len(start) != model.n_joints:
-            raise ConfigError(f"--start-q-deg: expected {model.n_joints} values for {model.name}, got {len(start)}")
-        rad = [math.radians(v) if r else v for v, r in zip(start, model.is_revolute)]
-        options["start_q"] = tuple(rad)
-    elif args.robot != "hiab033":
-        raise ConfigError(f"--start-q-deg: required for --robot {args.robot} (the crane's start pose fits only "
-                          f"the crane); give its {model.n_joints} start joint values in deg (chain "
-                          f"{getattr(model, 'base_link', 'base')} → {getattr(model, 'tip_link', 'flange')})")
-    if args.robot != "hiab033":
-        print(f"robot {model.summary}" + "".join(f"; {note}" for note in getattr(model, "notes", ())))
-    return options
-
-
-def _write(result, out, command):
-    """``write_experiment`` with a write failure as a one-line ConfigError."""
-    from ..localcal.plots import write_experiment
-    try:
-        return write_experiment(result, out, command=command)
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot write the results ({exc.strerror or exc})") from None
-
-
-def _all_failed(result):
-    """Every run failed: one line naming the first reason (the CLI prints it and exits 1)."""
-    from ..errors import EstimationError
-    if all(ep is None for ep in result.episodes):
-        n = len(result.episodes)
-        raise EstimationError(f"{result.method} method: all {n} run(s) failed; run 1: {result.failures[0]}")
+    robot = robot_options(args.robot, base_link=args.base_link, tip_link=args.tip_link, start_q_deg=args.start_q_deg)
+    if robot.summary:
+        print(robot.summary)
+    return robot.config
 
 
 def _scheduler(text: str):
@@ -199,9 +147,9 @@ def _workers(args):
 
 def run_simulate(args) -> int:
     """Run ``posekit localcal simulate``; the exit code is 0 if every run succeeded, else 1."""
-    from ..localcal.plots import tables_text
-    from ..localcal.sim.episode import METHODS, OCCLUSIONS
-    from ..localcal.sim.experiments import run_experiment
+    from ..localcal.studies.episode_config import METHODS, OCCLUSIONS
+    from ..localcal.studies.plots import tables_text
+    from ..localcal.studies.simulate import all_failed_error, simulate, view_hint
 
     if args.method not in METHODS:
         raise ConfigError(f"--method: expected one of {' | '.join(METHODS)}, got '{args.method}'")
@@ -222,17 +170,19 @@ def run_simulate(args) -> int:
                      registration=args.registration, ooi_distance_mm=args.ooi_distance_mm,
                      error_scale=args.error_scale, **_robot_options(args))
     out_folder(args)
-    result = run_experiment(args.method, args.runs, args.seed, updates=args.updates, config=config,
-                            scheduler=_scheduler(args.scheduler), progress=sys.stderr.isatty(),
-                            n_workers=_workers(args))
+    scheduler, n_workers = _scheduler(args.scheduler), _workers(args)
     command = "posekit localcal simulate " + " ".join(
         shlex.quote(a) for a in sys.argv[3:]) if sys.argv[1:3] == ["localcal", "simulate"] else ""
-    with staged(args) as tmp:
-        files = _write(result, tmp, command)       # every run has its row, failed ones with status=error
-    hint = _view_hint(args, result)
-    if hint and all(ep is None for ep in result.episodes):
-        print(hint, file=sys.stderr)
-    _all_failed(result)
+    with staged(args) as tmp:                      # every run has its row, failed ones with status=error
+        result, files = simulate(args.method, runs=args.runs, seed=args.seed, updates=args.updates, config=config,
+                                 scheduler=scheduler, progress=sys.stderr.isatty(), n_workers=n_workers,
+                                 out=tmp, command=command)
+    hint = view_hint(result, args.robot)
+    failure = all_failed_error(result)
+    if failure is not None:
+        if hint:
+            print(hint, file=sys.stderr)
+        raise failure
     print(tables_text(result, truth=args.truth))
     counts = result.status_counts
     print(f"\nruns: {counts['ok']} ok, {counts['suspect']} suspect, {counts['error']} failed (of "
@@ -242,43 +192,26 @@ def run_simulate(args) -> int:
     return batch_exit_code(result.statuses)
 
 
-def _view_hint(args, result) -> str:
-    """One line for a robot whose runs lost the markers from view: which flags move them."""
-    lost = [f for f in result.failures if f and "not seen by the camera" in f]
-    if not lost or args.robot == "hiab033":
-        return ""
-    return (f"posekit: hint: {len(lost)} run(s) lost the markers from view; the scene is sized for the 5 m crane: "
-            "bring the object closer (--ooi-distance-mm 500), start with free reach along the camera axis "
-            "(--start-q-deg) or shrink the errors (--error-scale)")
-
-
 def run_demo(args) -> int:
     """Run ``posekit localcal demo``; the exit code is 0 (a failed episode is a one-line error)."""
     from pathlib import Path
 
-    from ..localcal.plots import tables_text
-    from ..localcal.sim.experiments import run_experiment
+    from ..localcal.studies.plots import tables_text
+    from ..localcal.studies.simulate import demo
 
     if args.seed < 0:
         raise ConfigError(f"--seed: expected an integer >= 0, got {args.seed}")
     config = _config(args)
     if args.out:
         out_folder(args)
-    failure = None
     with staged(args) if args.out else contextlib.nullcontext() as tmp:
-        for method in ("line", "trajectory"):
-            result = run_experiment(method, 1, args.seed, updates=2, config=config, scheduler="serial",
-                                    progress=sys.stderr.isatty())
-            if args.out:
-                _write(result, Path(tmp) / method, f"posekit localcal demo --seed {args.seed}")
-            try:
-                _all_failed(result)                 # one episode: it failed, so the demo did
-            except EstimationError as exc:          # what ran is still written, then the error
-                failure = exc
-                break
-            print(f"== {method} method: one look-then-move episode, seed {args.seed} ==")
-            print(tables_text(result))
-            print()
+        results, failure = demo(args.seed, config=config, out=tmp, progress=sys.stderr.isatty())
+    for method, result in results.items():
+        if failure is not None and method == list(results)[-1]:
+            break                                   # what ran is written; the failed episode is the error
+        print(f"== {method} method: one look-then-move episode, seed {args.seed} ==")
+        print(tables_text(result))
+        print()
     if failure is not None:
         raise failure
     if args.out:

@@ -5,24 +5,40 @@ using local calibration" (Advanced Robotics, 2023). Frames (mm, rad): B robot ba
 C the eye-in-hand camera (OpenCV optical axes), M the tool marker, O the object of interest,
 W the VO world frame (the camera frame at the first VO pose).
 
-Modules
--------
-orientation, line_method, trajectory_method
-    The methods: orientation adjustment (eq. 7–8), line-equation range adjustment with the
-    circular path (eq. 10–16), trajectory-matching range adjustment (eq. 17–22).
-tum, registration (alignment, association, coarse, cpd)
-    TUM trajectories and trajectory matching (timestamped robust Umeyama; correspondence-free
-    never-mirrored coarse alignment + rigid CPD).
-arm, camera, scene, vo
-    The simulator: hydraulic long-reach arm with non-kinematic errors, ZED2-like camera with
-    lens distortion and OpenCV ArUco rendering and detection, the work cell (camera ~0.5 m off
+Layout (model · estimator · simulator · studies)
+------------------------------------------------
+model/
+    What the world is, as plain data: :class:`Trajectory` (s, mm, 4x4 poses), exchanged by
+    every other part, and the camera's intrinsics with lens distortion (:class:`CameraIntrinsics`,
+    :func:`zed2_720p`).
+registration/, methods/
+    The estimator, pure on its inputs. ``registration``: trajectory files (TUM, KITTI, EuRoC,
+    ROS bags), timestamp association, robust Umeyama alignment, correspondence-free coarse
+    alignment and rigid CPD, the verdict on a match, hand-eye calibration
+    (:func:`match_trajectories`, ``calibrate_handeye``). ``methods``: orientation adjustment
+    (eq. 7–8), line-equation range adjustment with the circular path (eq. 10–16),
+    trajectory-matching range adjustment (eq. 17–22).
+sim/
+    The simulator, every part seeded: hydraulic long-reach arm with non-kinematic errors,
+    OpenCV ArUco rendering and detection in the model's camera, the work cell (camera ~0.5 m off
     the tool point), a stereo VO whose noise and drift grow with depth.
-episode, experiments, plots
-    One look-then-move episode (:func:`run_localcal_episode` → :class:`LocalcalEpisode`),
-    repeated runs with the paper's Tables 2–4, figures (Figs. 5–9) and ``report.html``
-    (``plots`` imports matplotlib only when drawing; not re-exported here).
+studies/
+    Experiments: one look-then-move episode (:func:`run_localcal_episode` →
+    :class:`LocalcalEpisode`, settings :class:`EpisodeConfig`), repeated runs with the paper's
+    Tables 2–4 (:func:`run_experiment`; every run's :class:`posekit.verdict.Verdict` in
+    :attr:`ExperimentResult.verdicts`), figures (Figs. 5–9) and ``report.html`` (``studies.plots``
+    imports matplotlib only when drawing; not re-exported here); the ``simulate`` and ``demo``
+    commands as :func:`simulate` and :func:`demo`.
+commands, match_report
+    The ``match`` and ``handeye`` commands on files (:func:`match_files`, :func:`handeye_files`:
+    read, register, write) and what ``match --plot/--residuals`` writes.
+
+The rule (tested by ``tests/test_architecture.py``): the simulator may import the model, never
+the estimator; the estimator never imports the simulator or the studies; the studies may import
+everything; localcal imports only posekit's core, never another system.
 """
 
+from .commands import handeye_files, match_files
 from .methods.line_method import (
     CIRCLE_POINTS,
     CIRCLE_RADIUS_MM,
@@ -41,40 +57,15 @@ from .methods.trajectory_method import (
     calibrate_trajectories,
     trajectory_reference,
 )
-from .registration.match import Registration, associate, match_trajectories, umeyama
-from .registration.tum import Trajectory, read_tum, write_tum
-from .sim.arm import (
-    DEFAULT_Q0,
-    ArmLog,
-    LongReachArm,
-    NonKinematicErrors,
-    sample_nonkinematic_errors,
-)
-from .sim.camera import (
-    ARUCO_DICTIONARY,
-    ZED2_720P_DISTORTION,
-    CameraIntrinsics,
-    marker_corners,
-    render_markers,
-    zed2_720p,
-)
-from .sim.episode import (
-    METHODS,
-    OCCLUSIONS,
-    START_Q,
-    EpisodeConfig,
-    LocalcalEpisode,
-    run_localcal_episode,
-)
-from .sim.experiments import (
-    PAPER_TABLE2_MEAN,
-    PAPER_TABLE3,
-    PAPER_TABLE4_MEAN,
-    ExperimentResult,
-    format_table,
-    run_experiment,
-    table_columns,
-)
+from .model.camera import ZED2_720P_DISTORTION, CameraIntrinsics, zed2_720p
+from .model.trajectory import Trajectory
+from .registration.alignment import umeyama
+from .registration.association import associate
+from .registration.formats.tum import read_tum, write_tum
+from .registration.match import Registration, match_trajectories
+from .sim.arm import DEFAULT_Q0, ArmLog, LongReachArm
+from .sim.arm_errors import NonKinematicErrors, sample_nonkinematic_errors
+from .sim.camera import ARUCO_DICTIONARY, marker_corners, render_markers
 from .sim.marker_detector import MarkerDetector
 from .sim.scene import (
     GroundTruth,
@@ -87,6 +78,18 @@ from .sim.scene import (
     ooi_pose,
 )
 from .sim.vo import StereoNoise, VONoise, depth_along_axis, simulate_vo
+from .studies.episode import LocalcalEpisode, run_localcal_episode
+from .studies.episode_config import METHODS, OCCLUSIONS, START_Q, EpisodeConfig
+from .studies.experiments import (
+    PAPER_TABLE2_MEAN,
+    PAPER_TABLE3,
+    PAPER_TABLE4_MEAN,
+    ExperimentResult,
+    format_table,
+    run_experiment,
+    table_columns,
+)
+from .studies.simulate import demo, episode_config, robot_options, simulate
 
 __all__ = [
     # methods
@@ -153,4 +156,11 @@ __all__ = [
     "PAPER_TABLE2_MEAN",
     "PAPER_TABLE3",
     "PAPER_TABLE4_MEAN",
+    # one function per command (posekit localcal match, handeye, simulate, demo)
+    "match_files",
+    "handeye_files",
+    "simulate",
+    "demo",
+    "episode_config",
+    "robot_options",
 ]

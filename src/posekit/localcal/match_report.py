@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.match import Registration
-from posekit.localcal.registration.tum import Trajectory
 from posekit.report import pyplot, save_figure, write_csv
 
 __all__ = ["RESIDUAL_COLUMNS", "plot_match", "residual_rows", "write_residuals"]

@@ -170,8 +170,9 @@ def calibrate_trajectories(camera, kinematic, **match_options):
     TrajectoryError, InputFileError
         Too few poses, a degenerate (straight-line) path, an unreadable TUM file.
     """
+    from posekit.localcal.model.trajectory import Trajectory
+    from posekit.localcal.registration.formats.tum import read_tum
     from posekit.localcal.registration.match import match_trajectories
-    from posekit.localcal.registration.tum import Trajectory, read_tum
 
     def load(x, name):
         if isinstance(x, Trajectory):

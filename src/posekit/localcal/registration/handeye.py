@@ -20,13 +20,13 @@ import numpy as np
 
 from posekit.errors import CalibrationError, TrajectoryError
 from posekit.geometry import rotation_vector_from_matrix
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.verdict import Verdict
 
 from .association import associate
 from .handeye_closed import park_martin, solve_world
 from .handeye_refine import JointFit, pose_residuals, refine_joint
 from .handeye_time import PoseInterpolator, estimate_offset_by_rotation
-from .tum import Trajectory
 
 __all__ = ["HandEyeResult", "calibrate_handeye", "MIN_PAIRS", "EXCITATION_MIN_DEG", "RESIDUAL_FACTOR",
            "MAX_STD_ROT_DEG", "MAX_STD_T_MM", "UNIT_GAIN"]

@@ -38,23 +38,22 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from posekit.errors import ConfigError, TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
 from posekit.localcal.registration.alignment import (
     body_rotation_spread,
     check_path_shape,
     robust_umeyama,
     thin_indices,
-    umeyama,
 )
 from posekit.localcal.registration.association import associate, estimate_time_offset
 from posekit.localcal.registration.match_free import match_free
 from posekit.localcal.registration.pairing import pair_by_time, without_duplicates
 from posekit.localcal.registration.quality import check_units, verdict
 from posekit.localcal.registration.scale import ScaleDrift, scale_drift
-from posekit.localcal.registration.tum import Trajectory
 from posekit.localcal.registration.uncertainty import path_tangents, path_velocity, registration_covariance
 from posekit.verdict import Verdict
 
-__all__ = ["Registration", "associate", "match_trajectories", "umeyama"]
+__all__ = ["Registration", "match_trajectories"]
 
 #: Pairs the orientation spread (a median) is computed on, at most (evenly subsampled).
 SPREAD_MAX_PAIRS = 50_000

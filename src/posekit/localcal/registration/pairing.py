@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
 
 from .alignment import MIN_POSES
 from .association import (
@@ -37,7 +38,6 @@ from .association import (
     typical_gap,
 )
 from .handeye_time import PoseInterpolator
-from .tum import Trajectory
 
 __all__ = ["INTERPOLATE_BELOW", "Pairing", "pair_by_time", "without_duplicates"]
 

@@ -6,8 +6,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from posekit.errors import ConfigError, EstimationError
+from posekit.localcal.model.camera import CameraIntrinsics
 from posekit.localcal.sim.camera import (
-    CameraIntrinsics,
     _check_image,
     _check_marker,
     _dictionary,

@@ -34,7 +34,7 @@ VO runs at a lower rate than the robot (every ``stride``-th robot sample), on it
 (tracking glitches, ``outlier_mm`` per axis). The same seed with a longer history gives the
 same estimates for the common prefix (without outliers), so VO can 'keep running'. The
 default magnitudes are assumptions (no ORB-SLAM2 error budget is published for this setup):
-ZED2 baseline 120 mm and the focal length of :func:`posekit.localcal.sim.camera.zed2_720p`,
+ZED2 baseline 120 mm and the focal length of :func:`posekit.localcal.model.camera.zed2_720p`,
 half-pixel feature noise, ~25 independent features per frame.
 """
 
@@ -48,7 +48,7 @@ from posekit.geometry import (
     invert_transform,
     matrix_from_rotation_vector,
 )
-from posekit.localcal.registration.tum import Trajectory
+from posekit.localcal.model.trajectory import Trajectory
 
 __all__ = ["StereoNoise", "VONoise", "depth_along_axis", "simulate_vo"]
 

@@ -21,12 +21,13 @@ only when the rows do not. When the two disagree, the rows win and a note says s
 from pathlib import Path
 
 from posekit.errors import InputFileError, TrajectoryError
+from posekit.localcal.model.trajectory import Trajectory
 
-from ..tum import Trajectory, read_tum, write_tum
 from .euroc import read_euroc, write_euroc
 from .kitti import read_kitti, write_kitti
 from .rosbag import BAG_SUFFIXES, POSE_TYPES, is_bag, read_rosbag
 from .sniff import sniff_format
+from .tum import read_tum, write_tum
 
 __all__ = [
     "FORMATS",
@@ -128,7 +129,7 @@ def read_trajectory(path, fmt: str | None = None, topic: str | None = None,
         fmt = detect_format(path, notes)
     if fmt == "kitti" and rate_hz is None and sniffed:
         raise TrajectoryError(f"{path}: rows of 12 numbers, a KITTI pose file, which carries no time: give its "
-                              "frame rate with --rate HZ")
+                              "frame rate with --rate-hz HZ")
     if fmt == "tum":
         return read_tum(path)
     if fmt == "kitti":

@@ -6,8 +6,9 @@ import numpy as np
 from posekit.errors import InputFileError
 from posekit.geometry import transform_from_quaternion
 from posekit.io import check_rows, parse_number
+from posekit.localcal.model.trajectory import Trajectory
 
-from ..tum import QUATERNION_NORM_TOL, Trajectory, _is_float
+from .tum import QUATERNION_NORM_TOL, _is_float
 
 __all__ = ["parse_numbers", "trajectory_from_rows"]
 

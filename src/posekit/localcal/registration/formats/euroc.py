@@ -8,8 +8,8 @@ import numpy as np
 
 from posekit.errors import InputFileError
 from posekit.io import check_rows, read_text
+from posekit.localcal.model.trajectory import Trajectory
 
-from ..tum import Trajectory
 from ._rows import parse_numbers, trajectory_from_rows
 
 __all__ = ["read_euroc", "write_euroc"]

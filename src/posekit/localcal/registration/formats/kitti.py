@@ -9,8 +9,8 @@ import numpy as np
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.geometry import nearest_rotation, transform_from
 from posekit.io import read_text
+from posekit.localcal.model.trajectory import Trajectory
 
-from ..tum import Trajectory
 from ._rows import parse_numbers
 
 __all__ = ["ROTATION_TOL", "read_kitti", "write_kitti"]
@@ -48,7 +48,7 @@ def read_kitti(path, rate_hz: float, *, t0_s: float = 0.0) -> Trajectory:
     """
     path = Path(path)
     if rate_hz is None:
-        raise TrajectoryError(f"{path}: a KITTI pose file carries no time; give its frame rate with --rate HZ")
+        raise TrajectoryError(f"{path}: a KITTI pose file carries no time; give its frame rate with --rate-hz HZ")
     if not np.isfinite(rate_hz) or rate_hz <= 0:
         raise TrajectoryError(f"{path}: expected a KITTI frame rate > 0 Hz, got {rate_hz:g}")
     text = read_text(path, expected=f"a KITTI pose file ({_LAYOUT} per line)")

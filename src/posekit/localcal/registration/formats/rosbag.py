@@ -12,8 +12,8 @@ from posekit._extras import require
 from posekit.errors import InputFileError, PosekitError
 from posekit.io import get_limits, quote
 from posekit.io._limits import mib
+from posekit.localcal.model.trajectory import Trajectory  # noqa: F401  (the return type)
 
-from ..tum import Trajectory  # noqa: F401  (the return type)
 from ._rows import trajectory_from_rows
 
 __all__ = ["POSE_TYPES", "BAG_SUFFIXES", "read_rosbag", "is_bag"]

@@ -18,9 +18,9 @@ from posekit.errors import InputFileError
 from posekit.geometry import invert_transform
 from posekit.io import get_limits, quote
 from posekit.io._limits import mib
+from posekit.localcal.model.trajectory import Trajectory
 
 from ..handeye_time import PoseInterpolator
-from ..tum import Trajectory
 from ._rows import trajectory_from_rows
 
 __all__ = ["TF_TYPES", "read_tf"]

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.localcal.methods.trajectory_method import STANDOFF_MM
-from posekit.localcal.sim.experiments import (
+from posekit.localcal.studies.experiments import (
     PAPER_TABLE2_MEAN,
     PAPER_TABLE3,
     PAPER_TABLE4_MEAN,
@@ -229,7 +229,7 @@ def write_experiment(result: ExperimentResult, out, *, command: str = "") -> dic
     Parameters
     ----------
     result : ExperimentResult
-        From :func:`posekit.localcal.sim.experiments.run_experiment`.
+        From :func:`posekit.localcal.studies.experiments.run_experiment`.
     out : path
         Output folder (created).
     command : str

@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posekit.errors import ConfigError, PosekitError
-from posekit.localcal.sim.episode import METHODS, EpisodeConfig, LocalcalEpisode, run_localcal_episode
+from posekit.localcal.studies.episode import LocalcalEpisode, run_localcal_episode
+from posekit.localcal.studies.episode_config import METHODS, EpisodeConfig
 from posekit.sweep import SERIAL, run_tasks, task_seed
-from posekit.verdict import status_counts
+from posekit.verdict import Verdict, status_counts
 
 __all__ = [
     "PAPER_TABLE2_MEAN",
@@ -35,6 +36,7 @@ __all__ = [
     "RUN_STATUSES",
     "ExperimentResult",
     "episode_status",
+    "episode_verdict",
     "format_table",
     "run_experiment",
     "table_columns",
@@ -84,9 +86,14 @@ class ExperimentResult:
     wall_s: float = 0.0
 
     @property
+    def verdicts(self) -> list[Verdict]:
+        """The :class:`posekit.verdict.Verdict` of every run (:func:`episode_verdict`)."""
+        return [episode_verdict(ep, fail) for ep, fail in zip(self.episodes, self.failures)]
+
+    @property
     def statuses(self) -> list[str]:
         """One of :data:`RUN_STATUSES` per run (:func:`episode_status`)."""
-        return [episode_status(ep) for ep in self.episodes]
+        return [v.status for v in self.verdicts]
 
     @property
     def status_counts(self) -> dict:
@@ -94,13 +101,19 @@ class ExperimentResult:
         return status_counts(self.statuses, RUN_STATUSES)
 
 
-def episode_status(ep: LocalcalEpisode | None) -> str:
-    """``error`` for a failed run, ``suspect`` when its registration was, else ``ok``."""
+def episode_verdict(ep: LocalcalEpisode | None, failure: str | None = None) -> Verdict:
+    """The verdict of one run: ``error`` (the failure as its reason) for a failed run,
+    ``suspect`` with the registration's reasons when its registration (match or hand-eye) was
+    suspect, else ``ok``. The run's numbers are the simulation's (no std)."""
     if ep is None:
-        return "error"
-    if ep.matching and ep.matching.get("status") not in (None, "ok"):
-        return "suspect"
-    return "ok"
+        return Verdict.failed(failure or "the episode failed")
+    return ep.verdict
+
+
+def episode_status(ep: LocalcalEpisode | None) -> str:
+    """``error`` for a failed run, ``suspect`` when its registration was, else ``ok``
+    (the status of :func:`episode_verdict`)."""
+    return episode_verdict(ep).status
 
 
 def _update_columns(updates: int) -> list[str]:
@@ -163,13 +176,13 @@ def _build_table(name: str, episodes, failures, updates: int) -> list[dict]:
     rows = []
     for i, (ep, fail) in enumerate(zip(episodes, failures)):
         row = {"run": f"run {i + 1}"}
+        verdict = episode_verdict(ep, fail)
         if ep is None:
-            row.update(_nan_row(value_cols), status="error", error=fail)
+            row.update(_nan_row(value_cols), status=verdict.status, error=fail)
         else:
-            status = episode_status(ep)
-            why = "; ".join(ep.matching.get("reasons", ())) if status == "suspect" else ""
+            why = verdict.reason
             row.update(dict(zip(value_cols, (float(v) for v in _values(ep, base, truth, updates)))),
-                       status=status, error=f"registration suspect: {why}" if why else "")
+                       status=verdict.status, error=f"registration suspect: {why}" if why else "")
         rows.append(row)
     ok = [r for r in rows if r["status"] != "error"]
     mean = {"run": "mean", "status": "ok" if ok else "error",

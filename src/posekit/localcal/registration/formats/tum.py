@@ -1,68 +1,25 @@
-"""Pose trajectories and the TUM RGB-D trajectory file format.
+"""The TUM RGB-D trajectory file format.
 
 A TUM file holds one pose per line, ``timestamp tx ty tz qx qy qz qw``: seconds, metres, and a
 unit quaternion scalar last; blank lines and lines starting with ``#`` are ignored. Inside posekit
-a trajectory is a :class:`Trajectory` in millimetres with 4x4 poses (the quaternion converted).
-The other formats (KITTI, EuRoC, ROS bags) are read by :mod:`.formats`.
+a trajectory is a :class:`~posekit.localcal.model.trajectory.Trajectory` in millimetres with 4x4
+poses (the quaternion converted). The other formats (KITTI, EuRoC, ROS bags) are read by the
+sibling modules of this package.
 """
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from posekit.errors import InputFileError, TrajectoryError
+from posekit.errors import InputFileError
 from posekit.geometry import quaternion_from_matrix, transform_from_quaternion
 from posekit.io import check_rows, parse_number, read_text
+from posekit.localcal.model.trajectory import Trajectory
 
-__all__ = ["Trajectory", "read_tum", "write_tum"]
+__all__ = ["read_tum", "write_tum"]
 
 #: Largest accepted deviation of a file quaternion's norm from 1 (files keep 4-9 decimals).
 QUATERNION_NORM_TOL = 1e-2
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """A timed sequence of rigid poses of one body.
-
-    Attributes
-    ----------
-    t_s : ndarray, shape (N,)
-        Timestamps, s, non-decreasing.
-    T : ndarray, shape (N, 4, 4)
-        Poses ``T_world_body``: the body frame expressed in the trajectory's world frame, mm.
-    """
-
-    t_s: np.ndarray
-    T: np.ndarray
-
-    def __post_init__(self):
-        t = np.asarray(self.t_s, dtype=np.float64)
-        T = np.asarray(self.T, dtype=np.float64)
-        if t.ndim != 1 or T.shape != (t.size, 4, 4):
-            raise TrajectoryError(f"a trajectory needs t_s of shape (N,) and T of shape (N, 4, 4), "
-                                  f"got {t.shape} and {T.shape}")
-        if not (np.isfinite(t).all() and np.isfinite(T).all()):
-            raise TrajectoryError("a trajectory must be finite: found NaN or infinite timestamps or poses")
-        if t.size > 1 and np.any(np.diff(t) < 0):
-            k = int(np.flatnonzero(np.diff(t) < 0)[0]) + 1
-            raise TrajectoryError(f"trajectory timestamps must not decrease: pose {k} has "
-                                  f"t={t[k]:.6f} s after t={t[k - 1]:.6f} s")
-        object.__setattr__(self, "t_s", t)
-        object.__setattr__(self, "T", T)
-
-    def __len__(self) -> int:
-        return self.t_s.size
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Body origins in the world frame, shape (N, 3), mm."""
-        return self.T[:, :3, 3]
-
-    @property
-    def rotations(self) -> np.ndarray:
-        """Body orientations ``R_world_body``, shape (N, 3, 3)."""
-        return self.T[:, :3, :3]
 
 
 #: Largest position a trajectory file may hold, m (as the other formats' readers: beyond it the
@@ -108,7 +65,7 @@ def read_tum(path) -> Trajectory:
             continue
         fields = s.replace(",", " ").split()
         if len(fields) != 8:
-            hint = ("; 12 numbers per line look like a KITTI pose file: give --format kitti --rate HZ"
+            hint = ("; 12 numbers per line look like a KITTI pose file: give --format kitti --rate-hz HZ"
                     if len(fields) == 12 else "")
             raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
                                       f"found {len(fields)} fields{hint}")
