@@ -161,3 +161,46 @@ def test_a_process_started_during_the_clean_up_can_still_be_terminated():
                                  text=True).stdout
     assert out.split() == ["True", "True"]
     assert signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN
+
+
+def test_a_signal_right_after_the_temporary_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """The signal of the test above can arrive between the system call that makes the hidden
+    folder and the clean-up's ``try``: the name is chosen first, so the clean-up knows it."""
+    from posekit.io import staged_folder
+
+    real = os.mkdir
+
+    def mkdir_then_interrupted(path, *a, **k):
+        real(path, *a, **k)
+        if str(path).endswith(".partial"):
+            raise KeyboardInterrupt
+    monkeypatch.setattr(os, "mkdir", mkdir_then_interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with staged_folder(tmp_path / "run"):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_during_the_move_into_place_is_held_until_the_run_is_in_place(tmp_path):
+    """SIGINT while the finished run replaces the previous one: the new run is in place, no
+    hidden folder is left, and the Ctrl-C arrives after."""
+    from posekit.io import staged_folder
+
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "old.txt").write_text("previous run")
+    real_rename = os.rename
+    calls = []
+
+    def rename_with_a_signal(src, dst):
+        calls.append(dst)
+        if len(calls) == 1:
+            os.kill(os.getpid(), signal.SIGINT)      # held back until the block ends
+        real_rename(src, dst)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(os, "rename", rename_with_a_signal)
+        with pytest.raises(KeyboardInterrupt):
+            with staged_folder(tmp_path / "run", overwrite=True) as tmp:
+                (tmp / "new.txt").write_text("new run")
+    assert len(calls) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [".posekit-run.json", "new.txt"]

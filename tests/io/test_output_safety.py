@@ -2,6 +2,7 @@
 error unless --overwrite, a failed rerun never mixes two runs, single files are renamed into place."""
 
 import argparse
+import os
 
 import pytest
 
@@ -138,12 +139,14 @@ def test_simulate_into_a_read_only_folder_is_one_line(tmp_path, capsys, monkeypa
 
 
 def test_a_permission_error_while_creating_the_run_folder_is_one_line(tmp_path, capsys, monkeypatch):
-    import tempfile
+    real = os.mkdir
 
-    def denied(*a, **k):
-        raise PermissionError(13, "Permission denied")
+    def denied(path, *a, **k):                  # the run's temporary folder only
+        if str(path).endswith(".partial"):
+            raise PermissionError(13, "Permission denied")
+        return real(path, *a, **k)
 
-    monkeypatch.setattr(tempfile, "mkdtemp", denied)
+    monkeypatch.setattr(os, "mkdir", denied)
     rc, out, err = run(capsys, "profiler", "simulate", "--gauge", "demo-5", "--count", "1", "--out", tmp_path / "r")
     assert rc == 1 and err == (f"posekit: error: --out {tmp_path / 'r'}: cannot create a folder in {tmp_path} "
                                "(Permission denied)\n")

@@ -23,9 +23,12 @@ import errno
 import fcntl
 import json
 import os
+import secrets
 import shutil
+import signal
 import stat
 import tempfile
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -153,10 +156,14 @@ def atomic_file(path, mode: str = "w", *, flag: str = "--out", **open_kwargs):
     parent = target.absolute().parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=parent)
     except OSError as exc:
         raise ConfigError(f"{flag} {path}: cannot write in {parent} ({_why(exc)})") from None
+    tmp = _partial_name(parent, target.name)
     try:
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+        except OSError as exc:
+            raise ConfigError(f"{flag} {path}: cannot write in {parent} ({_why(exc)})") from None
         old_mode = os.stat(target).st_mode & 0o7777 if kind == "regular" else 0o666 & ~_umask()
         os.chmod(tmp, old_mode)
         with os.fdopen(fd, mode, **open_kwargs) as fh:
@@ -388,6 +395,46 @@ def check_out_folder(out, *, overwrite: bool = False, flag: str = "--out", repla
     return out
 
 
+def _partial_name(parent: Path, name: str) -> Path:
+    """A new hidden name beside ``name`` in ``parent`` for a file or folder being written.
+
+    Chosen before the file or folder is made, so that a signal arriving just after it exists
+    finds it named in the clean-up (``tempfile.mkstemp`` returns the name only after making it).
+    """
+    return parent / f".{name}.{secrets.token_hex(6)}.partial"
+
+
+#: The signals a user or a supervisor stops a run with (see posekit.cli.main).
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+
+
+@contextmanager
+def _signals_deferred():
+    """Hold SIGINT/SIGTERM/SIGHUP back for the few system calls of the block (the move of a
+    finished run into place); a signal that arrives meanwhile is raised again when the block ends.
+
+    Python-level handlers, not the thread's signal mask: the kernel gives a process's signal to
+    any thread that does not block it (NumPy's and numba's threads), and Python then runs its
+    handler on the main thread anyway. Off the main thread the handlers are left alone.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    held = {}
+    for sig in _STOP_SIGNALS:
+        handler = signal.getsignal(sig)
+        if handler is not None:                                 # None: installed outside Python
+            held[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in held.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(pending):
+            signal.raise_signal(sig)
+
+
 @contextmanager
 def staged_folder(out, *, overwrite: bool = False, flag: str = "--out", replace_own: bool = False,
                   hint: str | None = None):
@@ -409,12 +456,12 @@ def staged_folder(out, *, overwrite: bool = False, flag: str = "--out", replace_
     out = check_out_folder(out, overwrite=overwrite, flag=flag, replace_own=replace_own, hint=hint)
     real = _real(out)
     parent = real.absolute().parent
+    tmp = _partial_name(parent, real.name)
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{real.name}.", suffix=".partial", dir=parent))
-    except OSError as exc:
-        raise ConfigError(f"{flag} {out}: cannot create a folder in {parent} ({_why(exc)})") from None
-    os.chmod(tmp, 0o777 & ~_umask())
-    try:
+        try:
+            os.mkdir(tmp)                                   # 0o777 less the umask, as any folder
+        except OSError as exc:
+            raise ConfigError(f"{flag} {out}: cannot create a folder in {parent} ({_why(exc)})") from None
         yield tmp
         _write_marker(tmp)
     except OSError as exc:  # a full disk, a permission change: one line, the old run untouched
@@ -424,6 +471,13 @@ def staged_folder(out, *, overwrite: bool = False, flag: str = "--out", replace_
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    with _signals_deferred():
+        _move_into_place(tmp, real, parent, flag, out)
+
+
+def _move_into_place(tmp: Path, real: Path, parent: Path, flag: str, out) -> None:
+    """Move the finished run ``tmp`` to ``real``, keeping the previous run until the new one is
+    in place (called with signals deferred: a Ctrl-C cannot stop it half-way)."""
     old = None
     try:
         if real.exists():
