@@ -88,7 +88,7 @@ def test_static_lights_model_learns_the_lamps_not_a_moving_dot():
     seen = {"led": [], "blink": [], "dot": []}
     for k, _, img in sc.frames():
         dots = det.detect(img)
-        states = sl.update(k, [(d.u, d.v) for d in dots], [d.color for d in dots], [d.saturated for d in dots])
+        states = sl.update(k, [(d.u, d.v) for d in dots], [d.color for d in dots])
         dot_uv = sc.uv(sc.truth[k])[0]
         for d, s in zip(dots, states):
             for name, p in (("led", led), ("blink", blink), ("dot", dot_uv)):

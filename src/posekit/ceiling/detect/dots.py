@@ -10,36 +10,56 @@ convention** -- the centre of the top-left pixel is (0, 0), so pixel ``[row, col
 How a frame is processed (``DotDetector.detect``):
 
 1. *Lit pixels.* A byte (one channel of one pixel) is lit when it exceeds the background mean
-   by ``max(contrast, k_sigma · σ)`` grey levels, σ the running standard deviation of that
-   byte (grass, brick texture, compression noise, leaves in the wind raise their own bar). The test runs on the whole frame, or only in a square of side
-   ``2 * roi_radius_px + 1`` around each predicted dot position (the fast path). A compiled
-   kernel rejects a row with one vectorised pass and lists the lit pixels of the few rows that
-   have any.
-2. *Colour.* For each lit pixel the light the laser adds, ``frame - background`` (positive
-   part, per channel), is converted to hue and saturation; a pixel is of a laser colour when its
-   hue is in the colour's range (red wraps through 0°) and its saturation is high enough. The
-   colour of the added light is the laser's whatever the ceiling's tint, which a threshold on
-   the raw frame cannot say of a faint glow on a bright tile. Pixels whose three channels all
-   exceed ``core_level`` are the saturated white core of a dot and take the colour of the blob
-   they belong to.
-3. *Blobs.* Lit pixels are grouped, opened morphologically (3×3 cross) and labelled with
+   by more than its bar ``z σ_eff``: ``z`` the one-sided normal quantile of ``alpha_pixel``
+   (by default one over the bytes of a frame: about one byte of the whole frame lit by noise,
+   z = 4.6 at 320×240, 4.9 at 864×480), ``σ_eff² = σ² + σ²_scene`` with σ the running standard deviation of that byte
+   (grass, brick texture, compression noise, leaves in the wind raise their own bar) and
+   ``σ²_scene`` the scene's median byte variance, measured once a band cycle (a byte whose own
+   variance happened to come out small, on a flat or clipped patch, is not lit by the
+   scene's ordinary noise). An explicit ``contrast`` is a floor on the bar. The test runs on
+   the whole frame, or only in a square of side ``2 * roi_radius_px + 1`` around each
+   predicted dot position (the fast path). A compiled kernel rejects a row with one
+   vectorised pass and lists the lit pixels of the few rows that have any.
+2. *Blobs.* Lit pixels are grouped, opened morphologically (3×3 cross) and labelled with
    ``cv2.connectedComponentsWithStats``; a blob is kept if its area is within
-   ``[min_area_px, max_area_px]``, its elongation (ratio of the principal axes) is at most
-   ``max_elongation`` and enough of its pixels have one of the requested colours.
+   ``[min_area_px, max_area_px]`` and its elongation (ratio of the principal axes) is at
+   most ``max_elongation``.
+3. *Colour.* The colour of a blob is that of the light it adds, ``frame - background``
+   (positive part) **summed over its weighted pixels** (clipped white pixels left out: a pixel
+   cut in every channel tells nothing of the colour), as hue and saturation. Per pixel, the
+   colour of a small spot does not survive compression: 4:2:0 chroma (JPEG, MJPG, H.264)
+   keeps one colour per 2×2 pixels and quantises it over 16×16-pixel blocks, so a 3-pixel red
+   halo comes out pink or grey pixel by pixel; the sum over the spot is (nearly) the blocks'
+   DC, which the codec keeps. The colour of the added light is the laser's whatever the
+   ceiling's tint, which a threshold on the raw frame cannot say of a faint glow on a bright
+   tile.
 4. *Centroid.* In the blob's bounding box grown by ``window_margin_px``, each pixel weighs the
    sum over channels of its positive background difference minus ``weight_threshold``; the
    dot is the weighted mean of the pixel centres.
-5. *Background update.* The background is per-byte running statistics of the frame — a mean
+5. *What it looks like.* ``saturated``: the laser's own channel (red for a red laser) reaches
+   ``core_level`` somewhere in the blob (a laser pointer drives its channel to the sensor's
+   white level in a camera exposed for the room; compression leaves it within a few levels:
+   measured >= 237 at JPEG quality 60). ``background_p``: the surroundings of the spot — the
+   ring of ``block_px`` blocks around the blocks it lies in (a codec's blocks: the spot's own
+   ringing stays inside them) — agree with the background model: the p-value of the number
+   of ring pixels beyond their bar under a binomial law at the scene's own outlier rate
+   (measured every frame on a sparse grid). A dot on the ceiling is light added to an
+   unchanged ceiling; a tail light, a glint on a car or a red sleeve sits on something that
+   is not the background.
+6. *Background update.* The background is per-byte running statistics of the frame — a mean
    and a variance (float32 (H, W, 3)): each frame updates one band of ``1 / background_stride``
    of the rows (cycling, with the learning rate compounded so the time constant is that of
-   updating every row every frame); lit bytes are absorbed 20 times slower (a parked object
-   becomes background in minutes, a passing person does not), the windows of the detected dots
-   not at all. People, cars and moving shadows are foreground, never a reason to rebuild.
-6. *Illumination.* Every frame the median ratio of the frame to the background on a sparse
-   grid gives the exposure gain; a step of more than ``relight_gain`` rescales the background
-   (``relights``). Only when more than ``max_lit_fraction`` of the frame is still lit after that
-   is the background rebuilt from the frame (``rebuilds``: expected to stay 0 on a steady
-   scene; the track summary reports it).
+   updating every row every frame), in one compiled pass; outlying bytes are absorbed
+   ``outlier_slowdown`` times slower (a parked object becomes background in minutes, a
+   passing person does not). The caller says what the blobs are: the windows of the tracked
+   dots (``protect``) are left out of the update, static lights (``absorb``) are absorbed at
+   the full rate — a lamp, a cone or a glint that a test found static is part of the scene.
+   People, cars and moving shadows are foreground, never a reason to rebuild.
+7. *Illumination.* Once a band cycle the median ratio of the frame to the background on a
+   sparse grid gives the exposure gain; a step of more than ``relight_gain`` rescales the
+   background (``relights``). Only when more than ``max_lit_fraction`` of the frame is still
+   lit after that is the background rebuilt from the frame (``rebuilds``: expected to stay 0
+   on a steady scene; the track summary reports it).
 
 The first frame (or the first after :meth:`DotDetector.reset`) builds the background from the
 frame itself, with the pixels of laser colour (thresholds on the raw frame) and the saturated
@@ -58,7 +78,7 @@ import numpy as np
 from posekit._extras import lazy
 
 from ...errors import ConfigError, InputFileError
-from ._kernels import _AREA, _COUNTS, _ELONG, _PEAK, _PLAIN, _U, _V, _VAR_UV, _blob_table, _lit_pixels
+from . import _kernels as K
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
@@ -70,27 +90,31 @@ class LaserColor:
     """Colour thresholds of one laser.
 
     ``hue_deg = (lo, hi)`` is the accepted hue range in degrees on [0, 360); ``lo > hi`` wraps
-    through 0° (red). ``min_saturation`` applies to the added light (on [0, 1]);
-    ``raw_min_saturation`` to the raw frame (used only to build the first background).
+    through 0° (red). ``min_saturation`` applies to the light a blob adds, summed over the
+    blob (on [0, 1]); ``channel``: the laser's own channel in BGR order (2: red, 1: green),
+    which it drives to the sensor's white level.
     """
 
     name: str
     hue_deg: tuple[float, float]
     min_saturation: float = 0.45
-    raw_min_saturation: float = 0.18
+    channel: int = 2
 
     def hue_mask(self, hue_deg: np.ndarray) -> np.ndarray:
+        """Which hues (degrees) are this laser's."""
         lo, hi = self.hue_deg
         return (hue_deg >= lo) & (hue_deg <= hi) if lo <= hi else (hue_deg >= lo) | (hue_deg <= hi)
 
 
-#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them. The red dot's
-#: halo keeps a saturation of only ~0.3-0.45 after JPEG/H.264 4:2:0 chroma (measured on a
-#: saturated dot at quality 50-90), hence its lower threshold; white lamps and glints add
-#: light of saturation near 0.
+#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them. Summed over the
+#: spot (as shares of each channel's headroom), the light a red dot adds keeps a hue within
+#: 330°-30° and a saturation >= 0.15 in all but the worst compression; where it does not
+#: (JPEG q60 applied twice on a bright pavement: the test generator's dot turns magenta-white,
+#: hue 310°, saturation 0.18), the spot is saturated and its colour unknown (see
+#: :meth:`DotDetector._colour`).
 LASER_COLORS = {
-    "red": LaserColor("red", (330.0, 30.0), min_saturation=0.3),
-    "green": LaserColor("green", (75.0, 170.0)),
+    "red": LaserColor("red", (330.0, 30.0), min_saturation=0.15, channel=2),
+    "green": LaserColor("green", (75.0, 170.0), min_saturation=0.3, channel=1),
 }
 
 
@@ -107,7 +131,14 @@ class Dot:
     room it lights, so its core saturates a camera exposed for the room (only such blobs may
     start a track; a dim reflection or a person's red shirt does not); ``noise_px``: 1σ per
     axis of the centroid that the background's measured noise under the blob's window gives
-    (px; a dot on flickering tape or a compressed, textured background moves by this much).
+    (px; a dot on flickering tape or a compressed, textured background moves by this much);
+    ``background_p``: p-value of "the spot's surroundings are the unchanged background" (the
+    ring test of :class:`DotDetector`; small: the spot sits on something that moved in, such
+    as a car or a person); ``bbox``: its blob's rows y0:y1 and columns x0:x1, px;
+    ``colour_known``: its added light showed the laser's colour (False: a saturated spot whose
+    colour compression and clipping washed out, taken for the laser's colour because its own
+    channel took the largest share); ``clipped_px``: pixels of its window whose background is at
+    the white level (a lamp under the dot: the spot's light is cut there, its centroid pulled away).
     """
 
     color: str
@@ -118,6 +149,10 @@ class Dot:
     stray: bool = False
     saturated: bool = False
     noise_px: float = 0.0
+    background_p: float = 1.0
+    bbox: tuple = (0, 0, 0, 0)
+    colour_known: bool = True
+    clipped_px: int = 0
 
 
 class DotDetector:
@@ -132,13 +167,15 @@ class DotDetector:
     learning_rate : float
         Weight of the new frame in the running-average background, per frame (0.05: a time
         constant of 20 frames, 1.3 s at 15 fps).
-    contrast : int
-        Least grey levels by which a channel must exceed the background mean to be lit.
-    k_sigma : float
-        ... or this many running standard deviations of that byte, if more (4: a Gaussian
-        byte exceeds it 3 times in 100,000).
+    contrast : int, optional
+        A floor (grey levels) on the bar by which a channel must exceed the background mean
+        to be lit; None: no floor, the bar is the scene's (``alpha_pixel``).
+    alpha_pixel : float, optional
+        One-sided significance of a lit byte: the bar is ``z σ_eff`` with ``z`` the normal
+        quantile of ``1 - alpha_pixel``. Default: one over the number of bytes of the frame
+        (about one noise byte lit per frame, whatever the resolution).
     core_level : int
-        A pixel with all three channels at or above it is a saturated dot core.
+        The laser's own channel at or above it somewhere in a blob makes it ``saturated``.
     min_area_px, max_area_px, max_elongation
         Gates on a blob (after the opening).
     roi_radius_px : int
@@ -152,6 +189,10 @@ class DotDetector:
         Growth of a blob's bounding box for the centroid window.
     background_stride : int
         The background update covers 1 / stride of the rows per frame (1: all rows).
+    block_px : int
+        Block size of the codec for the ring test (8: JPEG, MJPG, H.264 transforms).
+    outlier_slowdown : float
+        Outlying bytes (foreground) move the background this many times slower than inliers.
     max_lit_fraction : float
         Fraction of the frame lit (after the exposure gain was applied) above which the
         scene is taken to have changed and the background is rebuilt from the frame.
@@ -160,10 +201,6 @@ class DotDetector:
         from 1 rescales the background.
     background : ndarray, shape (H, W, 3), optional
         An image of the ceiling without dots (uint8 BGR) to start the background from.
-    min_color_fraction : float
-        A blob is of a laser colour when at least this fraction of its unsaturated pixels
-        (and at least 2) have that colour (0.2: compressed video, whose 4:2:0 chroma smears
-        a small dot's colour, keeps its dots; a white lamp has none).
 
     Attributes
     ----------
@@ -182,12 +219,12 @@ class DotDetector:
     >>> dots = det.detect(next_frame, {d.color: (d.u, d.v) for d in dots})  # doctest: +SKIP
     """
 
-    def __init__(self, colors=("red",), *, learning_rate: float = 0.05, contrast: int = 25,
-                 core_level: int = 250, min_area_px: int = 8, max_area_px: int = 900,
+    def __init__(self, colors=("red",), *, learning_rate: float = 0.05, contrast: int | None = None,
+                 alpha_pixel: float | None = None, core_level: int = 250, min_area_px: int = 5, max_area_px: int = 900,
                  max_elongation: float = 3.0, roi_radius_px: int = 24, roi_fallback: bool = True,
                  weight_threshold: float = 12.0, window_margin_px: int = 3, background_stride: int = 4,
-                 max_lit_fraction: float = 0.3, background: np.ndarray | None = None,
-                 min_color_fraction: float = 0.2, k_sigma: float = 4.0, relight_gain: float = 0.08):
+                 max_lit_fraction: float = 0.3, background: np.ndarray | None = None, relight_gain: float = 0.08,
+                 block_px: int = 8, outlier_slowdown: float = 20.0):
         colors = (colors,) if isinstance(colors, str) else tuple(colors)
         unknown = [c for c in colors if c not in LASER_COLORS]
         if not colors or unknown or len(set(colors)) != len(colors):
@@ -195,15 +232,21 @@ class DotDetector:
                               f"got {', '.join(colors) or 'nothing'}")
         if not 0.0 < learning_rate <= 1.0:
             raise ConfigError(f"learning_rate: expected a number in (0, 1], got {learning_rate}")
-        if not 1 <= int(contrast) <= 254:
+        if contrast is not None and not 1 <= int(contrast) <= 254:
             raise ConfigError(f"contrast: expected 1..254 grey levels, got {contrast}")
+        if alpha_pixel is not None and not 0.0 < float(alpha_pixel) < 0.5:
+            raise ConfigError(f"alpha_pixel: expected a probability in (0, 0.5), got {alpha_pixel}")
         if int(background_stride) < 1 or int(roi_radius_px) < 4:
             raise ConfigError("background_stride must be >= 1 and roi_radius_px >= 4")
         self.colors = colors
         self._specs = [LASER_COLORS[c] for c in colors]
-        self._spec_table = np.array([[*sp.hue_deg, sp.min_saturation] for sp in self._specs], np.float64)
+        self._own = np.array([sp.channel for sp in self._specs], np.int64)
         self.learning_rate = float(learning_rate)
-        self.contrast = int(contrast)
+        self.contrast = None if contrast is None else int(contrast)
+        from scipy.special import ndtri
+        self._alpha_pixel = None if alpha_pixel is None else float(alpha_pixel)
+        self._ndtri = ndtri
+        self._z = 4.0 if alpha_pixel is None else float(ndtri(1.0 - float(alpha_pixel)))
         self.core_level = int(core_level)
         self.min_area_px = int(min_area_px)
         self.max_area_px = int(max_area_px)
@@ -214,14 +257,15 @@ class DotDetector:
         self.window_margin_px = int(window_margin_px)
         self.background_stride = int(background_stride)
         self.max_lit_fraction = float(max_lit_fraction)
-        if not 0.0 < float(min_color_fraction) <= 1.0:
-            raise ConfigError(f"min_color_fraction: expected a number in (0, 1], got {min_color_fraction}")
-        self.min_color_fraction = float(min_color_fraction)
-        if not (k_sigma >= 0 and 0 < relight_gain < 1 and 0 < max_lit_fraction <= 1):
-            raise ConfigError("k_sigma must be >= 0, relight_gain in (0, 1), max_lit_fraction in (0, 1]")
-        self.k_sigma = float(k_sigma)
+        if not (0 < relight_gain < 1 and 0 < max_lit_fraction <= 1 and int(block_px) >= 1
+                and float(outlier_slowdown) >= 1):
+            raise ConfigError("relight_gain must be in (0, 1), max_lit_fraction in (0, 1], block_px >= 1, "
+                              "outlier_slowdown >= 1")
         self.relight_gain = float(relight_gain)
+        self.block_px = int(block_px)
+        self.outlier_slowdown = float(outlier_slowdown)
         self._kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        self._found = []
         self.reset()
         self._initial = None if background is None else self._check_frame(background, "background").copy()
 
@@ -229,9 +273,12 @@ class DotDetector:
     def reset(self) -> None:
         """Forget the background (the next frame starts a new one) and the frame count."""
         self._bg = None           # float32 (H, W, 3) running mean
+        self._guessed = None      # uint8 (H, W): updates to come before a guessed pixel counts (ring test)
         self._var = None          # float32 (H, W, 3) running variance
         self._bg_u8 = None        # rounded background, uint8 (H, W, 3)
-        self._thr = None          # min(mean + max(contrast, k_sigma σ), 255), uint8 (H, W, 3)
+        self._thr = None          # min(mean + bar, 255), uint8 (H, W, 3)
+        self._v_scene = 0.0       # the scene's median byte variance (grey levels²)
+        self.outlier_rate = 0.0   # the scene's rate of background outliers (sparse grid, smoothed)
         self._frames = 0
         self._coords = None
         self.status = "empty"     # 'ok', 'started', 'relit', 'rebuilt'
@@ -252,27 +299,43 @@ class DotDetector:
                                  f"frames, got {frame.shape[1]}×{frame.shape[0]}")
         return np.ascontiguousarray(frame)
 
+    @property
+    def alpha_pixel(self) -> float:
+        """Significance of a lit byte (one over the bytes of the frame unless given)."""
+        if self._alpha_pixel is not None or self._bg is None:
+            return self._alpha_pixel or 1e-6
+        return 1.0 / self._bg.size
+
     def _set_background(self, bg_u8: np.ndarray, bg_f: np.ndarray | None = None) -> None:
+        if getattr(self, "_guessed", None) is None or self._guessed.shape != bg_u8.shape[:2]:
+            self._guessed = np.zeros(bg_u8.shape[:2], np.uint8)
         self._bg = bg_u8.astype(np.float32) if bg_f is None else bg_f
+        self._z = float(self._ndtri(1.0 - self.alpha_pixel))
         if self._var is None or self._var.shape != self._bg.shape:
-            s0 = self.contrast / max(self.k_sigma, 1.0)       # until measured: the bar is ``contrast``
+            # until measured frame to frame: the frame's own fine-scale noise (MAD of the
+            # difference to a 3×3 median, per byte) stands for every byte's variance
+            grey = cv2.absdiff(bg_u8, cv2.medianBlur(bg_u8, 3))
+            s0 = max(1.4826 * float(np.median(grey)), 1.0)
             self._var = np.full(self._bg.shape, s0 * s0, np.float32)
+            self._v_scene = s0 * s0
         self._bg_u8 = bg_u8.copy()
         self._thr = np.empty_like(self._bg_u8)
         self._bar_u8 = np.empty_like(self._bg_u8)
-        self._bar2 = np.empty_like(self._bg)
         self._threshold_rows(0, bg_u8.shape[0])
         cap = max(256, int(self.max_lit_fraction * bg_u8.shape[0] * bg_u8.shape[1]))
         self._coords = np.empty((cap, 2), np.int32)
 
+    @property
+    def bar_floor(self) -> float:
+        """The smallest bar, grey levels: ``contrast`` when given, else ``z σ_scene``."""
+        return float(self.contrast) if self.contrast is not None else self._z * float(np.sqrt(self._v_scene))
+
     def _threshold_rows(self, r0: int, r1: int) -> None:
-        """The bar ``max(contrast, k σ)`` (uint8 and squared, float32) and ``thr = mean + bar``
-        (uint8, saturated) for rows r0:r1."""
-        h = r1 - r0
-        bar = cv2.max(cv2.sqrt(self._var[r0:r1].reshape(h, -1)) * self.k_sigma, float(self.contrast))
-        cv2.multiply(bar, bar, self._bar2[r0:r1].reshape(h, -1))
-        cv2.convertScaleAbs(bar, self._bar_u8[r0:r1].reshape(h, -1))
-        cv2.add(self._bg_u8[r0:r1].reshape(h, -1), self._bar_u8[r0:r1].reshape(h, -1), self._thr[r0:r1].reshape(h, -1))
+        """The bar ``max(z sqrt(σ² + σ²_scene), contrast)`` (uint8) and ``thr = mean + bar`` (uint8,
+        saturated) for rows r0:r1."""
+        h = self._bg.shape[0]
+        K._thresholds(self._var.reshape(h, -1), self._bg_u8.reshape(h, -1), self._bar_u8.reshape(h, -1),
+                    self._thr.reshape(h, -1), r0, r1, self._z, self._v_scene, float(self.contrast or 0.0))
 
     def _relight(self, frame: np.ndarray) -> None:
         """Exposure steps: rescale the background by the median frame/background ratio on a
@@ -311,23 +374,30 @@ class DotDetector:
         return float(np.mean(np.min(self._thr[y0:y1, x0:x1], axis=2) >= 255))
 
     def _start_background(self, frame: np.ndarray) -> None:
-        """Background from a frame: laser-coloured and saturated pixels (raw thresholds, grown
-        by the glow) replaced by the median of their neighbourhood."""
-        hsv = cv2.cvtColor(frame, cv2.COLOR_BGR2HSV_FULL)
-        h, s, v = hsv[..., 0].astype(np.float32) * (360.0 / 256.0), hsv[..., 1] / 255.0, hsv[..., 2]
-        mask = np.all(frame >= self.core_level, axis=2)
-        grey = frame.max(axis=2)
-        mask |= cv2.subtract(grey, cv2.medianBlur(grey, 15)) > 2 * self.contrast   # a small bright spot
-        for spec in LASER_COLORS.values():
-            mask |= spec.hue_mask(h) & (s >= spec.raw_min_saturation) & (v >= 100)
+        """Background from a frame: the pixels that could be a laser dot — small spots (at most
+        ``max_area_px``) where a laser's own channel is at the white level (``core_level``),
+        grown by the glow — replaced by the median of their neighbourhood (a robot standing
+        still is found at once; a lamp found there is absorbed once the static-light test calls
+        it static; large clipped areas, a sunlit wall or the sky, stay)."""
+        mask = np.zeros(frame.shape[:2], np.uint8)
+        for spec in self._specs:
+            clipped = (frame[..., spec.channel] >= self.core_level).astype(np.uint8)
+            n, labels, stats, _ = cv2.connectedComponentsWithStats(clipped, connectivity=8)
+            small = np.zeros(n, np.uint8)
+            small[1:] = stats[1:, cv2.CC_STAT_AREA] <= self.max_area_px
+            mask |= small[labels]
         bg = frame.copy()
+        self._guessed = np.zeros(frame.shape[:2], np.uint8)
         if mask.any():
-            mask = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))) > 0
+            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))) > 0
             bg[mask] = cv2.medianBlur(frame, 21)[mask]
+            # a guess until the running mean has had a time constant of updates there: no evidence
+            # for the ring test (the median misses a grid bar or an edge under the spot)
+            self._guessed[mask] = min(int(np.ceil(1.0 / self.learning_rate / self.background_stride)) + 1, 255)
         self._set_background(bg)
 
     # -- detection --
-    def detect(self, frame_bgr: np.ndarray, predicted_uv=None) -> list[Dot]:
+    def detect(self, frame_bgr: np.ndarray, predicted_uv=None, *, protect=None, absorb=None) -> list[Dot]:
         """Dots in one frame, and the background update.
 
         Parameters
@@ -338,6 +408,13 @@ class DotDetector:
             Where the dots are expected (px): only squares around them are searched (the fast
             path; the whole frame if one of them finds nothing and ``roi_fallback``). None, or
             a mapping without a prediction for one of ``colors``, searches the whole frame.
+        protect : sequence of (u, v), optional
+            Positions (px) of the tracked dots: a detected blob there is left out of this
+            frame's background update (a robot that stops does not fade into the ceiling).
+            Default: ``predicted_uv``'s positions; with neither, every detected blob.
+        absorb : sequence of (u, v), optional
+            Positions (px) of static lights (:class:`~posekit.ceiling.detect.scene.StaticLights`):
+            a detected blob there is absorbed into the background at the full rate.
 
         Returns
         -------
@@ -346,15 +423,19 @@ class DotDetector:
         """
         frame = self._check_frame(frame_bgr)
         self.status = "ok"
-        self._protect = []
+        self._found = []
         if self._bg is None:
             if self._initial is not None and self._initial.shape == frame.shape:
                 self._set_background(self._initial)
             else:
                 self._start_background(frame)
             self.status = "started"
-        elif self._frames % self.background_stride == 0:    # exposure drift: once a band cycle
+        elif self._frames % self.background_stride == 0:    # exposure drift, the scene's noise: once a band cycle
             self._relight(frame)
+            self._v_scene = float(np.median(self._var[4::16, 4::16]))
+        h = frame.shape[0]
+        rate = K._outlier_rate(frame, self._bg_u8, self._bar_u8, 16)
+        self.outlier_rate = rate if self._frames == 0 else 0.9 * self.outlier_rate + 0.1 * rate
         dots = None
         rects = self._rois(predicted_uv, frame.shape)
         if rects:
@@ -362,17 +443,42 @@ class DotDetector:
             if dots is not None and self.roi_fallback and len(dots) < len(rects):
                 dots = None if self._unmatched(dots, rects) else dots
         if dots is None:
-            dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
+            dots = self._search(frame, [(0, h, 0, frame.shape[1])])
             if dots is None and self.status not in ("relit", "rebuilt"):   # an exposure step?
                 self._relight(frame)
-                dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])])
+                dots = self._search(frame, [(0, h, 0, frame.shape[1])])
             if dots is None:                         # most of the frame lit: the scene changed
                 if self.status != "rebuilt":         # (once a frame)
                     self._rebuild(frame)
-                dots = self._search(frame, [(0, frame.shape[0], 0, frame.shape[1])]) or []
-        self._update_background(frame)
+                dots = self._search(frame, [(0, h, 0, frame.shape[1])]) or []
+        if protect is None and predicted_uv is not None:
+            protect = self._points(predicted_uv)
+        self._update_background(frame, self._modes(protect, absorb))
         self._frames += 1
         return dots
+
+    def _points(self, predicted_uv) -> list:
+        if isinstance(predicted_uv, Mapping):
+            return [p for p in predicted_uv.values() if p is not None]
+        arr = np.asarray(predicted_uv, float)
+        return [arr] if arr.ndim == 1 else list(arr)
+
+    def _modes(self, protect, absorb) -> np.ndarray:
+        """(R, 5) rows y0, y1, x0, x1, mode of the blobs' windows (grown by 8 px) for the
+        background update: 1 protected (a tracked dot; every blob when the caller says nothing),
+        2 absorbed (a static light); others are updated as usual."""
+        rows = []
+        for y0, y1, x0, x1 in dict.fromkeys(self._found):
+            mode = 0
+            if protect is None:
+                mode = 1
+            elif any(y0 - 4 <= p[1] < y1 + 4 and x0 - 4 <= p[0] < x1 + 4 for p in protect):
+                mode = 1
+            elif absorb is not None and any(y0 - 2 <= p[1] < y1 + 2 and x0 - 2 <= p[0] < x1 + 2 for p in absorb):
+                mode = 2
+            if mode:
+                rows.append((y0 - 8, y1 + 8, x0 - 8, x1 + 8, mode))
+        return np.array(rows, np.int64).reshape(-1, 5)
 
     def _rois(self, predicted_uv, shape) -> list[tuple[int, int, int, int]]:
         if predicted_uv is None:
@@ -407,12 +513,12 @@ class DotDetector:
     def _search(self, frame: np.ndarray, rects) -> list[Dot] | None:
         """Dots in the union of ``rects`` (row0, row1, col0, col1); None if too much is lit."""
         h, w, _ = frame.shape
-        self._protect = []
+        self._found = []
         f2, t2 = frame.reshape(h, -1), self._thr.reshape(h, -1)
         coords = self._coords
         parts = []
         for y0, y1, x0, x1 in rects:
-            n = _lit_pixels(f2, t2, y0, y1, x0, x1, coords)
+            n = K._lit_pixels(f2, t2, y0, y1, x0, x1, coords)
             if n > len(coords):
                 return None
             if n:
@@ -435,66 +541,100 @@ class DotDetector:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if n <= 1:
             return []
-        table = _blob_table(frame[y0:y1, x0:x1], self._bg[y0:y1, x0:x1], self._var[y0:y1, x0:x1], labels, stats, n,
-                            self._spec_table, self.core_level, self.window_margin_px, self.weight_threshold)
+        table = K._blob_table(frame[y0:y1, x0:x1], self._bg[y0:y1, x0:x1], self._var[y0:y1, x0:x1], labels, stats, n,
+                            self._own, self.core_level, self.window_margin_px, self.weight_threshold)
         out = []
         for k in range(1, n):
             row = table[k]
-            if not (self.min_area_px <= row[_AREA] <= self.max_area_px and np.isfinite(row[_U])):
+            if not (self.min_area_px <= row[K._AREA] <= self.max_area_px and np.isfinite(row[K._U])):
                 continue
-            counts = row[_COUNTS:]
-            best = int(np.argmax(counts))
-            if counts[best] < max(2.0, self.min_color_fraction * row[_PLAIN]):
+            c, known = self._colour(row[K._ADD_B], row[K._ADD_G], row[K._ADD_R], row[K._OWN:])
+            if c is None:
                 continue
-            found = self._make(self.colors[best], row, x0, y0)
-            if found is not None:
-                bx, by, bw, bh = stats[k, :4]
-                if isinstance(found, Dot):
-                    win = frame[y0 + by:y0 + by + bh, x0 + bx:x0 + bx + bw]
-                    sat = bool(win[labels[by:by + bh, bx:bx + bw] == k].max() >= self.core_level)
-                    found = replace(found, saturated=sat)
-                self._protect.append((y0 + by - 8, y0 + by + bh + 8, x0 + bx - 8, x0 + bx + bw + 8))
-                out.append(found)
+            found = self._make(self.colors[c], row, x0, y0)
+            if found is None:
+                continue
+            bx, by, bw, bh = (int(v) for v in stats[k, :4])
+            box = (y0 + by, y0 + by + bh, x0 + bx, x0 + bx + bw)
+            if isinstance(found, Dot):
+                m = self.window_margin_px              # the spot's glow reaches past its lit blob
+                n_ring, n_out = K._ring_outliers(frame, self._bg_u8, self._bar_u8, self._guessed, max(box[0] - m, 0),
+                                                 box[1] + m, max(box[2] - m, 0), box[3] + m, self.block_px)
+                found = replace(found, saturated=bool(row[K._OWN + c] >= self.core_level), bbox=box,
+                                background_p=_binomial_sf(n_out, n_ring, self._null_rate()), colour_known=known)
+            self._found.append(box)
+            out.append(found)
         return out
+
+    def _null_rate(self) -> float:
+        """The rate of background outliers of a pixel on the unchanged scene: the scene's measured
+        rate, at least the nominal one of three two-sided byte tests at ``alpha_pixel``."""
+        return min(max(self.outlier_rate, 6.0 * self.alpha_pixel), 0.5)
+
+    def _colour(self, b: float, g: float, r: float, own_max) -> tuple[int | None, bool]:
+        """``(index in colors or None, colour known)`` of a blob: the added light (b, g, r) has
+        the laser's hue and saturation (known); or, where compression and clipping left no
+        colour to judge, the blob is saturated in the laser's own channel
+        (``own_max[i] >= core_level``) and that channel took the largest share of the light
+        (unknown: a white spot pushed to the white level carries no colour; it may continue a
+        track, never start one)."""
+        mx, mn = max(b, g, r), min(b, g, r)
+        if mx <= 0:
+            return None, False
+        span = mx - mn
+        sat = span / mx
+        if span <= 0:
+            hue = 0.0
+        elif mx == r:
+            hue = 60.0 * (((g - b) / span) % 6.0)
+        elif mx == g:
+            hue = 60.0 * ((b - r) / span + 2.0)
+        else:
+            hue = 60.0 * ((r - g) / span + 4.0)
+        for i, sp in enumerate(self._specs):
+            if sat >= sp.min_saturation and bool(sp.hue_mask(np.array(hue))):
+                return i, True
+        shares = (b, g, r)
+        for i, sp in enumerate(self._specs):
+            if own_max[i] >= self.core_level and shares[sp.channel] >= mx:
+                return i, False
+        return None, False
 
     def _make(self, color: str, row: np.ndarray, x0: int, y0: int) -> Dot | None:
         """The detection of one blob that passed the area and colour gates (None: rejected)."""
-        if row[_ELONG] > self.max_elongation:
+        if row[K._ELONG] > self.max_elongation:
             return None
-        return Dot(color, float(row[_U] + x0), float(row[_V] + y0), int(row[_AREA]), float(row[_PEAK]),
-                   noise_px=float(np.sqrt(max(row[_VAR_UV], 0.0))))
+        return Dot(color, float(row[K._U] + x0), float(row[K._V] + y0), int(row[K._AREA]), float(row[K._PEAK]),
+                   noise_px=float(np.sqrt(max(row[K._VAR_UV], 0.0))), clipped_px=int(row[K._CLIPPED]))
 
-    def _update_background(self, frame: np.ndarray) -> None:
-        h, w, _ = frame.shape
+    def _update_background(self, frame: np.ndarray, rects: np.ndarray) -> None:
+        h = frame.shape[0]
         stride = self.background_stride
         band = self._frames % stride
         r0, r1 = band * h // stride, (band + 1) * h // stride
         if r1 <= r0:
             return
         alpha = 1.0 - (1.0 - self.learning_rate) ** stride
-        keep = []
-        for y0, y1, x0, x1 in self._protect:      # the detected dots are masked out of the update
-            y0, y1, x0, x1 = max(y0, r0), min(y1, r1), max(x0, 0), min(x1, w)
-            if y0 < y1 and x0 < x1:
-                keep.append((y0, y1, x0, x1, self._bg[y0:y1, x0:x1].copy(), self._var[y0:y1, x0:x1].copy()))
-        n = r1 - r0
-        f = frame[r0:r1].reshape(n, -1)
-        bg = self._bg[r0:r1].reshape(n, -1)
-        var = self._var[r0:r1].reshape(n, -1)
-        d = cv2.absdiff(f, self._bg_u8[r0:r1].reshape(n, -1))
-        inlier = cv2.compare(d, self._bar_u8[r0:r1].reshape(n, -1), cv2.CMP_LE)    # |d| within the bar
-        cv2.accumulateWeighted(cv2.multiply(d, d, dtype=cv2.CV_32F), var, alpha, inlier)
-        cv2.accumulateWeighted(f, bg, alpha, inlier)
-        # what stays becomes background, slowly; an outlier tells only that |d| exceeded the bar
-        # (its squared deviation counts as the bar's square)
-        outlier = cv2.bitwise_not(inlier)
-        cv2.accumulateWeighted(self._bar2[r0:r1].reshape(n, -1), var, alpha / 20.0, outlier)
-        cv2.accumulateWeighted(f, bg, alpha / 20.0, outlier)
-        for y0, y1, x0, x1, saved, saved_var in keep:
-            self._bg[y0:y1, x0:x1] = saved
-            self._var[y0:y1, x0:x1] = saved_var
-        cv2.convertScaleAbs(bg, self._bg_u8[r0:r1].reshape(n, -1))
-        self._threshold_rows(r0, r1)
+        views = (frame.reshape(h, -1), self._bg.reshape(h, -1), self._var.reshape(h, -1), self._bg_u8.reshape(h, -1),
+                 self._bar_u8.reshape(h, -1), self._thr.reshape(h, -1))
+        floor = float(self.contrast or 0.0)
+        K._update_band(*views, r0, r1, np.float32(alpha), np.float32(alpha / self.outlier_slowdown), self._z,
+                       self._v_scene, floor, rects, False, self._guessed)
+        absorb = rects[rects[:, 4] == 2]
+        if len(absorb):               # static lights fade in every frame, whatever the band (no band-wise
+            rest = rects.copy()       # shrinking of a lit spot, which would walk its centroid steadily)
+            rest[(rest[:, 0] < r1) & (rest[:, 1] > r0) & (rest[:, 4] == 2), 4] = 1   # this band's: done above
+            y0, y1 = int(max(absorb[:, 0].min(), 0)), int(min(absorb[:, 1].max(), h))
+            rate = np.float32(self.learning_rate)
+            K._update_band(*views, y0, y1, rate, rate, self._z, self._v_scene, floor, rest, True, self._guessed)
+
+
+def _binomial_sf(k: int, n: int, p: float) -> float:
+    """P(X >= k) for X ~ Binomial(n, p) (1 for k <= 0)."""
+    if k <= 0 or n <= 0:
+        return 1.0
+    from scipy.special import bdtrc
+    return float(bdtrc(k - 1, n, p))
 
 
 class DotSignature:
@@ -537,8 +677,14 @@ class DotSignature:
         the missing area, since the centroid of a clipped dot moves away from the cut; for a
         blob larger than the recent ones (merged with a bright thing beside it: the halo on a
         white stripe saturates on that side) by ``extra/(1 + extra)`` of the radius, the shift
-        of a centroid by an added area ``extra`` times the dot's at about a radius."""
+        of a centroid by an added area ``extra`` times the dot's at about a radius; for a spot
+        partly on a background clipped at the white level (a lamp: its light is cut there) by
+        the clipped share of its window times the radius."""
         s = max(floor_px, 0.04 * math.sqrt(max(dot.area_px, 1)), getattr(dot, "noise_px", 0.0))
+        clipped = getattr(dot, "clipped_px", 0)
+        if clipped:                                  # the spot lies partly on a clipped background
+            r = math.sqrt(max(dot.area_px, 1) / math.pi)
+            s = max(s, clipped / (clipped + dot.area_px) * r)
         if self.n >= self.warmup and self.recent_area > 0:
             r = math.sqrt(self.recent_area / math.pi)
             missing = 1.0 - dot.area_px / self.recent_area
@@ -575,5 +721,19 @@ def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> l
             sel = lab == k
             if sel.any():
                 boxes.append((r[sel].min(), r[sel].max() + 1, c[sel].min(), c[sel].max() + 1))
-    return [(max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w))
-            for y0, y1, x0, x1 in boxes]
+    grown = [[max(int(y0) - margin, 0), min(int(y1) + margin, h), max(int(x0) - margin, 0), min(int(x1) + margin, w)]
+             for y0, y1, x0, x1 in boxes]
+    merged = True
+    while merged and len(grown) > 1:                 # overlapping windows: one window (a blob is found once)
+        merged = False
+        for i in range(len(grown)):
+            for j in range(i + 1, len(grown)):
+                a, c = grown[i], grown[j]
+                if a[0] < c[1] and c[0] < a[1] and a[2] < c[3] and c[2] < a[3]:
+                    grown[i] = [min(a[0], c[0]), max(a[1], c[1]), min(a[2], c[2]), max(a[3], c[3])]
+                    del grown[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [tuple(g) for g in grown]

@@ -154,7 +154,7 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
                config: TrackerConfig | None = None, detectors: Sequence | None = None,
                border_margin_px: float = 20.0, use_roi: bool = True, survey_every: int = 30,
                timings: list | None = None, scenes: Sequence | None = None,
-               stats: dict | None = None) -> Iterator[tuple[TrackRow, np.ndarray]]:
+               stats: dict | None = None, tests=None) -> Iterator[tuple[TrackRow, np.ndarray]]:
     """Track frame by frame, yielding each row as soon as its frame is done (live use).
 
     Per frame and camera: the detector searches a window around the predicted dot while the
@@ -182,7 +182,8 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
         The primary dot as detected in the camera used, px (NaN when not ``ok``).
     """
     from ..detect.dots import DotSignature
-    from ..detect.scene import MOVING, STATIC, StaticLights
+    from ..detect.scene import StaticLights
+    from .verify import LaserTests, verify_candidates
 
     dots = parse_dots(dots)
     cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
@@ -199,6 +200,10 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
                  scene="from the scene file" if any(s is not None for s in scenes) else "learned online")
     survey_every = max(int(survey_every), 1)
     signatures = [{c: DotSignature() for c in dots} for _ in cameras]     # per camera and colour
+    absorb = [[] for _ in cameras]             # per camera: the static lights of the last frame
+    followed = [{} for _ in cameras]           # per camera: image-track identity of each tracked dot
+    protect = [[] for _ in cameras]            # per camera: where the tracked dots were last seen
+    tests = LaserTests() if tests is None else tests
     mct = MultiCameraTracker(cameras, cfg, border_margin_px=border_margin_px)
     suspect_cal = [getattr(c.calibration, "status", "ok") == "suspect" for c in cameras]
     confident = False
@@ -220,31 +225,23 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             if bd >= 2 * border_margin_px:
                 search = [a]                        # camera switch: the others can sleep
         survey = index % survey_every == 0
-        detections, eligible, stds, moving, found = [], [], [], [], {}
+        detections, eligible, stds, moving, assoc, found = [], [], [], [], [], {}
         for i, (det, img) in enumerate(zip(detectors, images)):
             if i not in search or img is None:
-                detections.append(None)
-                eligible.append(None)
-                stds.append(None)
-                moving.append(None)
+                for lst in (detections, eligible, stds, moving, assoc):
+                    lst.append(None)
                 continue
             roi = pred[i] if (use_roi and confident and not survey and pred[i]) else None
-            ds = det.detect(img, predicted_uv=roi)
-            found[i] = ds
-            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds],
-                                      [d.saturated for d in ds])
-            by, el, sd, mv = {}, {}, {}, {}
-            for d, s in zip(ds, states):
-                sig = signatures[i][d.color]
-                by.setdefault(d.color, []).append((d.u, d.v))
-                el.setdefault(d.color, []).append(s != STATIC and d.saturated and sig.consistent(d))
-                mv.setdefault(d.color, []).append(s == MOVING)
-                sd.setdefault(d.color, []).append(sig.std_px(d, cameras[i].detection_std_px))
-            detections.append({c: np.asarray(v, dtype=float) for c, v in by.items()})
-            eligible.append({c: np.asarray(v, dtype=bool) for c, v in el.items()})
-            moving.append({c: np.asarray(v, dtype=bool) for c, v in mv.items()})
-            stds.append({c: np.asarray(v, dtype=float) for c, v in sd.items()})
-        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving)
+            ds = det.detect(img, predicted_uv=roi, protect=list(pred[i].values()) + protect[i], absorb=absorb[i])
+            cand = verify_candidates(index, ds, lights[i], signatures[i], cameras[i].detection_std_px, tests,
+                                     followed[i])
+            found[i] = cand
+            detections.append(cand.uv)
+            eligible.append(cand.eligible)
+            moving.append(cand.moving)
+            stds.append(cand.std_px)
+            assoc.append(cand.associable(followed[i]))
+        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving, associable=assoc)
         if all(img is None for img in images):
             why = "; ".join(e for e in errors if e) or "the frame could not be decoded"
             row = replace(row, x=float("nan"), y=float("nan"), heading_deg=float("nan"), status="lost",
@@ -257,18 +254,26 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             why = "; ".join(getattr(cal, "reasons", ()) or ("the calibration is suspect",))
             row = replace(row, status="suspect", reasons=row.reasons + (f"calibration: {why}",))
         uv = np.full(2, np.nan)
-        for i, ds in found.items():
+        for i, cand in found.items():
             if row.camera == i and row.measured:
                 track_uv = cameras[i].to_image(np.array(list(row.measured.values())))
                 for j, c in enumerate(row.measured):
                     p = track_uv[j]
-                    best = min((d for d in ds if d.color == c), key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2,
-                               default=None)
+                    best = min((d for d in cand.dots if d.color == c),
+                               key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2, default=None)
                     if best is None:
                         continue
                     signatures[i][c].update(best)
+                    followed[i][c] = cand.identity(c, (best.u, best.v))
                     if c == dots[0] and row.status in ("ok", "suspect"):
                         uv = np.array([best.u, best.v])
+        for i in range(len(cameras)):                   # a lost dot follows no image track any more
+            for c, (_, _, status) in (row.dots or {}).items():
+                if status == "lost":
+                    followed[i].pop(c, None)
+            keep = set(followed[i].values())
+            absorb[i] = lights[i].settled_uv(keep)      # next frame: the scene's settled spots fade in,
+            protect[i] = [p for p in (lights[i].last_uv(f) for f in keep) if p is not None]   # the tracked ones not
         confident = row.status == "ok"
         stats.update(rebuilds=sum(getattr(d, "rebuilds", 0) for d in detectors),
                      relights=sum(getattr(d, "relights", 0) for d in detectors),

@@ -59,6 +59,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ...errors import GeometryError, TrajectoryError
+from . import verdicts
 from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
 from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
 
@@ -183,7 +184,8 @@ class Tracker:
     # -- one frame -------------------------------------------------------------------------
     def step(self, t_s: float, dots_world: Mapping | np.ndarray | None,
              meas_cov: Mapping | None = None, *, frame: int | None = None,
-             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None) -> TrackRow:
+             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None,
+             associable: Mapping | None = None, claimed: Mapping | None = None) -> TrackRow:
         """Advance to ``t_s`` and fuse this frame's detections.
 
         Parameters
@@ -214,6 +216,13 @@ class Tracker:
             re-acquired only on the one eligible candidate found moving, and a track is
             ``suspect`` while another eligible moving candidate is in view outside its gate.
             Default: the tracker's own test (chained motion of at least ``min_move_mm``).
+        associable : mapping, optional
+            ``{colour: (K,) bool}``: the candidates the dot may be associated with this frame
+            (the one that continues its image track, when the caller knows it; the one a
+            several-robot assignment gave it). Default: all.
+        claimed : mapping, optional
+            ``{colour: (K,) bool}``: candidates that belong to other tracks (other robots):
+            never associated, never rivals. Default: none.
 
         Returns
         -------
@@ -255,23 +264,29 @@ class Tracker:
             mv = None
             if moving is not None and c in moving:
                 mv = _as_eligible(moving[c], dots_world.get(c), len(z)) & el
+            cl = np.zeros(len(z), bool)
+            if claimed is not None and c in claimed:
+                cl = _as_eligible(claimed[c], dots_world.get(c), len(z))
+            assoc = ~cl
+            if associable is not None and c in associable:
+                assoc &= _as_eligible(associable[c], dots_world.get(c), len(z))
             st = self.states[c]
             had = st.x is not None and self._alive(st, t_s)
-            accepted = self._update_dot(st, t_s, z, R, el, mv)
+            accepted = self._update_dot(st, t_s, z, R, el & ~cl, None if mv is None else mv & ~cl, assoc)
+            free = ~cl
             if accepted is not None:
                 measured[c] = accepted
-                other = self._rival(st, z, R, mv, accepted[0])
-                if st.probation is not None and other is not None:
-                    st.probation = (st.probation[0], st.probation[1], True)
+                free = ~cl & np.any(z != accepted[0], axis=1)
+                other = verdicts.rival(st.x, st.P, z, R, None if mv is None else mv & free, accepted[0],
+                                       cfg.gate_chi2, cfg.gate_floor_mm)
+                self._follow_doubt(st, t_s, z, R, el & free, other is not None)
                 if st.probation is not None and (t_s <= st.probation[0] + 1e-9 or st.probation[2]):
-                    why[c] = (f"re-acquired {st.probation[1]:.0f} mm from where the track was predicted"
-                              + ("; another moving laser-like spot was seen since: which is the laser cannot be told"
-                                 if st.probation[2] else
-                                 f" ({cfg.max_predict_s:g} s of probation: the previous dot may only be hidden)"),)
+                    why[c] = (verdicts.doubt_reason(st.probation[1], st.probation[2], cfg.max_predict_s),)
                 elif other is not None:
                     why[c] = (f"another moving laser-like spot at ({other[0]:.0f}, {other[1]:.0f}) mm, outside the "
                               "gate: which is the laser cannot be told",)
             else:
+                self._follow_doubt(st, t_s, z, R, el & free, False)
                 why[c] = self._why_not(st, t_s, len(z), had, el, mv)
         self._rigid_second_dot(t_s, dots_world, meas_cov, eligible, measured, why)
         for c in cfg.dots:
@@ -280,9 +295,13 @@ class Tracker:
                 status = "suspect" if c in why else "ok"
             elif self._alive(st, t_s):
                 status = "predicted"
+                if st.alt is not None:
+                    why[c] = tuple(why.get(c, ())) + ("the track's identity is in doubt (re-acquired away from its "
+                                                      "prediction): the 1σ spans both hypotheses",)
             else:
                 status = "lost"
                 st.x = st.P = None
+                st.alt = st.probation = None
             xy = st.x[:2].copy() if st.x is not None else np.full(2, np.nan)
             dots[c] = (float(xy[0]), float(xy[1]), status)
 
@@ -343,18 +362,26 @@ class Tracker:
         return (self.config.coast_speed_share * float(np.hypot(*st.x[2:])) * since) ** 2
 
     def _std_mm(self, st: DotState, t_s: float) -> float:
-        """1σ of the position (largest axis), the coasting manoeuvre included, mm."""
-        return float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+        """1σ of the position (largest axis), the coasting manoeuvre included, mm; while the
+        identity is in doubt, that of the two-hypothesis mixture (:func:`verdicts.mixture_std`)."""
+        std = float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+        return verdicts.mixture_std(std, st.x[:2], st.alt, t_s, self.config.coast_speed_share)
 
-    def _rival(self, st: DotState, z: np.ndarray, R: np.ndarray, moving, accepted_z):
-        """An eligible, moving candidate outside the gate of the accepted one (or None)."""
-        if moving is None or not moving.any():
-            return None
-        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
-        far = moving & (d2 > self.config.gate_chi2) & (np.hypot(*(z - accepted_z).T) > self.config.gate_floor_mm)
-        if not far.any():
-            return None
-        return z[int(np.flatnonzero(far)[0])]
+    def _follow_doubt(self, st: DotState, t_s: float, z, R, usable, rival_seen: bool) -> None:
+        """Carry the alternative hypothesis of a dot in probation: follow it with the usable
+        candidates in its gate; a rival, or the previous dot seen again, makes the doubt last for
+        the rest of the track; a probation that ends without either closes it."""
+        if st.probation is None:
+            return
+        cfg = self.config
+        until, jump, conflicted = st.probation
+        if st.alt is not None and verdicts.follow_alternative(st.alt, t_s, z, R, usable, cfg.accel_psd_mm2_s3,
+                                                               cfg.gate_chi2, cfg.coast_speed_share):
+            conflicted = True
+        conflicted = conflicted or rival_seen
+        st.probation = (until, jump, conflicted)
+        if not conflicted and t_s > until + 1e-9:
+            st.alt = None
 
     def _why_not(self, st: DotState, t_s: float, n: int, had: bool, eligible, moving) -> tuple:
         """The reason of a row without an accepted dot."""
@@ -388,7 +415,7 @@ class Tracker:
         st.z_meas = np.array(z, dtype=float)
 
     def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
-                    moving: np.ndarray | None = None):
+                    moving: np.ndarray | None = None, assoc: np.ndarray | None = None):
         """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None.
 
         While the track is fresh (the previous frame was accepted): (1) the candidate of
@@ -420,8 +447,9 @@ class Tracker:
             st.last_d2 = float("nan")
             return None
         R = R * st.noise_scale
+        assoc = np.ones(len(z), bool) if assoc is None else assoc
         if st.x is None:
-            return self._acquire(st, t_s, z, R, eligible, moving)
+            return self._acquire(st, t_s, z, R, eligible & assoc, None if moving is None else moving & assoc)
         since = t_s - st.t_meas_s
         fresh = since <= 1.5 * dt_pred + 1e-9
         reach = cfg.gate_floor_mm + cfg.max_speed_mm_s * since
@@ -430,9 +458,12 @@ class Tracker:
         coast = 0.0 if fresh else self._coast_var(st, t_s)
         d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R + coast * np.eye(2))
         st.last_d2 = float(d2.min())
-        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach)
-        near = eligible & (dist_pred <= cfg.gate_floor_mm)
-        lone = np.flatnonzero(eligible)
+        # inside the χ² gate and within reach; an unverified candidate (a washed-out or merged dot,
+        # the dot crossing a lamp) also within gate_floor_mm of the prediction: the χ² gate of a
+        # fresh track, whose velocity is barely known, is far wider than a dot moves in a frame
+        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach) & assoc & (eligible | (dist_pred <= cfg.gate_floor_mm))
+        near = eligible & assoc & (dist_pred <= cfg.gate_floor_mm)
+        lone = np.flatnonzero(eligible & assoc)
         if fresh:
             if in_gate.any():
                 k = int(np.argmin(np.where(in_gate, d2, np.inf)))
@@ -448,7 +479,7 @@ class Tracker:
                 return z[k], R[k]
         else:
             rest = dist_last <= cfg.gate_floor_mm       # where the dot was last seen (the robot stopped)
-            usable = (in_gate | near | rest) & eligible
+            usable = (in_gate | near | rest) & eligible & assoc
             if usable.any():
                 k = int(np.argmin(np.where(usable, d2, np.inf)))
                 if (cfg.min_move_mm == 0 or (since <= cfg.confirm_after_s + 1e-9 and (in_gate[k] or near[k]))
@@ -461,10 +492,11 @@ class Tracker:
         st.n_rejected += 1
         if st.n_rejected < cfg.reinit_after:
             return None
-        pred = st.x[:2].copy()
-        got = self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        prev = verdicts.open_alternative(st.x, st.P, t_s, st.t_meas_s)
+        got = self._acquire(st, t_s, z, R, eligible & assoc, None if moving is None else moving & assoc)
         if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
-            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - pred))), False)
+            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - prev.x[:2]))), False)
+            st.alt = prev                       # the previous track: the other hypothesis
         return got
 
     def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):

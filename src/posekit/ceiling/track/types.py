@@ -160,7 +160,10 @@ class DotState:
     probation : tuple or None
         ``(until_s, jump_mm, conflicted)`` after a re-acquisition away from a live prediction:
         the rows are ``suspect`` until then, and for as long as the track lives once another
-        moving laser-like spot was seen during that time.
+        moving laser-like spot (or the previous dot) was seen during that time.
+    alt : Alternative or None
+        The previous track while the identity is in doubt (:mod:`posekit.ceiling.track.verdicts`):
+        the rows' ``std_mm`` spans both hypotheses.
     """
 
     x: np.ndarray | None = None
@@ -175,6 +178,7 @@ class DotState:
     pending: tuple | None = None
     seen: list | None = None
     probation: tuple | None = None
+    alt: object = None
 
 
 @dataclass
