@@ -1,4 +1,4 @@
-"""Shared fixtures: the bundled gauges and a cached simulation of each."""
+"""Shared fixtures: the bundled gauges and a cached simulation of each; the ``--full-corpus`` option."""
 
 import os
 from pathlib import Path
@@ -27,3 +27,17 @@ def gauge5():
 @pytest.fixture(scope="session")
 def gauge4():
     return bundled_gauge("demo-4")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--full-corpus", action="store_true", default=False,
+                     help="also run the tests marked full_corpus (the whole fuzz corpus)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--full-corpus"):
+        return
+    skip = pytest.mark.skip(reason="the whole fuzz corpus: run with --full-corpus")
+    for item in items:
+        if "full_corpus" in item.keywords:
+            item.add_marker(skip)

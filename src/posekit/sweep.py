@@ -13,7 +13,9 @@ Schedulers:
 
 ``None`` (default)
     A ``distributed.LocalCluster`` on this machine: ``n_workers`` processes (default
-    ``os.cpu_count()``) with one thread each, started for the call and shut down after.
+    ``os.cpu_count()``) with one thread each, started for the call and shut down after. Its
+    processes write nothing to stderr (a task's exception comes back through the results), so
+    a Ctrl-C in the terminal ends the study with one line, not a traceback per worker.
 ``"serial"``
     A plain loop in this process (for debugging and tiny runs; same numbers).
 ``"tcp://HOST:PORT"`` (any Dask address)
@@ -31,6 +33,7 @@ A script that starts a local cluster must guard its entry point with
 ``if __name__ == "__main__":`` (workers are spawned processes that import the main module).
 """
 
+import contextlib
 import logging
 import os
 import sys
@@ -48,6 +51,8 @@ __all__ = ["run_tasks", "task_seed", "SERIAL", "DEFAULT_CONNECT_TIMEOUT_S"]
 SERIAL = "serial"
 #: Seconds to wait for a remote scheduler before giving up.
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
+#: Seconds a local cluster may take to close (its workers are killed after that).
+_CLOSE_TIMEOUT_S = 10.0
 
 
 def _distributed(desc: str = ""):
@@ -128,16 +133,55 @@ def _connect(address: str, timeout_s: float):
         raise ConfigError(f"cannot reach Dask scheduler {address}: {reason}") from None
 
 
+@contextlib.contextmanager
+def _quiet_stderr():
+    """File descriptor 2 on /dev/null for the block: the local cluster's worker processes, spawned
+    here, inherit it for life, so a Ctrl-C in the terminal (which reaches every process of the
+    group) or a worker's own start-up noise prints nothing; errors come back through the results.
+    Also used around the cluster's shutdown, whose log lines after an interrupt are no use."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):          # no stderr at all: nothing to keep quiet
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    try:
+        yield
+    finally:
+        try:
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            pass
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 def _local_cluster(n_workers: int):
     distributed = _distributed()
     Client, LocalCluster = distributed.Client, distributed.LocalCluster
-    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
-    try:
-        client = Client(cluster, set_as_default=False)
-    except BaseException:
-        cluster.close()
-        raise
+    SpecCluster = distributed.SpecCluster
+    before = set(SpecCluster._instances)
+    with _quiet_stderr():
+        try:
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.CRITICAL)
+        except BaseException:       # e.g. Ctrl-C while the workers start: close the half-built one here
+            # (its failed start-up tasks would be logged by asyncio when collected, after our one line)
+            logging.getLogger("asyncio").setLevel(logging.CRITICAL)
+            for half in set(SpecCluster._instances) - before:
+                try:
+                    half.close(timeout=_CLOSE_TIMEOUT_S)
+                except Exception:   # noqa: BLE001 -- already failing; the first exception is the one to report
+                    pass
+            raise
+        try:
+            client = Client(cluster, set_as_default=False)
+        except BaseException:
+            cluster.close()
+            raise
     return cluster, client
 
 
@@ -204,8 +248,9 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence, *, scheduler=None, n_wo
             try:
                 return _gather_in_order(client, fn, tasks, bar)
             finally:
-                client.close()
-                cluster.close()
+                with _quiet_stderr():
+                    client.close(timeout=_CLOSE_TIMEOUT_S)
+                    cluster.close(timeout=_CLOSE_TIMEOUT_S)
         if isinstance(scheduler, str):
             client = _connect(scheduler, connect_timeout_s)
             try:

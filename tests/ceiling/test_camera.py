@@ -184,7 +184,7 @@ def test_cli_too_few_views(tmp_path, views):
         run_cli(["camera", str(good), str(blank), "--board", "9x6", "--square-mm", "25",
                  "--out", str(tmp_path / "c.json")])
     assert str(exc.value) == (f"lens calibration: the board was found in 1 view(s); expected at least 3 "
-                              f"({blank}: chessboard 9x6 not found) — check --board (inner corners, COLSxROWS) "
+                              f"({blank.name}: chessboard 9x6 not found) — check --board (inner corners, COLSxROWS) "
                               "and that the whole board is in view")
 
 

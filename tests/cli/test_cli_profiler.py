@@ -465,10 +465,12 @@ def test_symmetric_gauge_needs_the_mounting(capsys, tmp_path):
     np.savez(path, profiles=render_profiles(g, Ts, NoiseModel(), rng=13))
     rc, records, err = estimate(capsys, path, gauge)
     assert rc == 1 and records == []
-    assert err.strip() == (f"posekit: error: {gauge}: gauge 'sym-5' is ambiguous: its cross-section is symmetric "
-                           "under a 180° turn about the vertical: the corners read in reverse order fit the ridges "
-                           "exactly at another pose, so the mounting cannot be told from the profile; give the "
-                           "mounting (--mounting normal|reversed, or mounting='normal'|'reversed') to use it")
+    from posekit.errors import one_line
+
+    full = (f"{gauge}: gauge 'sym-5' is ambiguous: its cross-section is symmetric under a 180° turn about the "
+            "vertical: read in reverse order, the corners fit the ridges exactly at another pose; give the mounting "
+            "(--mounting normal|reversed)")
+    assert err.strip() == "posekit: error: " + one_line(full, 300 - len("posekit: error: "))   # the line's 300
     rc, records, err = estimate(capsys, path, gauge, "--mounting", "normal")
     assert rc == 0, err
     assert [r["status"] for r in records] == ["ok"] * COUNT

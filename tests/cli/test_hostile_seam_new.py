@@ -10,6 +10,7 @@ import shutil
 
 import pytest
 
+from posekit.errors import one_line
 from posekit.seam.frontend.config import config_from_dict
 from posekit.seam.frontend.log import write_episode_log
 from posekit.seam.frontend.simulate import simulate_data
@@ -67,7 +68,7 @@ def _track_fails(capsys, logdir, message, *extra, global_args=()):
     out = logdir.parent / "out"
     rc, o, e = run_cli(capsys, *global_args, "seam", "track", logdir, "--out", out, *extra)
     assert_one_line_error(rc, o, e)
-    assert e == f"posekit: error: {message}\n"
+    assert e == f"posekit: error: {one_line(message, 284)}\n"          # the line's 300 characters
     assert not out.exists()
     assert [p.name for p in logdir.parent.iterdir() if p.name.startswith(".")] == []
 
@@ -153,8 +154,8 @@ def test_track_outputs(capsys, episode, tmp_path):
     (full / "old.csv").write_text("x")
     for out, message in [
         (afile, f"--out {afile}: exists and is not a folder; expected a folder name"),
-        (full, f"--out {full}: the folder exists and is not empty; expected a new or empty folder (pass --overwrite "
-               "to replace it)"),
+        (full, f"--out {full}: the folder exists and is not empty and holds 1 entry posekit did not write "
+               "('old.csv'); expected a new or empty folder (pass --overwrite to replace it, deleting it)"),
     ]:
         rc, o, e = run_cli(capsys, "seam", "track", episode, "--out", out)
         assert_one_line_error(rc, o, e)
@@ -166,14 +167,15 @@ def test_track_outputs(capsys, episode, tmp_path):
     out = tmp_path / "o"
     rc, o, e = run_cli(capsys, "seam", "track", episode, "--out", out, "--jsonl", full)
     assert_one_line_error(rc, o, e)
-    assert e == f"posekit: error: --jsonl {full}: cannot write (Is a directory)\n"
+    assert e == f"posekit: error: --jsonl {full}: is a folder; expected a file name or -\n"
     assert not out.exists()
     # the good episode with --jsonl: one object per step, the folder complete
     jl = tmp_path / "steps.jsonl"
     rc, o, e = run_cli(capsys, "seam", "track", episode, "--out", out, "--jsonl", jl)
     assert rc == 0, e
     assert len(jl.read_text().splitlines()) == 20
-    assert sorted(p.name for p in out.iterdir()) == ["errors_time.png", "ess.png", "estimates.csv", "metrics.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".posekit-run.json", "errors_time.png", "ess.png", "estimates.csv",
+                                                     "metrics.json"]
 
 
 def test_simulate_save_log_folder(capsys, tmp_path):
@@ -184,14 +186,15 @@ def test_simulate_save_log_folder(capsys, tmp_path):
     (full / "x").write_text("x")
     base = ["seam", "simulate", "--steps", 5, "--particles", 20]
     for save, out, message in [
-        (full, tmp_path / "o1", f"--save-log {full}: the folder exists and is not empty; expected a new or empty "
-                                "folder (pass --overwrite to replace it)"),
+        (full, tmp_path / "o1", f"--save-log {full}: the folder exists and is not empty and holds 1 entry posekit "
+                                "did not write ('x'); expected a new or empty folder (--overwrite replaces it only if "
+                                "posekit wrote all of it; remove them or pick another folder)"),
         (afile, tmp_path / "o2", f"--save-log {afile}: exists and is not a folder; expected a folder name"),
         (tmp_path / "same", tmp_path / "same", "--save-log: expected a folder other than --out"),
     ]:
         rc, o, e = run_cli(capsys, *base, "--out", out, "--save-log", save)
         assert_one_line_error(rc, o, e)
-        assert e == f"posekit: error: {message}\n"
+        assert e == f"posekit: error: {one_line(message, 284)}\n"
         assert not out.exists()
     assert [p.name for p in full.iterdir()] == ["x"]
 
@@ -258,8 +261,8 @@ def test_design_config_and_out(capsys, tmp_path):
         (tmp_path / name).write_text(text)
     for extra, message in [
         (["--out", afile], f"--out {afile}: exists and is not a folder; expected a folder name"),
-        (["--out", full], f"--out {full}: the folder exists and is not empty; expected a new or empty folder (pass "
-                          "--overwrite to replace it)"),
+        (["--out", full], f"--out {full}: the folder exists and is not empty and holds 1 entry posekit did not write "
+                          "('x'); expected a new or empty folder (pass --overwrite to replace it, deleting it)"),
         (["--config", tmp_path / "nope.yaml"], f"{tmp_path / 'nope.yaml'}: no such file; expected a seam "
                                                "configuration YAML file"),
         (["--config", tmp_path / "bad.yaml"], f"{tmp_path / 'bad.yaml'}: trajectory.steps: expected >= 2, got -1"),

@@ -5,10 +5,10 @@ import argparse
 
 import pytest
 
-from posekit.cli._common import overwrite_flag
+from posekit.cli._common import overwrite_flag, replace_own_flag
 from posekit.cli.main import main
 from posekit.errors import ConfigError
-from posekit.io import atomic_file, staged_folder, write_text_atomic
+from posekit.io import MARKER, atomic_file, staged_folder, write_text_atomic
 
 
 def run(capsys, *argv):
@@ -21,6 +21,11 @@ def leftovers(folder):
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
+def names(folder):
+    """The files of a run folder without posekit's marker."""
+    return sorted(p.name for p in folder.iterdir() if p.name != MARKER)
+
+
 def test_staged_folder_is_all_or_nothing(tmp_path):
     out = tmp_path / "run"
     with pytest.raises(RuntimeError):
@@ -31,18 +36,18 @@ def test_staged_folder_is_all_or_nothing(tmp_path):
     with staged_folder(out) as tmp:
         (tmp / "a.txt").write_text("first")
     assert (out / "a.txt").read_text() == "first"
-    with pytest.raises(ConfigError, match=r"run: the folder exists and is not empty; expected a new or empty folder "
-                                          r"\(pass --overwrite to replace it\)"):
+    with pytest.raises(ConfigError, match=r"run: the folder exists and is not empty \(an earlier posekit run\); "
+                                          r"expected a new or empty folder \(pass --overwrite to replace it\)"):
         with staged_folder(out):
             pass
     with pytest.raises(RuntimeError):
         with staged_folder(out, overwrite=True) as tmp:
             (tmp / "b.txt").write_text("second")
             raise RuntimeError
-    assert sorted(p.name for p in out.iterdir()) == ["a.txt"]  # the old run, untouched
+    assert names(out) == ["a.txt"]  # the old run, untouched
     with staged_folder(out, overwrite=True) as tmp:
         (tmp / "b.txt").write_text("second")
-    assert sorted(p.name for p in out.iterdir()) == ["b.txt"]  # replaced whole, not mixed
+    assert names(out) == ["b.txt"]  # replaced whole, not mixed
     assert leftovers(tmp_path) == []
 
 
@@ -66,8 +71,9 @@ def test_seam_simulate_refuses_a_non_empty_out_and_overwrite_replaces_it(tmp_pat
     out.mkdir()
     (out / "old_figure.png").write_bytes(b"old")
     rc, _, err = run(capsys, *argv, "--out", out)
-    assert rc == 1 and err == (f"posekit: error: --out {out}: the folder exists and is not empty; expected a new or "
-                               "empty folder (pass --overwrite to replace it)\n")
+    assert rc == 1 and err == (f"posekit: error: --out {out}: the folder exists and is not empty and holds 1 entry "
+                               "posekit did not write ('old_figure.png'); expected a new or empty folder (pass "
+                               "--overwrite to replace it, deleting it)\n")
     rc, stdout, err = run(capsys, *argv, "--out", out, "--overwrite")
     assert rc == 0, err
     names = {p.name for p in out.iterdir()}
@@ -110,8 +116,9 @@ def test_profiler_simulate_does_not_overwrite_silently(tmp_path, capsys):
 
 def test_a_verbs_own_default_folder_is_replaced_each_run():
     ns = argparse.Namespace
-    assert overwrite_flag(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
-    assert not overwrite_flag(ns(out="mine", overwrite=False, out_default="posekit-demo"))
+    assert replace_own_flag(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
+    assert not overwrite_flag(ns(out="posekit-demo", overwrite=False, out_default="posekit-demo"))
+    assert not replace_own_flag(ns(out="mine", overwrite=False, out_default="posekit-demo"))
     assert overwrite_flag(ns(out="mine", overwrite=True, out_default=None))
 
 

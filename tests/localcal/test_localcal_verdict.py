@@ -239,11 +239,10 @@ def test_adversarial_input_is_never_ok(case):
         assert status == "suspect"
         assert any(re.search(BAD_MESSAGES[name], r) for r in reg.reasons), reg.reasons
     if name.startswith("camera file in mm"):
-        assert reg == ("cam moves 1015x as far as kin (342 m vs 0.337 m along the main axis): they are not the same "
-                       "motion in the same unit; is cam in millimetres? trajectory files are in metres (divide its "
-                       "positions by 1000); for a monocular trajectory of unknown scale use --with-scale")
+        assert reg == ("cam moves 1015x as far as kin (342 m vs 0.337 m along the main axis), not the same motion in "
+                       "one unit; is it in millimetres? trajectory files are in metres; unknown scale: --with-scale")
     if name == "kinematic file in mm ts":      # no longer a misleading 'clock offset at the edge' error
-        assert reg.startswith("kin moves 985x as far as cam") and "is kin in millimetres?" in reg
+        assert reg.startswith("kin moves 985x as far as cam") and "is it in millimetres?" in reg
     if name == "random positions ts":
         assert reg.startswith("no clock offset within ±1 s makes cam and kin agree")
 

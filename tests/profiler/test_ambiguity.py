@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from posekit.errors import EstimationError, GaugeError
+from posekit.errors import EstimationError, GaugeError, one_line
 from posekit.profiler import (
     BUNDLED_GAUGES,
     NoiseModel,
@@ -28,9 +28,9 @@ from posekit.profiler.gauge.design import random_gauge
 from posekit.profiler.gauge.model import gauge_to_yaml
 from posekit.profiler.studies.evaluate import pose_errors
 
-SYMMETRIC = ("its cross-section is symmetric under a 180° turn about the vertical: the corners read in reverse "
-             "order fit the ridges exactly at another pose, so the mounting cannot be told from the profile")
-GIVE_MOUNTING = "; give the mounting (--mounting normal|reversed, or mounting='normal'|'reversed') to use it"
+SYMMETRIC = ("its cross-section is symmetric under a 180° turn about the vertical: read in reverse order, the "
+             "corners fit the ridges exactly at another pose")
+GIVE_MOUNTING = "; give the mounting (--mounting normal|reversed)"
 
 
 def symmetric_gauge(dx_mm=0.0, **kw):
@@ -64,7 +64,7 @@ def test_symmetric_gauge_refused_at_load(tmp_path):
     path.write_text(gauge_to_yaml(g))
     with pytest.raises(GaugeError) as exc:
         load_gauge(path)
-    assert str(exc.value) == f"{path}: gauge 'sym-5' is ambiguous: {SYMMETRIC}{GIVE_MOUNTING}"
+    assert str(exc.value) == one_line(f"{path}: gauge 'sym-5' is ambiguous: {SYMMETRIC}{GIVE_MOUNTING}")
     for mounting in ("normal", "reversed"):
         h = load_gauge(path, mounting=mounting)
         assert h.ambiguity == SYMMETRIC
@@ -79,11 +79,10 @@ def test_design_rule_check_reports_it():
 
 def test_nearly_symmetric_gauge_is_too_shallow_to_tell():
     """Ridge 0 moved by 10 µm: the reversed reading still fits within ~2 µm, far below the noise's reach."""
-    with pytest.raises(GaugeError, match=r"design: gauge 'sym-5' is ambiguous: the corners read in reverse order "
+    with pytest.raises(GaugeError, match=r"design: gauge 'sym-5' is ambiguous: read in reverse order, the corners "
                                          r"fit the ridges at another pose within 1\.\d\d µm RMS \(a usable gauge "
-                                         r"misses by >= 10 µm\): the cross-section is too close to symmetric under "
-                                         r"a 180° turn \(too shallow\) for the profile to tell the mounting; give "
-                                         r"the mounting"):
+                                         r"misses by >= 10 µm\): too close to symmetric under a 180° turn; give "
+                                         r"the mounting \(--mounting normal\|reversed\)$"):
         symmetric_gauge(dx_mm=0.01)
     # 100 µm off symmetric: the reversed reading misses by ~19 µm, enough for an exact drawing ...
     assert AMBIGUITY_MIN_MISS_UM == 10.0

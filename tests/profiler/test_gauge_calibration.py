@@ -39,9 +39,8 @@ from posekit.profiler.gauge.calibration import (
 from posekit.profiler.gauge.datum import datum_transform, face_deviation_um
 from posekit.profiler.gauge.model import bundled_gauge_path
 
-TOO_FEW = ("profiles: 30 of 30 profiles show all 5 corners of gauge 'demo-5'; take >= 50 profiles with the laser "
-           "line turned about the line of sight by up to ±10-15° (yaw) and tilted by a few degrees, crossing the "
-           "gauge at varied places along the ridges")
+TOO_FEW = ("profiles: 30 of 30 profiles show all 5 corners of gauge 'demo-5'; take >= 50 profiles, the laser line "
+           "turned ±10-15° about its line of sight and tilted a few degrees, at varied places along the ridges")
 #: Where the calibration profiles are taken: the laser line turned by up to ±15° about the line of sight.
 CALIBRATION_POSES = Workspace(rotation_deg=(4.0, 4.0, 15.0))
 
@@ -232,12 +231,11 @@ def test_profiles_too_alike(machined):
     with pytest.raises(CalibrationError) as exc:
         calibrate_gauge(profiles, nominal)
     assert str(exc.value) == (
-        "profiles: the 60 profiles are too alike to fix the faces of gauge 'demo-5' (normal matrix rank 7 of 10 "
-        "after fixing the frame, condition singular > 1e+05; laser line yaw 0.0° and tilt 0.0° rms, spread 6.2 mm "
-        "along the ridges); " + NEEDED)
+        "profiles: the 60 profiles are too alike to fix the faces of 'demo-5' (rank 7 of 10, condition "
+        "singular > 1e+05; yaw 0.0°, tilt 0.0° rms, 6.2 mm along the ridges); " + NEEDED)
     # tilted only about the laser line, by up to 1°: a full rank that says little
     Ts = sample_poses(true, 60, 5, Workspace(rotation_deg=(1.0, 0.0, 0.0)))
-    with pytest.raises(CalibrationError, match=r"too alike .* condition \d\.\de\+\d\d > 1e\+05; laser line yaw 0\.0°"):
+    with pytest.raises(CalibrationError, match=r"too alike .* condition \d\.\de\+\d\d > 1e\+05; yaw 0\.0°"):
         calibrate_gauge(render_profiles(true, Ts, NoiseModel(), 6), nominal)
 
 
@@ -299,7 +297,10 @@ def test_cli_refuses_bad_output_and_too_few(machined, tmp_path, capsys):
     assert main(["profiler", "calibrate-gauge", str(tmp_path / "few.npz"), "--gauge", "demo-5",
                  "--out", str(tmp_path / "a.yaml")]) == 1
     err = capsys.readouterr().err
-    assert err == f"posekit: error: {tmp_path / 'few.npz'}" + TOO_FEW.removeprefix("profiles") + "\n"
+    from posekit.errors import one_line
+
+    assert err == "posekit: error: " + one_line(f"{tmp_path / 'few.npz'}" + TOO_FEW.removeprefix("profiles"), 284) \
+        + "\n"
     assert not (tmp_path / "a.yaml").exists()
     assert main(["profiler", "calibrate-gauge", str(tmp_path / "few.npz"), "--gauge", "demo-5",
                  "--out", str(tmp_path / "a.csv")]) == 1

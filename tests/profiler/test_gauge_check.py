@@ -208,3 +208,30 @@ def test_tilted_faces_are_outside_the_tolerance_model():
     z = np.array([np.abs(pose_errors(e.T_G_F, T)) / np.sqrt(np.diag(e.cov))
                   for e, T in zip(alone.estimates, Ts) if e is not None and e.status == "ok"])
     assert len(z) > 80 and np.max(np.percentile(z, 95, axis=0)) > 3.0
+
+
+def test_outlier_rounds_never_fail_internally(monkeypatch):
+    """Issue 28: when the last of the outlier rounds still dropped profiles, the test used the
+    residuals of the profiles before the drop (a shape mismatch, reported as 'the adjustment
+    failed'). Every round dropping one profile: the batch is still checked, on the profiles
+    kept; dropping below the minimum is the verdict 'could not be checked', with its count."""
+    import posekit.profiler.gauge.check as gc
+
+    d5 = bundled_gauge("demo-5")
+    profiles, _ = batch(d5, d5, K, 200)
+
+    def drop_first(r):
+        bad = np.zeros(r.shape[0], dtype=bool)
+        bad[0] = True
+        return bad, np.sum(r**2, axis=1), r.shape[1]
+
+    monkeypatch.setattr(gc, "outlying_profiles", drop_first)
+    check = estimate_profiles(profiles, d5).gauge_check
+    assert check.checked and check.passed is True, check.message
+    assert check.n_profiles == K - gc.OUTLIER_ROUNDS
+    monkeypatch.setattr(gc, "outlying_profiles", lambda r: (np.arange(r.shape[0]) < 20, np.sum(r**2, axis=1),
+                                                            r.shape[1]))
+    check = estimate_profiles(profiles, d5).gauge_check
+    assert check.checked is False and check.passed is None
+    assert check.message.startswith(f"the gauge file could not be checked by this batch: {K - 20} of {K} profiles "
+                                    "are left after dropping outliers; it needs >= 50 profiles")

@@ -111,25 +111,29 @@ def _first_record_delay(stub, client, profile, seq=0):
 # --- stalled clients never block the others -----------------------------------------------------
 
 @pytest.mark.parametrize("kind, timeout", [
-    ("silent", "idle timeout"),
+    ("silent", "not a sensor: no well-formed hello or frame within 2.5 s of connecting"),
     ("trickle", "read timeout"),
     ("partial", "read timeout"),
-    ("garbage", "idle timeout"),
+    ("garbage", "not a sensor: no well-formed hello or frame within 2.5 s of connecting"),
 ])
 def test_a_stalled_client_does_not_block_a_new_sensor(gauge, profiles, stub, caplog, kind, timeout):
-    server = PoseServer(gauge, robot=stub.address, idle_timeout_s=IDLE_S, read_timeout_s=READ_S, freeze_gc=False)
+    """A client that never sends a whole frame is never a sensor: it does not count against
+    max_connections and is closed by the hello deadline (or the read timeout of a frame begun)."""
+    server = PoseServer(gauge, robot=stub.address, idle_timeout_s=IDLE_S, read_timeout_s=READ_S,
+                        hello_timeout_s=IDLE_S, freeze_gc=False)
     host, port = server.start()
     stalled = _Stalled(kind, (host, port), encode_frame(99, time.perf_counter_ns(), profiles[0]))
     try:
         with caplog.at_level(logging.INFO, logger="posekit.server"):
-            assert wait_until(lambda: server.stats()["connected"] == 1)
+            assert wait_until(lambda: server.stats()["connections"] == 1)
             time.sleep(0.3)                            # the stalled client has begun stalling
+            assert server.stats()["connected"] == 0    # not a sensor (yet)
             with SensorClient(host, port) as good:
                 delay = _first_record_delay(stub, good, profiles[1])
                 st = server.stats()
                 print(f"{kind}: first record of the new sensor after {1e3 * delay:.1f} ms")
                 assert delay <= SERVE_WITHIN_S, f"{kind}: new sensor served after {delay:.3f} s"
-                assert st["connected"] == 2 and st["timeouts"] == 0      # the stalled one is still there
+                assert st["connected"] == 1 and st["timeouts"] == 0      # the stalled one is still there
                 for k in range(2, 6):
                     good.send_profile(k, profiles[k])
                 assert stub.wait_for(5, WAIT_S)
@@ -149,8 +153,11 @@ def test_a_stalled_client_does_not_block_a_new_sensor(gauge, profiles, stub, cap
         assert st["reasons"]["truncated"] == 1
 
 
-def test_many_stalled_clients_are_evicted_for_a_new_one(gauge, profiles, stub):
-    server = PoseServer(gauge, robot=stub.address, max_connections=4, freeze_gc=False)
+def test_silent_clients_never_take_a_sensors_place(gauge, profiles, stub):
+    """Issue 28: 16 silent connects used to evict the sensors (and make `profiler replay` exit 1).
+    Silent clients are pending, never sensors: a sensor connecting after 6 of them (4 places) is
+    served, and the oldest pending ones are shed beyond max_pending, never a sensor."""
+    server = PoseServer(gauge, robot=stub.address, max_connections=4, max_pending=3, freeze_gc=False)
     host, port = server.start()
     stalled = [_Stalled("silent", (host, port), b"") for _ in range(6)]
     try:
@@ -158,12 +165,96 @@ def test_many_stalled_clients_are_evicted_for_a_new_one(gauge, profiles, stub):
         with SensorClient(host, port) as good:
             assert _first_record_delay(stub, good, profiles[0]) <= SERVE_WITHIN_S
             st = server.stats()
-            assert st["connected"] == 4 and st["evictions"] == 3
+            assert st["connected"] == 1 and st["evictions"] == 0 and st["shed"] == 4     # 7 pending, 3 kept
+            more = [_Stalled("silent", (host, port), b"") for _ in range(6)]
+            try:
+                good.send_profile(1, profiles[1])
+                assert stub.wait_for(2, WAIT_S)
+                assert server.stats()["connected"] == 1 and server.stats()["evictions"] == 0
+            finally:
+                for s in more:
+                    s.close()
     finally:
         for s in stalled:
             s.close()
         server.stop()
-    assert stub.records[0]["status"] == "ok"
+    assert [r["status"] for r in stub.records] == ["ok", "ok"]
+
+
+def test_a_sensor_is_never_evicted_for_an_unproven_or_silent_one(gauge, profiles, stub):
+    """With a token: 2 places, both sensors streaming. A third client with the right token is
+    refused (the two are busy), clients with a wrong or no token are refused, and a sensor that
+    fell silent for hello_timeout_s is the only one a newcomer may replace."""
+    server = PoseServer(gauge, robot=stub.address, token=TOKEN, max_connections=2, hello_timeout_s=0.5,
+                        freeze_gc=False)
+    host, port = server.start()
+    a, b = SensorClient(host, port, token=TOKEN), SensorClient(host, port, token=TOKEN)
+    try:
+        a.send_profile(0, profiles[0])
+        b.send_profile(1, profiles[1])
+        assert stub.wait_for(2, WAIT_S) and server.stats()["connected"] == 2
+        for token in (TOKEN, "wrong", None):
+            c = socket.create_connection((host, port), timeout=2.0)
+            if token is not None:
+                c.sendall(encode_hello(token))
+            c.sendall(encode_frame(9, time.perf_counter_ns(), profiles[2]))
+            assert _Stalled.closed_by_server(argparse.Namespace(sock=c), WAIT_S)
+            c.close()
+            a.send_profile(2, profiles[2])                 # both sensors keep streaming
+            b.send_profile(3, profiles[3])
+        st = server.stats()
+        assert st["connected"] == 2 and st["evictions"] == 0 and st["shed"] == 1 and st["auth_failures"] == 2
+        # b falls silent; a newcomer with the token replaces it after hello_timeout_s
+        time.sleep(0.7)
+        a.send_profile(4, profiles[4])
+        with SensorClient(host, port, token=TOKEN) as c:
+            n0 = len(stub.records)
+            c.send_profile(5, profiles[5])
+            assert stub.wait_for(n0 + 1, WAIT_S)
+            assert server.stats()["evictions"] == 1 and server.stats()["connected"] == 2
+    finally:
+        a.close()
+        b.close()
+        server.stop()
+
+
+def test_a_flooding_sensor_is_slowed_and_the_others_served_in_turn(gauge, profiles, stub):
+    """An insider (the right token) floods empty frames: it is read at max_rate_hz, its frames
+    are checked without an estimate, and a streaming sensor keeps every frame."""
+    server = PoseServer(gauge, robot=stub.address, token=TOKEN, max_rate_hz=500.0, rate_burst=8, freeze_gc=False)
+    host, port = server.start()
+    flood = socket.create_connection((host, port), timeout=2.0)
+    flood.sendall(encode_hello(TOKEN))
+    empty = encode_frame(7, time.perf_counter_ns(), np.zeros((0, 2))) * 4000
+    stop = threading.Event()
+
+    def pour():
+        try:
+            while not stop.is_set():
+                flood.sendall(empty)
+        except OSError:
+            pass
+
+    t = threading.Thread(target=pour, daemon=True)
+    t.start()
+    try:
+        with SensorClient(host, port, token=TOKEN) as good:
+            t0 = time.monotonic()
+            for k in range(20):
+                good.send_profile(1000 + k, profiles[k % 8])
+                time.sleep(0.05)
+            elapsed = time.monotonic() - t0
+            assert wait_until(lambda: sum(r["seq"] >= 1000 for r in stub.records) == 20)
+        st = server.stats()
+    finally:
+        stop.set()
+        flood.close()
+        t.join(2.0)
+        server.stop()
+    good_records = [r for r in stub.records if r["seq"] >= 1000]
+    assert [r["status"] for r in good_records] == ["ok"] * 20
+    storms = st["reasons"]["nan_storm"]
+    assert st["rate_limited"] > 0 and storms <= 500 * (elapsed + 1.0) + 8      # the flood read at <= 500 Hz
 
 
 def test_default_timeouts_are_sane(gauge):
@@ -175,6 +266,13 @@ def test_default_timeouts_are_sane(gauge):
             PoseServer(gauge, **bad)
     with pytest.raises(ConfigError, match="max_connections must be an integer >= 1, got 0"):
         PoseServer(gauge, max_connections=0)
+    assert server.hello_timeout_s == 2.0 and server.max_pending == 64 and server.max_rate_hz == 4000.0
+    with pytest.raises(ConfigError, match="max_pending must be an integer >= 1, got True"):
+        PoseServer(gauge, max_pending=True)
+    with pytest.raises(ConfigError, match=r"max_rate_hz must be a number in \[1, 1e6\] Hz, got 0"):
+        PoseServer(gauge, max_rate_hz=0)
+    with pytest.raises(ConfigError, match=r"hello_timeout_s must be a number of seconds in \[0\.05, 86400\]"):
+        PoseServer(gauge, hello_timeout_s=0.0)
 
 
 # --- the token ----------------------------------------------------------------------------------

@@ -64,7 +64,7 @@ def test_design_cli_writes_ranking_and_figure(tmp_path, capsys):
                            "--steps", "40", "--particles", "80", "--scheduler", "serial", "--out", tmp_path / "d")
     assert rc == 0, err
     names = sorted(p.name for p in (tmp_path / "d").iterdir())
-    assert names == ["ranking.csv", "ranking.png", "report.html"]
+    assert names == [".posekit-run.json", "ranking.csv", "ranking.png", "report.html"]   # with posekit's marker
     with (tmp_path / "d" / "ranking.csv").open() as f:
         reader = csv.reader(f)
         header = next(reader)

@@ -23,7 +23,7 @@ def simulated(tmp_path_factory):
 
 def test_save_log_writes_the_four_files(simulated):
     names = sorted(p.name for p in (simulated / "log").iterdir())
-    assert names == ["log.csv", "seam.csv", "setup.yaml", "truth.csv"]
+    assert names == [".posekit-run.json", "log.csv", "seam.csv", "setup.yaml", "truth.csv"]   # with posekit's marker
     header = (simulated / "log" / "log.csv").read_text().splitlines()[0]
     assert header == ("time_s,qref_1,qref_2,qref_3,qref_4,qref_5,qref_6,q_1,q_2,q_3,q_4,q_5,q_6,fx_n,fy_n,fz_n,"
                       "m1_x_mm,m1_z_mm,m2_x_mm,m2_z_mm")
@@ -37,8 +37,8 @@ def test_track_reproduces_simulate_and_reports_status(simulated, capsys):
     m = json.loads((simulated / "tr" / "metrics.json").read_text())
     sim = json.loads((simulated / "sim" / "metrics.json").read_text())
     assert sum(m["status_counts"].values()) == 80
-    assert sorted(p.name for p in (simulated / "tr").iterdir()) == ["errors_time.png", "ess.png", "estimates.csv",
-                                                                    "metrics.json"]
+    assert sorted(p.name for p in (simulated / "tr").iterdir()) == [".posekit-run.json", "errors_time.png", "ess.png",
+                                                                    "estimates.csv", "metrics.json"]
     for a in ("x", "y", "z"):
         assert m["rmse_mm"][a] == pytest.approx(sim["rmse_mm"][a], abs=1e-5)
     for a in ("rx", "ry", "rz"):

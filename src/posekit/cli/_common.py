@@ -4,9 +4,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from .._numbers import parse_number
 from ..errors import ConfigError
 
-__all__ = ["overwrite_flag", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged",
+__all__ = ["overwrite_flag", "replace_own_flag", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged",
            "add_deprecated", "add_dask_args", "check_dask_args", "check_workspace", "local_scheduler", "SCHEDULER_HELP"]
 
 #: Help of ``--scheduler`` on the verbs that run their episodes through :func:`posekit.sweep.run_tasks`.
@@ -14,13 +15,13 @@ SCHEDULER_HELP = ("where to run: a Dask scheduler address tcp://HOST:PORT, or 's
                   "local: a Dask cluster on this machine's cores, or this process without Dask")
 
 #: Help of ``--overwrite``, the same on every verb that writes a folder.
-OVERWRITE_HELP = ("replace an existing non-empty --out folder (the old one is removed only after the new run "
-                  "is complete)")
+OVERWRITE_HELP = ("replace an existing non-empty --out folder, files posekit did not write included (the old one "
+                  "is removed only after the new run is complete)")
 
 
 def add_overwrite(parser, out_default: str | None = None) -> None:
     """Add ``--overwrite`` to a verb that writes a run's folder to ``--out``; a verb with a default
-    folder (``out_default``) replaces that one on every run."""
+    folder (``out_default``) replaces that one on every run while posekit wrote everything in it."""
     parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(out_default=out_default)
 
@@ -36,7 +37,7 @@ def progress(iterable, total=None, desc=None, unit: str = "profile"):
 def parse_triplet(text: str, name: str) -> tuple[float, float, float]:
     """'10,10,40' → (10.0, 10.0, 40.0); a ConfigError naming the option otherwise."""
     try:
-        vals = tuple(float(v) for v in text.split(","))
+        vals = tuple(parse_number(v) for v in text.split(","))
     except ValueError:
         raise ConfigError(f"--{name}: expected three comma-separated numbers, got '{text}'") from None
     if len(vals) != 3:
@@ -45,19 +46,25 @@ def parse_triplet(text: str, name: str) -> tuple[float, float, float]:
 
 
 def out_folder(args) -> Path:
-    """Check ``args.out`` before the (long) runs: a new or empty folder (or ``--overwrite``) whose
-    parent is writable; a one-line ConfigError otherwise. The run then writes through
-    :func:`posekit.io.staged_folder`, so the folder appears whole or not at all."""
+    """Check ``args.out`` before the (long) runs: a new or empty folder (or ``--overwrite``, or the
+    verb's default folder holding only an earlier posekit run) whose parent is writable; a one-line
+    ConfigError otherwise. The run then writes through :func:`posekit.io.staged_folder`, so the
+    folder appears whole or not at all."""
     from ..io import check_out_folder
 
-    return check_out_folder(args.out, overwrite=overwrite_flag(args))
+    return check_out_folder(args.out, overwrite=overwrite_flag(args), replace_own=replace_own_flag(args))
 
 
 def overwrite_flag(args) -> bool:
-    """``--overwrite``, or the verb's own default folder (a demo's ``posekit-demo``), which each run
-    replaces."""
+    """``--overwrite``: replace the ``--out`` folder whatever it holds."""
+    return bool(getattr(args, "overwrite", False))
+
+
+def replace_own_flag(args) -> bool:
+    """The verb's own default folder (a demo's ``posekit-demo``) is in use: each run replaces it
+    while everything in it was written by posekit (its marker says so)."""
     default = getattr(args, "out_default", None)
-    return bool(getattr(args, "overwrite", False)) or (default is not None and str(args.out) == default)
+    return default is not None and str(args.out) == default
 
 
 def staged(args):
@@ -65,7 +72,7 @@ def staged(args):
     that becomes ``--out`` when the block succeeds."""
     from ..io import staged_folder
 
-    return staged_folder(args.out, overwrite=overwrite_flag(args))
+    return staged_folder(args.out, overwrite=overwrite_flag(args), replace_own=replace_own_flag(args))
 
 
 class _Deprecated(argparse.Action):

@@ -18,6 +18,7 @@ formats as the number it holds, so a verb's own older check of the same flag
 import argparse
 import math
 
+from .._numbers import parse_int, parse_number
 from ..errors import ConfigError
 
 __all__ = ["MAX_NOISE_UM", "MAX_PROFILES", "MAX_WORKERS", "SEED_MAX", "bounded_float", "bounded_int", "check_flags", "check_range", "seed", "workers"]
@@ -82,7 +83,7 @@ def _reject(value, text, expected: str, flag: str | None):
 
 def _number(text: str, expected: str) -> float:
     try:
-        return float(text)
+        return parse_number(text)          # plain ASCII: not '١٢' or '1_0
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected {expected}, got {_shown(text)!r}") from None
 
@@ -98,7 +99,7 @@ def bounded_int(lo: int, hi: int, unit: str = "", *, flag: str | None = None):
 
     def parse(text: str):
         try:
-            value = int(text)
+            value = parse_int(text)
         except ValueError:
             number = _number(text, expected)
             if not (math.isfinite(number) and number.is_integer() and abs(number) <= 2**53):

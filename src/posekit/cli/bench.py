@@ -9,7 +9,7 @@ from ._flags import bounded_int, check_flags
 
 __all__ = ["add_parser", "BENCHMARKS"]
 
-BENCHMARKS = ("profiler", "ceiling", "seam", "robots", "localcal", "startup")
+BENCHMARKS = ("profiler", "ceiling", "seam", "robots", "localcal", "server", "startup")
 #: Most samples of one benchmark (profiles, frames, filter steps or calls; each benchmark takes at
 #: least its own minimum).
 MAX_COUNT = 10_000

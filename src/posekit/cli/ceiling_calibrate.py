@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 from .._extras import require
+from .._numbers import parse_number
 from ._flags import bounded_float, check_flags, check_range, seed
 
 __all__ = ["add_calibrate_parser", "run_calibrate"]
@@ -59,7 +60,7 @@ def _pair(text, option, lo, hi):
     """'600,1200' -> (600.0, 1200.0), each in ``lo..hi`` mm; a one-line ConfigError naming ``option``."""
     from ..errors import ConfigError
     try:
-        vals = tuple(float(v) for v in text.split(","))
+        vals = tuple(parse_number(v) for v in text.split(","))
     except ValueError:
         vals = ()
     if len(vals) != 2:

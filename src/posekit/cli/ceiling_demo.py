@@ -11,7 +11,7 @@ def add_demo_parser(verbs):
     d = verbs.add_parser("demo", help="render a ceiling video, calibrate, track, and compare with the truth "
                                       "(the paper's §V: Fig. 8/9, accuracy, speed)")
     d.add_argument("--out", default="posekit-ceiling-demo",
-                   help="output folder (default posekit-ceiling-demo, replaced on each run)")
+                   help="output folder (default posekit-ceiling-demo, replaced on each run while it holds only posekit's files)")
     add_overwrite(d, "posekit-ceiling-demo")
     d.add_argument("--dots", default="red,green",
                    help="'red', 'red,green' (default: both, for the heading) or 'line' (case C, §III-C)")

@@ -3,6 +3,7 @@
 import sys
 from pathlib import Path
 
+from .._numbers import parse_number
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
@@ -91,7 +92,7 @@ def parse_distortion(text: str) -> tuple:
     """'k1,k2,p1,p2,k3' (or 4 values) -> 5 floats; one-line ConfigError naming --distortion."""
     import math
     try:
-        vals = tuple(float(v) for v in text.split(","))
+        vals = tuple(parse_number(v) for v in text.split(","))
     except ValueError:
         vals = ()
     if len(vals) not in (4, 5) or not all(math.isfinite(v) and abs(v) <= 10 for v in vals):
@@ -128,8 +129,11 @@ def scene_config(args, dots):
             values[key] = getattr(args, flag)
     try:
         return SceneConfig(**values)
-    except TypeError as exc:
-        raise ConfigError(f"--config: {exc}") from None
+    except (TypeError, ValueError, OverflowError) as exc:   # a setting of the wrong kind (text for a number, ...)
+        if isinstance(exc, ConfigError):
+            raise ConfigError(f"{args.config}: {exc}" if args.config else str(exc)) from None
+        raise ConfigError(f"{args.config or '--config'}: {str(exc)[:120]}; expected each setting as in "
+                          "SceneConfig (numbers, lists of numbers, names)") from None
 
 
 def run_simulate(args) -> int:

@@ -5,6 +5,7 @@ import contextlib
 import shlex
 import sys
 
+from .._numbers import parse_number
 from ..errors import ConfigError, EstimationError
 from ..verdict import batch_exit_code
 from ._common import add_overwrite, out_folder, staged
@@ -136,7 +137,7 @@ def _robot_options(args) -> dict:
     start = None
     if args.start_q_deg is not None:
         try:
-            values = [float(v) for v in args.start_q_deg.split(",")]
+            values = [parse_number(v) for v in args.start_q_deg.split(",")]
         except ValueError:
             raise ConfigError(f"--start-q-deg: expected comma-separated numbers, got '{args.start_q_deg[:80]}'") from None
         if not all(math.isfinite(v) for v in values):

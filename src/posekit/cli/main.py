@@ -1,7 +1,13 @@
 """Entry point of the ``posekit`` command.
 
 Exit codes: 0 success, 1 a :class:`~posekit.errors.PosekitError` (message only, one line
-on stderr) or a batch with failed items, 2 usage. Tracebacks only with ``--debug``.
+on stderr, at most 300 characters) or a batch with failed items, 2 usage, 130 / 143 interrupted
+by SIGINT (Ctrl-C) / SIGTERM. Tracebacks only with ``--debug``.
+
+A signal at any moment (start-up, a Dask study, the middle of writing ``--out``) ends the run
+through the same clean-up as an error: temporary folders and files are removed, ``--out`` keeps
+its previous contents, one line ``posekit: interrupted`` / ``posekit: terminated`` is printed.
+A full disk (ENOSPC and the like) while writing is one line and exit 1.
 
 Global options are accepted anywhere on the line (``posekit seam simulate --out d --debug``):
 ``--debug``, ``--max-input-mb N`` (largest decoded array / text file read, default 1024 /
@@ -10,9 +16,12 @@ NumPy or OpenCV are not printed (they would come before the one error line) unle
 """
 
 import argparse
+import contextlib
 import math
 import re
+import signal
 import sys
+import threading
 import warnings
 
 from .. import __version__
@@ -183,17 +192,116 @@ def _limits(found: dict) -> dict:
             raise ConfigError(f"{flag}: expected {lo:g} to {hi:g} {unit}, got {found[flag][:40]}")
         if flag == "--max-input-mb":
             changes["array_bytes"] = changes["text_bytes"] = int(value * 2**20)
+            changes["rows"] = max(1000, int(value * 2**20) // 128)
         else:
             changes["image_pixels"] = int(value * 1e6)
     return changes
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split("\n")).replace("\r", " ")
+class Terminated(BaseException):
+    """SIGTERM (or SIGHUP) received: raised in the main thread so that every ``with`` block
+    cleans up (not an ``Exception``: no ``except Exception`` swallows it)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+#: The signal that ended the run (a library may turn the exception it raised into another one,
+#: e.g. an ImportError of an interrupted import: the exit still says what happened). A verb that
+#: catches the interrupt as its own stop request (``profiler serve``, a live ``ceiling track``)
+#: returns normally, and its exit code stands.
+_received: int | None = None
+
+
+def _on_signal(signum, frame):
+    # The first signal ends the run; further ones are ignored so that the clean-up finishes. Not
+    # with SIG_IGN: a process started during the clean-up (a Dask nanny restarting a worker the
+    # Ctrl-C ended) would inherit it and could then not be terminated; a handler is not inherited.
+    global _received
+    _received = signum
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, _ignore)
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+def _ignore(signum, frame):
+    """A later signal during the clean-up: nothing to do (the run is already ending)."""
+
+
+@contextlib.contextmanager
+def _signals():
+    """SIGINT, SIGTERM and SIGHUP raise in the main thread for the duration of the command."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    for s in previous:
+        if previous[s] is not signal.SIG_IGN:        # nohup / a parent that ignores it: keep that
+            signal.signal(s, _on_signal)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+_PREFIX = "posekit: error: "
+
+
+def _error_line(exc) -> str:
+    from ..errors import one_line
+
+    return _PREFIX + one_line(exc, 300 - len(_PREFIX))
 
 
 def main(argv=None) -> int:
     """Run ``posekit`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    global _received
+    _received = None
+    debug = "--debug" in (sys.argv[1:] if argv is None else argv)
+    try:
+        with _signals():
+            code = _main(argv)
+    except (KeyboardInterrupt, Terminated, Exception):
+        if debug or _received is None and not isinstance(sys.exc_info()[1], KeyboardInterrupt | Terminated):
+            raise
+        code = None
+    if code is not None:      # the verb returned: it took the signal as its stop request (serve, a live track)
+        return code
+    signum = _received if _received is not None else signal.SIGINT
+    _quiet_print("posekit: interrupted" if signum == signal.SIGINT else "posekit: terminated")
+    _exit_within(EXIT_GRACE_S, 128 + signum)
+    return 128 + signum
+
+
+#: After a signal, the most the interpreter's own shutdown may take (a library's threads or exit
+#: hooks, e.g. a Dask cluster interrupted while it started) before the process exits anyway, s.
+EXIT_GRACE_S = 15.0
+
+
+def _exit_within(seconds: float, code: int) -> None:
+    """Make sure an interrupted process ends: exit with ``code`` after ``seconds`` if it is still
+    shutting down (a daemon timer: it never delays a shutdown that finishes)."""
+    import os
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    t = threading.Timer(seconds, os._exit, args=(code,))
+    t.daemon = True
+    t.start()
+
+
+def _quiet_print(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _main(argv) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         argv, found = _split_globals(argv)
@@ -208,7 +316,7 @@ def main(argv=None) -> int:
     try:
         apply_config(parser, argv)     # a verb's --config FILE: its defaults (defaults < file < flags)
     except PosekitError as exc:
-        print(f"posekit: error: {_one_line(exc)}", file=sys.stderr)
+        print(_error_line(exc), file=sys.stderr)
         return 1
     try:
         args = parser.parse_args(argv)
@@ -219,7 +327,7 @@ def main(argv=None) -> int:
         return 0
     args.debug = debug or args.debug
     from .. import _jit  # only now: --help and usage errors import no numpy, numba or scipy
-    from ..io import set_limits
+    from ..io import set_limits, write_error
 
     _jit.enable_compile_notice("profiler" if args.command == "demo" else args.command)
     previous = None
@@ -230,24 +338,37 @@ def main(argv=None) -> int:
             previous = set_limits(**_limits(found))
             return int(args.func(args) or 0)
     except PosekitError as exc:
-        if args.debug:
+        if args.debug or _received is not None:
             raise
-        print(f"posekit: error: {_one_line(exc)}", file=sys.stderr)
+        print(_error_line(exc), file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("posekit: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:
         return 1
-    except Exception as exc:  # a bug, not bad input: still one line unless --debug
-        if args.debug:
+    except OSError as exc:
+        if args.debug or _received is not None:
             raise
-        print(f"posekit: internal error: {type(exc).__name__}: {_one_line(exc)[:200]} (rerun with --debug for the "
-              "traceback)", file=sys.stderr)
+        if write_error(exc):           # a full disk outside any --out (a figure, a cache): one line
+            where = f"{exc.filename}: " if exc.filename else ""
+            print(_error_line(f"{where}cannot write ({exc.strerror}); free some space or write elsewhere"),
+                  file=sys.stderr)
+        else:
+            print(_internal(exc), file=sys.stderr)
+        return 1
+    except Exception as exc:  # a bug, not bad input: still one line unless --debug
+        if args.debug or _received is not None:
+            raise
+        print(_internal(exc), file=sys.stderr)
         return 1
     finally:
         if previous is not None:
             set_limits(**vars(previous))
+
+
+def _internal(exc) -> str:
+    from ..errors import one_line
+
+    return (f"posekit: internal error: {type(exc).__name__}: {one_line(exc, 160)} (rerun with --debug for the "
+            "traceback)")
 
 
 if __name__ == "__main__":  # pragma: no cover

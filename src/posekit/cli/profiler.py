@@ -104,7 +104,9 @@ def run_estimate(args) -> int:
     from ..profiler.stream.files import assumed_noise, estimate_file
     from .profiler_replay import read_options
 
-    if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv"):
+    special = args.out is not None and Path(args.out).exists() and not Path(args.out).is_file() \
+        and not Path(args.out).is_dir()          # /dev/null, /dev/stdout, a named pipe: JSON lines by default
+    if args.out is not None and Path(args.out).suffix.lower() not in (".jsonl", ".csv") and not special:
         raise ConfigError(f"--out {args.out}: unknown suffix '{Path(args.out).suffix[:20]}'; expected FILE.jsonl "
                           "(JSON lines) or FILE.csv")
     check_flags(args)

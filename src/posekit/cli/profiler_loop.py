@@ -3,7 +3,8 @@
 import importlib.util
 import sys
 
-from ._common import add_deprecated, add_overwrite, out_folder, overwrite_flag, progress
+from .._numbers import parse_number
+from ._common import add_deprecated, add_overwrite, out_folder, overwrite_flag, progress, replace_own_flag
 from ._config import add_config_arguments
 from ._flags import MAX_NOISE_UM, bounded_float, bounded_int, check_flags, seed
 
@@ -28,7 +29,7 @@ def add_loop_arguments(p, out_default=None):
     p.add_argument("--gauge", default="demo-5", help="gauge YAML file or bundled name (default demo-5)")
     p.add_argument("--out", required=out_default is None, default=out_default,
                    help="output folder: table3.csv, table4.csv, figures, report.html"
-                        + (f" (default {out_default}, replaced on each run)" if out_default else ""))
+                        + (f" (default {out_default}, replaced on each run while it holds only posekit's files)" if out_default else ""))
     add_overwrite(p, out_default)
     p.add_argument("--runs", dest="repeats", type=_RUNS, default=3,
                    help=f"runs per axis, step and mode, 1..{MAX_RUNS} (default 3)")
@@ -54,7 +55,7 @@ def run_loop(args) -> int:
     from ..profiler.loop.loop_report import format_table3, format_table4
 
     try:
-        steps = tuple(float(v) for v in args.steps_mm.split(","))
+        steps = tuple(parse_number(v) for v in args.steps_mm.split(","))
     except ValueError:
         raise ConfigError(f"--steps-mm: expected comma-separated numbers, got '{args.steps_mm}'") from None
     if not all(np.isfinite(s) and s != 0 for s in steps):
@@ -86,7 +87,7 @@ def run_loop(args) -> int:
           f"{'real time (83.3 Hz)' if args.realtime else 'lock-step'} over loopback TCP")
     exp, paths = closed_loop(gauge, runs=args.repeats, axes=axes, steps_mm=steps, noise_um=args.noise_um,
                              seed=args.seed, realtime=args.realtime, linear=args.linear, camera=camera,
-                             out=args.out, overwrite=overwrite_flag(args),
+                             out=args.out, overwrite=overwrite_flag(args), replace_own=replace_own_flag(args),
                              progress=lambda it: progress(it, total=len(it), desc="runs"))
     print()
     from ..profiler.loop.loop_verdict import table3_verdict, table4_verdicts

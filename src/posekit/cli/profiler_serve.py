@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 
+from .._numbers import parse_number
 from ._common import add_deprecated
 from ._config import add_config_arguments
 from ._flags import bounded_float, bounded_int, check_flags
@@ -113,7 +114,7 @@ def _numbers(text: str, flag: str, sizes: tuple[int, ...], what: str) -> list[fl
 
     from ..errors import ConfigError
     try:
-        vals = [float(v) for v in str(text).split(",")]
+        vals = [parse_number(v) for v in str(text).split(",")]
     except ValueError:
         vals = []
     if len(vals) not in sizes or not all(math.isfinite(v) for v in vals):
@@ -189,8 +190,8 @@ def _summary(elapsed: float, st: dict, tim: dict) -> str:
     import numpy as np
     lines = [(f"summary after {elapsed:.1f} s: received {st['received']}, processed {st['processed']} "
              f"(ok {st['ok']}, errors {st['errors']}), dropped {st['dropped']}, rejected {st['rejected']}, "
-             f"sensor connections {st['connections']} (disconnects {st['disconnects']}: timeouts "
-             f"{st['timeouts']}, refused {st['auth_failures']}, evicted {st['evictions']}), "
+             f"connections {st['connections']} (disconnects {st['disconnects']}: timeouts "
+             f"{st['timeouts']}, refused {st['auth_failures']}, shed {st['shed']}, evicted {st['evictions']}), "
              f"records sent {st['sent']} (unsent {st['unsent']})")]
     if st["reasons"]:
         lines.append("  rejected by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(st["reasons"].items())))

@@ -4,6 +4,7 @@ import math
 import sys
 from pathlib import Path
 
+from .._numbers import parse_number
 from ..errors import ConfigError
 from ._common import (
     SCHEDULER_HELP,
@@ -13,6 +14,7 @@ from ._common import (
     local_scheduler,
     overwrite_flag,
     parse_triplet,
+    replace_own_flag,
 )
 from ._config import add_config_arguments
 from ._flags import MAX_NOISE_UM, MAX_PROFILES, bounded_float, bounded_int, check_flags, check_range, seed, workers
@@ -44,7 +46,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
     bad = ConfigError(f"--{name}: expected comma-separated numbers or START:STOP:STEP, got '{text[:80]}'")
     if ":" in text:
         try:
-            start, stop, step = (float(v) for v in text.split(":"))
+            start, stop, step = (parse_number(v) for v in text.split(":"))
         except ValueError:
             raise bad from None
         if not (math.isfinite(start) and math.isfinite(stop) and math.isfinite(step)) or step <= 0 or stop < start:
@@ -58,7 +60,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
         if len(parts) > max_count:
             raise ConfigError(f"--{name}: {len(parts)} values; expected at most {max_count}")
         try:
-            values = np.array([float(v) for v in parts])
+            values = np.array([parse_number(v) for v in parts])
         except ValueError:
             raise bad from None
     if integer:
@@ -75,7 +77,7 @@ def parse_numbers(text: str, name: str, integer: bool = False, *, lo=None, hi=No
 
 def _common(p, out_default):
     p.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same numbers; default 0)")
-    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run)")
+    p.add_argument("--out", default=out_default, help=f"output folder (default {out_default}, replaced on each run while it holds only posekit's files)")
     add_overwrite(p, out_default)
     p.add_argument("--scheduler", default=None, help=SCHEDULER_HELP)
     p.add_argument("--workers", type=workers, default=None,
@@ -221,7 +223,8 @@ def run_study(args) -> int:
     check_flags(args)
     cfg = _build(args)
     _check_size(args, cfg)
-    result = study(cfg, args.out, scheduler=local_scheduler(args), n_workers=args.workers, overwrite=overwrite_flag(args))
+    result = study(cfg, args.out, scheduler=local_scheduler(args), n_workers=args.workers,
+                   overwrite=overwrite_flag(args), replace_own=replace_own_flag(args))
     report = Path(args.out) / "report.html"
     _print_summary(result, report)
     sys.stdout.flush()

@@ -9,6 +9,7 @@ simulates every configuration (on a local Dask cluster by default, in this proce
 
 import sys
 
+from .._numbers import parse_int
 from ..errors import ConfigError
 from ._common import add_dask_args, add_overwrite, check_dask_args, local_scheduler, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
@@ -22,7 +23,7 @@ MAX_DESIGN_EPISODES = 100_000
 def parse_counts(text: str) -> tuple[int, ...]:
     """``'1,2,3'`` → (1, 2, 3); a one-line ConfigError for anything but counts 0..4."""
     try:
-        counts = tuple(int(v) for v in str(text).split(",") if v.strip() != "")
+        counts = tuple(parse_int(v.strip()) for v in str(text).split(",") if v.strip() != "")
     except ValueError:
         raise ConfigError(f"--sensors: expected comma-separated sensor counts 0..4, got '{str(text)[:60]}'") from None
     if not counts or any(not 0 <= c <= 4 for c in counts):

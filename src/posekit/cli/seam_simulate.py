@@ -158,6 +158,13 @@ def _record_count(args, steps: int) -> int:
     return args.record_particles
 
 
+def _save_log_rules(args) -> dict:
+    """``--overwrite`` names the ``--out`` folder: it replaces a ``--save-log`` folder only while
+    posekit wrote everything in it (never files of the user's)."""
+    return {"replace_own": bool(args.overwrite),
+            "hint": "--overwrite replaces it only if posekit wrote all of it; remove them or pick another folder"}
+
+
 def run_simulate(args) -> int:
     from ..seam.frontend.config import dump_config
 
@@ -179,7 +186,7 @@ def run_simulate(args) -> int:
 
         if str(args.save_log) == str(args.out):
             raise ConfigError("--save-log: expected a folder other than --out")
-        check_out_folder(args.save_log, overwrite=args.overwrite, flag="--save-log")
+        check_out_folder(args.save_log, flag="--save-log", **_save_log_rules(args))
     from ..seam.frontend.compare import compare_configurations, run_episodes
     from ..seam.frontend.report import write_simulation
     from ..seam.frontend.simulate import metrics
@@ -197,7 +204,7 @@ def run_simulate(args) -> int:
         from ..seam.frontend.simulate import simulate_data
 
         seed0 = results[0].seed
-        with staged_folder(args.save_log, overwrite=args.overwrite, flag="--save-log") as tmp:
+        with staged_folder(args.save_log, flag="--save-log", **_save_log_rules(args)) as tmp:
             write_episode_log(tmp, cfg, simulate_data(cfg, seed0), seed0)
     count = cfg.sensors.count
     label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"

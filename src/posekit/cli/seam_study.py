@@ -3,6 +3,7 @@
 import math
 import sys
 
+from .._numbers import parse_number
 from ..errors import ConfigError
 from ._common import add_dask_args, add_overwrite, check_dask_args, local_scheduler
 from ._flags import bounded_float, bounded_int, check_flags, seed
@@ -59,7 +60,7 @@ def parse_factors(text: str | None):
         names.append(name.strip())
         if rng:
             try:
-                lo, hi = (float(v) for v in rng.split(":"))
+                lo, hi = (parse_number(v) for v in rng.split(":"))
             except ValueError:
                 raise ConfigError(f"--parameters: expected KEY or KEY=LOW:HIGH, got '{item[:80]}'") from None
             if not (math.isfinite(lo) and math.isfinite(hi)):

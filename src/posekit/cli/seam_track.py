@@ -3,7 +3,6 @@
 import json
 import sys
 
-from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
 from ._common import progress as _progress
 from ._flags import check_flags
@@ -36,10 +35,9 @@ def run_track(args) -> int:
     if args.jsonl == "-":
         stream = sys.stdout
     elif args.jsonl:
-        try:
-            stream = open(args.jsonl, "w", encoding="utf-8")  # closed below, flushed per step
-        except OSError as exc:
-            raise ConfigError(f"--jsonl {args.jsonl}: cannot write ({exc.strerror or exc})") from None
+        from ..io import open_stream
+
+        stream = open_stream(args.jsonl, flag="--jsonl")  # closed below, flushed per step
 
     def emit(k, est):
         stream.write(json.dumps(step_record(k, est)) + "\n")
@@ -49,9 +47,12 @@ def run_track(args) -> int:
         result = track_log(log, progress=None if stream is sys.stdout else
                            (lambda it, total, desc: _progress(it, total=total, desc=desc, unit="step")),
                            on_step=emit if stream is not None else None)
-    finally:
+    except BaseException:
         if stream is not None and stream is not sys.stdout:
-            stream.close()
+            stream.close(discard=True)
+        raise
+    if stream is not None and stream is not sys.stdout:
+        stream.close()
     with staged(args) as tmp:
         m = write_track(tmp, result)
     s = len(log.setup.sensors)

@@ -6,6 +6,7 @@ UTF-16, a binary file) is an error that says so. Every failure is the caller's
 """
 
 import os
+import stat
 from pathlib import Path
 
 from posekit.errors import InputFileError
@@ -17,8 +18,18 @@ __all__ = ["check_input_file", "read_bytes", "read_text", "sniff"]
 _BOMS = {b"\xff\xfe": "UTF-16 (little-endian)", b"\xfe\xff": "UTF-16 (big-endian)"}
 
 
+def _special(mode: int) -> str:
+    """What a non-regular file is, for messages."""
+    for test, what in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"is {what}"
+    return "is a special file"
+
+
 def check_input_file(path, *, expected: str, error=InputFileError) -> int:
-    """Check that ``path`` is an existing, readable regular file; return its size in bytes.
+    """Check that ``path`` is an existing, readable regular file (a link is followed: to a named
+    pipe or a device it is refused); return its size in bytes.
 
     Parameters
     ----------
@@ -37,8 +48,8 @@ def check_input_file(path, *, expected: str, error=InputFileError) -> int:
         raise error(f"{path}: cannot read ({exc.strerror or type(exc).__name__}); expected {expected}") from None
     if path.is_dir():
         raise error(f"{path}: is a folder; expected {expected}")
-    if not path.is_file():
-        raise error(f"{path}: not a regular file; expected {expected}")
+    if not stat.S_ISREG(st.st_mode):      # a pipe would block a reader forever, /dev/zero never end
+        raise error(f"{path}: {_special(st.st_mode)}, not a regular file; expected {expected}")
     if not os.access(path, os.R_OK):
         raise error(f"{path}: permission denied (not readable); expected {expected}")
     return st.st_size
@@ -54,10 +65,11 @@ def read_bytes(path, *, expected: str, error=InputFileError, limit: int | None =
     """
     path = Path(path)
     size = check_input_file(path, expected=expected, error=error)
+    own = limit is not None                  # a reader's own limit is not raised by --max-input-mb
     limit = get_limits().text_bytes if limit is None else limit
     if size > limit:
-        raise error(f"{path}: {mib(size)}, above the {mib(limit)} limit for {expected} "
-                    "(raise it with --max-input-mb)")
+        raise error(f"{path}: {mib(size)}, above the {mib(limit)} limit for {expected}"
+                    + ("" if own else " (raise it with --max-input-mb)"))
     try:
         return path.read_bytes()
     except PermissionError:

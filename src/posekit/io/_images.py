@@ -41,7 +41,7 @@ def image_size(path, *, error=InputFileError) -> tuple[int, int] | None:
             head = fh.read(24)
     except OSError:
         return None
-    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":  # the size is in the first chunk
+    if len(head) >= 24 and head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":  # the size: first chunk
         return struct.unpack(">II", head[16:24])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -9,7 +9,7 @@ these numbers.
 
 from dataclasses import dataclass, replace
 
-__all__ = ["Limits", "get_limits", "quote", "set_limits"]
+__all__ = ["Limits", "check_rows", "get_limits", "quote", "set_limits"]
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,11 @@ class Limits:
         Deepest nesting of YAML/JSON mappings and lists: 64.
     number_digits : int
         Longest integer literal in YAML/JSON, digits: 30 (beyond any count or seed).
+    rows : int
+        Most lines of a text table (a trajectory's poses, a recorded log's samples, a profile's
+        points), counted before any line is parsed: 2,000,000 (a 1 kHz log of 33 minutes; parsing
+        that many takes seconds and about a gigabyte). ``--max-input-mb`` raises it in proportion
+        (one row per 128 bytes of the text limit).
     """
 
     text_bytes: int = 256 * 2**20
@@ -36,6 +41,7 @@ class Limits:
     image_pixels: int = 100_000_000
     nesting: int = 64
     number_digits: int = 30
+    rows: int = 2_000_000
 
 
 _LIMITS = Limits()
@@ -63,6 +69,30 @@ def quote(value, n: int = 80) -> str:
     if len(text) > n:
         text = text[: n - 3] + "..."
     return f"'{text}'"
+
+
+def check_rows(text: str, source: str, what: str, *, error, limit: int | None = None) -> int:
+    """Count the lines of ``text`` (in C, before any is parsed); raise ``error`` above the limit.
+
+    Parameters
+    ----------
+    what : str
+        What a line holds, plural, for the message (``"poses"``).
+    limit : int, optional
+        The reader's own bound when smaller than :attr:`Limits.rows`.
+
+    Returns
+    -------
+    int
+        The number of lines.
+    """
+    n = text.count("\n") + (0 if text.endswith("\n") or not text else 1)
+    rows = get_limits().rows
+    bound = rows if limit is None else min(limit, rows)
+    if n > bound:
+        hint = " (raise it with --max-input-mb)" if bound == rows else ""
+        raise error(f"{source}: {n:,} lines; expected at most {bound:,} {what}{hint}")
+    return n
 
 
 def mib(n_bytes: int) -> str:

@@ -3,8 +3,17 @@
 
 A document nested thousands deep would exhaust Python's recursion inside the parser, and a
 4,300-digit integer trips Python's int-conversion limit; both are one-line errors here.
+
+YAML is read by value, not by tag: a document holds mappings, lists, text, numbers, booleans and
+nulls (what JSON holds). The core tags that only say which of those a value is (``!!str``,
+``!!int``, ``!!float``, ``!!bool``, ``!!null``, ``!!seq``, ``!!map``) are read as the value they
+make, and a value they cannot make (``!!int 1.5``, ``!!float 'x'``) is a one-line error naming the
+line; every other tag (``!!binary``, ``!!timestamp``, ``!!set``, ``!!omap``, ``!!pairs``, custom
+``!tags``) is refused in one line. An unquoted date (``2024-01-01``) stays text. The configuration
+models then validate the values like any others.
 """
 
+import binascii
 import json
 import math
 import re
@@ -63,11 +72,53 @@ def _guard_digits(text: str, source: str, error) -> None:
                     f"({quote(m.group(), 24)}); expected at most {lim.number_digits} digits")
 
 
+_TAG = "tag:yaml.org,2002:"
+#: Tags that only name a JSON kind of value; anything else is refused.
+_PLAIN_TAGS = {_TAG + t for t in ("str", "int", "float", "bool", "null", "seq", "map", "merge", "value")}
+_Base = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _TagError(yaml.YAMLError):
+    """A tag posekit does not read, or a value its tag cannot make."""
+
+    def __init__(self, message: str, mark):
+        super().__init__(message)
+        self.message = message
+        self.problem_mark = mark
+
+
+class _Loader(_Base):
+    """The safe loader (libyaml's when available), reading values by kind, not by tag."""
+
+    yaml_implicit_resolvers = {k: [(tag, rx) for tag, rx in v if tag != _TAG + "timestamp"]
+                               for k, v in _Base.yaml_implicit_resolvers.items()}
+
+    def construct_object(self, node, deep=False):
+        tag = node.tag
+        if tag not in _PLAIN_TAGS:
+            shown = tag.replace(_TAG, "!!")
+            raise _TagError(f"the YAML tag {shown[:40]!r} is not read (posekit reads text, numbers, booleans, "
+                            "lists and mappings); write the value without it", node.start_mark)
+        try:
+            return super().construct_object(node, deep=deep)
+        except (ValueError, TypeError, KeyError, OverflowError, binascii.Error) as exc:
+            if isinstance(exc, yaml.YAMLError):
+                raise
+            shown = tag.replace(_TAG, "!!")
+            value = node.value if isinstance(node.value, str) else "..."
+            raise _TagError(f"{shown} {quote(value, 24)} is not a valid {shown[2:]}", node.start_mark) from None
+
+
 def parse_yaml(text: str, source: str, *, error=InputFileError):
-    """``yaml.safe_load`` of ``text`` under the shared limits; ``source`` names it in messages."""
+    """Parse YAML ``text`` (safely, by value: see the module) under the shared limits; ``source``
+    names it in messages."""
     _guard_digits(text, source, error)
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
+    except _TagError as exc:
+        mark = exc.problem_mark
+        at = f"line {mark.line + 1}: " if mark is not None else ""
+        raise error(f"{source}: {at}{exc.message}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}" if mark is not None else ""
@@ -97,11 +148,12 @@ def parse_json(text: str, source: str, *, error=InputFileError):
     return data
 
 
-def load_yaml(path, *, expected: str, error=InputFileError):
-    """Read and parse a YAML file under the shared limits."""
-    return parse_yaml(read_text(path, expected=expected, error=error), str(path), error=error)
+def load_yaml(path, *, expected: str, error=InputFileError, limit: int | None = None):
+    """Read and parse a YAML file under the shared limits (``limit``: the reader's own, smaller
+    size limit in bytes, checked before anything is parsed)."""
+    return parse_yaml(read_text(path, expected=expected, error=error, limit=limit), str(path), error=error)
 
 
-def load_json(path, *, expected: str, error=InputFileError):
-    """Read and parse a JSON file under the shared limits."""
-    return parse_json(read_text(path, expected=expected, error=error), str(path), error=error)
+def load_json(path, *, expected: str, error=InputFileError, limit: int | None = None):
+    """Read and parse a JSON file under the shared limits (``limit`` as in :func:`load_yaml`)."""
+    return parse_json(read_text(path, expected=expected, error=error, limit=limit), str(path), error=error)

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from posekit.errors import ConfigError
+from posekit.io import quote
 
 from ._urdf_tree import JointTree, _names
 from .chain import PRISMATIC, REVOLUTE, SerialChain
@@ -104,6 +105,11 @@ def _read_xml(path: Path) -> bytes:
                 if any(x in value for x in _XACRO_TEXT):
                     raise ConfigError(f"{path}: a xacro file ({el.tag} '{el.get('name')[:40]}' has the expression "
                                       f"'{value[:40]}'); expected plain URDF (run xacro first)")
+        for sub in el.iter("origin", "axis", "limit", "mimic"):   # numbers by value: not '١٢' or '1_0'
+            for key, value in sub.attrib.items():
+                if key != "joint" and (not value.isascii() or "_" in value):
+                    raise ConfigError(f"{path}: <{sub.tag}> {key}={quote(value, 40)}: expected plain decimal "
+                                      "numbers")
         if el.tag == "link":
             out.append(out.makeelement("link", {"name": el.get("name")}))
         else:

@@ -28,7 +28,7 @@ from ...geometry import (
     normalize_homography,
     refine_homography,
 )
-from ...io import load_json, read_text, write_text_atomic
+from ...io import check_rows, load_json, number_array, parse_number, read_text, write_text_atomic
 
 __all__ = [
     "Calibration",
@@ -445,8 +445,8 @@ def _check_count_and_distinct(world_xy, image_uv):
 def _matrix(data, key, path):
     value = data[key]
     try:
-        H = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+        H = number_array(value, "", CalibrationError)      # never a boolean read as 1
+    except CalibrationError:
         raise CalibrationError(f"{path}: '{key}' must be a 3x3 matrix of numbers, "
                                f"got {json.dumps(value)[:60]}") from None
     if H.shape != (3, 3):
@@ -564,6 +564,8 @@ def read_points_csv(path) -> CalibrationPoints:
     """
     path = Path(path)
     text = read_text(path, expected="a CSV of calibration points 'X,Y,u,v'", error=CalibrationError)
+    check_rows(text, str(path), "lines (points, comments and blank lines)", error=CalibrationError,
+               limit=2 * MAX_POINTS + 1000)         # before splitting the text into lines
     rows, lines, header_seen = [], [], False
     for lineno, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
@@ -581,7 +583,7 @@ def read_points_csv(path) -> CalibrationPoints:
         values = []
         for name, field in zip(CSV_HEADER, fields):
             try:
-                value = float(field)
+                value = parse_number(field)
             except ValueError:
                 raise CalibrationError(f"{path} line {lineno}: {name} is '{field[:30]}'; expected a number") from None
             if not math.isfinite(value):

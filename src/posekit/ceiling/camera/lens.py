@@ -1,6 +1,6 @@
 """The lens of the ceiling camera: intrinsics and distortion (OpenCV's pinhole + Brown–Conrady model).
 
-A real camera's lens bends straight lines; the homography of :mod:`posekit.ceiling.calibration`
+A real camera's lens bends straight lines; the homography of :mod:`posekit.ceiling.camera.homography`
 holds only between the ceiling and the *undistorted* image. :class:`CameraModel` carries the
 camera matrix ``K`` and the distortion coefficients ``dist = [k1, k2, p1, p2, k3]`` and maps
 pixel coordinates both ways: :meth:`CameraModel.undistort_points` (detected dots and clicked
@@ -28,7 +28,7 @@ import numpy as np
 
 from ..._extras import lazy
 from ...errors import CalibrationError
-from ...io import load_json, write_text_atomic
+from ...io import load_json, number_array, write_text_atomic
 
 cv2 = lazy("cv2", "vision", "the ceiling system (lens undistortion)")
 
@@ -261,12 +261,9 @@ def _is_scalar(v) -> bool:
 
 def _numbers(value, source: str, key: str) -> np.ndarray:
     try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
+        return number_array(value, "", CalibrationError)     # never a boolean read as 1
+    except CalibrationError:
         raise CalibrationError(f"{source}: {key}: expected numbers") from None
-    if arr.dtype == object:
-        raise CalibrationError(f"{source}: {key}: expected numbers")
-    return arr
 
 
 def _check_values(K, dist, size, rms, source: str) -> None:
@@ -437,7 +434,8 @@ def calibrate_camera(views, board: tuple[int, int], square_mm: float, *, image_s
         img_pts.append(c)
         used.append(name)
     if len(used) < MIN_VIEWS:
-        why = "; ".join(f"{n}: {r}" for n, r in skipped[:5]) + (" ..." if len(skipped) > 5 else "")
+        why = "; ".join(f"{Path(n).name}: {r}" for n, r in skipped[:3]) + (f"; {len(skipped) - 3} more"
+                                                                            if len(skipped) > 3 else "")
         hint = (f" ({Path(larger[0][0]).name} shows a {larger[0][1][0]}x{larger[0][1][1]} board)") if larger else ""
         raise CalibrationError(f"lens calibration: the board was found in {len(used)} view(s); expected at least "
                                f"{MIN_VIEWS}" + (f" ({why})" if why else "") +

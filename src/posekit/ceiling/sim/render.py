@@ -559,7 +559,7 @@ def write_truth_csv(path: Path, truth: SceneTruth) -> None:
 
 
 def write_calibration_csv(path: Path, points: np.ndarray) -> None:
-    """``X,Y,u,v`` per line (the calibration-points CSV of :mod:`posekit.ceiling.calibration`), mm and px."""
+    """``X,Y,u,v`` per line (the calibration-points CSV of :mod:`posekit.ceiling.camera.homography`), mm and px."""
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["X", "Y", "u", "v"])

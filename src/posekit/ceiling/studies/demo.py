@@ -4,7 +4,7 @@
 camera from the grid corners of the dot-free ``reference.png`` (the T-bar crossings found
 by :func:`~posekit.ceiling.grid.find_grid_corners` from four roughly "clicked" corners;
 ``calibration_points.csv`` when the reference image is missing), tracks the dot(s)
-(:func:`~posekit.ceiling.pipeline.track_video`), compares the track with ``truth.csv``,
+(:func:`~posekit.ceiling.track.pipeline.track_video`), compares the track with ``truth.csv``,
 runs the 36-known-points assessment and the heading simulation of §V-B, draws the
 trajectory in the image and on the ceiling with the truth (the paper's Fig. 8 and 9) and
 writes ``report.html`` (:func:`write_demo_report`, through :mod:`posekit.report`).
@@ -518,7 +518,7 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
 
 def _track_dotted_line(video, cal, lens, progress):
     """Track the §III-C dotted line: :class:`~posekit.ceiling.linetrack.DottedLineDetector` in
-    the line pipeline of :func:`~posekit.ceiling.pipeline.track_frames`."""
+    the line pipeline of :func:`~posekit.ceiling.track.pipeline.track_frames`."""
     from ..track.linetrack import DottedLineDetector
     from ..track.pipeline import frame_groups, make_cameras, open_sources, track_frames
 

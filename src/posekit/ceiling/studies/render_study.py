@@ -5,7 +5,7 @@ Run ``python -m posekit.ceiling.render_study [--duration-s 30] [--seeds 0,1] [--
 renders each case (one red dot, the default scene plus one effect of
 :data:`~posekit.ceiling.render.REALISTIC`), calibrates from the exact grid points of
 ``calibration_points.csv`` (undistorted with the simulated lens where the case says
-``--camera``), tracks with :func:`~posekit.ceiling.pipeline.track_video` and prints a Markdown
+``--camera``), tracks with :func:`~posekit.ceiling.track.pipeline.track_video` and prints a Markdown
 table: status counts, the error of ``ok`` rows (mm), ``ok`` rows more than 50 mm off (a lamp
 taken for the dot), ``ok`` rows without a visible dot, and visible dots not ``ok``.
 """

@@ -64,7 +64,7 @@ class Camera:
     ----------
     calibration : object
         Has ``image_to_world((N, 2) px) -> (N, 2) mm``, ``world_to_image`` and ``rms_px``
-        (a :class:`posekit.ceiling.calibration.Calibration`).
+        (a :class:`posekit.ceiling.camera.homography.Calibration`).
     image_size : (int, int)
         ``(width, height)`` of its frames, px.
     name : str

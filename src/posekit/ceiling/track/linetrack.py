@@ -389,7 +389,7 @@ class DottedLineDetector:
     """Finds the dotted laser line of §III-C: the red dots of a frame
     (:class:`~posekit.ceiling.detect.DotDetector`, which learns static lights), grouped by
     :func:`dots_to_line` into one segment, reported as a :class:`~posekit.ceiling.detect.Line`
-    so that the line pipeline (:func:`~posekit.ceiling.pipeline.track_frames` with
+    so that the line pipeline (:func:`~posekit.ceiling.track.pipeline.track_frames` with
     ``dots=("line",)``) and :class:`LineTracker` take it like a solid line.
 
     Parameters

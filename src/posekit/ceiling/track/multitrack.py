@@ -215,7 +215,7 @@ def track_robots_video(source, calibration, n_robots: int, *, config: TrackerCon
                        max_frames: int | None = None, live: bool = False, progress=None) -> RobotsResult:
     """Track ``n_robots`` one-dot robots in a video, image folder, camera or stream (one camera).
 
-    Parameters are those of :func:`~posekit.ceiling.pipeline.track_video` (one source, one
+    Parameters are those of :func:`~posekit.ceiling.track.pipeline.track_video` (one source, one
     calibration, ``camera`` the lens model); ``on_row(row, robot)`` as in
     :func:`track_robots_frames`.
     """

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from ...errors import ConfigError
-from ...io import atomic_file
+from ...io import atomic_file, open_stream
 
 __all__ = ["TrackOutputs", "ReaderGone", "parse_udp_target", "row_record"]
 
@@ -120,12 +120,7 @@ class TrackOutputs:
                 if str(jsonl) == "-":
                     self._jsonl = sys.stdout
                 else:
-                    if Path(jsonl).is_dir():
-                        raise ConfigError(f"--jsonl {jsonl}: is a folder; expected a file name or -")
-                    try:
-                        self._jsonl = open(jsonl, "w", encoding="utf-8", newline="")
-                    except OSError as exc:
-                        raise ConfigError(f"--jsonl {jsonl}: cannot write ({exc.strerror or exc})") from None
+                    self._jsonl = open_stream(jsonl, flag="--jsonl")
                     self._own_jsonl = True
             if self._udp is not None:
                 family = socket.AF_INET6 if ":" in self._udp[0] else socket.AF_INET
@@ -199,7 +194,7 @@ class TrackOutputs:
             except OSError as exc:
                 self._fail(f"--out {self.csv_path}: cannot write ({exc.strerror or exc})")
         if self._own_jsonl and self._jsonl is not None:
-            self._jsonl.close()
+            self._jsonl.close(discard=discard)
         self._jsonl = None
         if self._sock is not None:
             self._sock.close()

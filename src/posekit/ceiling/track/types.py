@@ -193,7 +193,7 @@ class HeadingState:
 
 @dataclass
 class TrackRow:
-    """One frame of the track (a row of :func:`~posekit.ceiling.pipeline.write_track_csv` and a little more).
+    """One frame of the track (a row of :func:`~posekit.ceiling.track.pipeline.write_track_csv` and a little more).
 
     Attributes
     ----------

@@ -95,13 +95,12 @@ def check_units(p_src, p_dst, names=("src", "dst")) -> None:
     r = max(ratio, 1.0 / ratio)
     hint = ""
     if 300.0 <= r <= 3000.0:
-        hint = (f"; is {big} in millimetres? trajectory files are in metres (divide its positions by 1000)")
+        hint = "; is it in millimetres? trajectory files are in metres"
     elif 30.0 <= r < 300.0:
-        hint = f"; is {big} in centimetres? trajectory files are in metres"
+        hint = "; is it in centimetres? trajectory files are in metres"
     raise TrajectoryError(
-        f"{big} moves {r:.0f}x as far as {small} ({max(a, b) / 1000:.3g} m vs {min(a, b) / 1000:.3g} m "
-        f"along the main axis): they are not the same motion in the same unit{hint}; for a monocular "
-        f"trajectory of unknown scale use --with-scale")
+        f"{big} moves {r:.0f}x as far as {small} ({max(a, b) / 1000:.3g} m vs {min(a, b) / 1000:.3g} m along "
+        f"the main axis), not the same motion in one unit{hint}; unknown scale: --with-scale")
 
 
 def lever_arm_fit(p_src, p_dst, R_dst, *, with_scale: bool = False, tangents=None, R=None, t=None, s=1.0,

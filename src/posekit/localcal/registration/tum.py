@@ -13,7 +13,7 @@ import numpy as np
 
 from posekit.errors import InputFileError, TrajectoryError
 from posekit.geometry import quaternion_from_matrix, transform_from_quaternion
-from posekit.io import read_text
+from posekit.io import check_rows, parse_number, read_text
 
 __all__ = ["Trajectory", "read_tum", "write_tum"]
 
@@ -97,6 +97,7 @@ def read_tum(path) -> Trajectory:
     """
     path = Path(path)
     text = read_text(path, expected="a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)")
+    check_rows(text, str(path), "poses (one per line)", error=InputFileError)
     fast = _read_tum_fast(text)
     if fast is not None:
         return fast
@@ -112,7 +113,7 @@ def read_tum(path) -> Trajectory:
             raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
                                       f"found {len(fields)} fields{hint}")
         try:
-            rows.append([float(f) for f in fields])
+            rows.append([parse_number(f) for f in fields])
         except ValueError:
             bad = next(f for f in fields if not _is_float(f))
             raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
@@ -169,7 +170,7 @@ def _read_tum_fast(text: str):
 
 def _is_float(text: str) -> bool:
     try:
-        float(text)
+        parse_number(text)
     except ValueError:
         return False
     return True

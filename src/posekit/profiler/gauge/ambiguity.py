@@ -161,10 +161,8 @@ def ambiguity_text(gauge, miss_um: float) -> str | None:
     if miss_um >= limit_um:
         return None
     if miss_um < 0.01:
-        return ("its cross-section is symmetric under a 180° turn about the vertical: the corners read in "
-                "reverse order fit the ridges exactly at another pose, so the mounting cannot be told from "
-                "the profile")
-    return (f"the corners read in reverse order fit the ridges at another pose within {miss_um:.2f} µm RMS "
-            f"(a usable gauge misses by >= {limit_um:g} µm): the cross-section is too close to symmetric under "
-            "a 180° turn (too shallow) for the profile to tell the mounting")
+        return ("its cross-section is symmetric under a 180° turn about the vertical: read in reverse order, "
+                "the corners fit the ridges exactly at another pose")
+    return (f"read in reverse order, the corners fit the ridges at another pose within {miss_um:.2f} µm RMS "
+            f"(a usable gauge misses by >= {limit_um:g} µm): too close to symmetric under a 180° turn")
 

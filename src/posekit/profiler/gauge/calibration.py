@@ -238,8 +238,8 @@ def pose_variety(Ts_G_F, corners_F):
 
 
 #: What :func:`calibrate_gauge` asks for when the profiles are too few or too alike.
-NEEDED = (f"take >= {MIN_PROFILES} profiles with the laser line turned about the line of sight by up to ±10-15° "
-          "(yaw) and tilted by a few degrees, crossing the gauge at varied places along the ridges")
+NEEDED = (f"take >= {MIN_PROFILES} profiles, the laser line turned ±10-15° about its line of sight and tilted a "
+          "few degrees, at varied places along the ridges")
 
 
 def _scaled_information(S, C, nominal):
@@ -367,10 +367,9 @@ def calibrate_gauge(profiles, nominal: Gauge, *, mounting: str = "auto", params:
         rank = int(np.sum(ev > ev[-1] / MAX_CONDITION))
         yaw, tilt, spread = pose_variety(Ts, corners)
         raise CalibrationError(
-            f"{source}: the {K} profiles are too alike to fix the faces of gauge '{nominal.name}' (normal matrix "
-            f"rank {rank} of {len(ev)} after fixing the frame, condition "
-            f"{'singular' if not condition < 1e12 else f'{condition:.1e}'} > {MAX_CONDITION:.0e}; "
-            f"laser line yaw {yaw:.1f}° and tilt {tilt:.1f}° rms, spread {spread:.1f} mm along the ridges); "
+            f"{source}: the {K} profiles are too alike to fix the faces of '{nominal.name}' (rank {rank} of "
+            f"{len(ev)}, condition {'singular' if not condition < 1e12 else f'{condition:.1e}'} > "
+            f"{MAX_CONDITION:.0e}; yaw {yaw:.1f}°, tilt {tilt:.1f}° rms, {spread:.1f} mm along the ridges); "
             + NEEDED)
     Z = np.zeros((3 * F + len(C), 3 * F + len(C)))
     Z[:3 * F, :3 * F] = S

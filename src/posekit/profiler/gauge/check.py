@@ -102,6 +102,8 @@ SCALE_ALLOWANCE_PPM = DEFAULT_SCALE_SIGMA_PPM
 def scale_allowance_ppm(noise) -> float:
     """The sensor's scale 1σ (ppm) the test allows: ``noise.scale_sigma_ppm``, else :data:`SCALE_ALLOWANCE_PPM`."""
     return SCALE_ALLOWANCE_PPM if noise is None else float(getattr(noise, "scale_sigma_ppm", SCALE_ALLOWANCE_PPM))
+#: Rounds of "adjust, drop the outlying profiles" before the test (the profiles kept are adjusted once more).
+OUTLIER_ROUNDS = 3
 #: When no one face explains the misfit, a face is named when it alone explains at least this share of
 #: the best face's χ² drop.
 NAME_SHARE = 0.5
@@ -265,7 +267,7 @@ def _check(pairs, gauge: Gauge, noise, significance: float, min_profiles: int, m
     C = np.concatenate([datum_constraints(gauge), hinge_constraints(gauge)])
     F = gauge.n_corners + 1
     theta = np.zeros((F, 3))
-    for _ in range(3):                       # adjust, drop outlying profiles, adjust again
+    for _ in range(OUTLIER_ROUNDS):          # adjust, drop outlying profiles, adjust again
         theta, Ts, r, Jx, Jp, cost, _ = adjust(theta, Ts, pts, Linv, gauge, C, max_iter)
         bad = outlying_profiles(r)[0]
         if not bad.any():
@@ -275,6 +277,8 @@ def _check(pairs, gauge: Gauge, noise, significance: float, min_profiles: int, m
         if len(Ts) < min_profiles:
             return _not_checked(f"{len(Ts)} of {K_all} profiles are left after dropping outliers; {need}",
                                 len(Ts))
+    else:   # the last round dropped profiles: the residuals and Jacobians must be those of the kept ones
+        theta, Ts, r, Jx, Jp, cost, _ = adjust(theta, Ts, pts, Linv, gauge, C, max_iter)
     K = len(Ts)
     P = 3 * F
     # the faces' information with the poses eliminated, and their cross-information with the sensor's scales

@@ -41,10 +41,11 @@ The check probes a few poses above the gauge (:func:`~posekit.profiler.gauge.amb
 from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 from ...errors import GaugeError
 from ...geometry import plane_intersection
@@ -58,6 +59,10 @@ __all__ = ["Gauge", "load_gauge", "bundled_gauge", "bundled_gauge_path", "resolv
 BUNDLED_GAUGES = ("demo-4", "demo-5", "demo-7", "demo-10")
 
 MIN_RIDGES = 4
+#: Most ridges of a gauge (the bundled ones have 4-10; a laser line crosses a few dozen faces at most).
+MAX_RIDGES = 64
+#: Largest gauge YAML file, bytes (65 planes take about 10 kB; comments are welcome).
+MAX_GAUGE_BYTES = 2**20
 #: Adjacent faces closer than this to parallel have no usable ridge.
 MIN_FACE_ANGLE_DEG = 2.0
 #: A ridge must leave the x–z plane at least this much: |ŝ_y| >= MIN_RIDGE_Y.
@@ -71,24 +76,34 @@ MOUNTINGS = ("auto", "normal", "reversed")
 PARALLEL_RIDGES_TOL = 1e-9
 
 
+def _number(value):
+    """A YAML number (or numeric text); never a boolean or bytes (pydantic would read 1 / 0)."""
+    if isinstance(value, bool | bytes | bytearray):
+        raise ValueError(f"expected a number, got {type(value).__name__} {value!r:.20}")
+    return value
+
+
+_Number = Annotated[float, BeforeValidator(_number)]
+
+
 class _PlaneModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    normal: tuple[float, float, float]
-    offset: float
+    normal: tuple[_Number, _Number, _Number]
+    offset: _Number
 
 
 class _ExtentModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    x: tuple[float, float]
-    y: tuple[float, float]
+    x: tuple[_Number, _Number]
+    y: tuple[_Number, _Number]
 
 
 class _GaugeModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    name: str = Field(min_length=1)
-    planes: list[_PlaneModel]
+    name: str = Field(min_length=1, max_length=200)
+    planes: list[_PlaneModel] = Field(max_length=MAX_RIDGES + 1)
     extent: _ExtentModel | None = None
-    tolerance_um: float = 0.0
+    tolerance_um: _Number = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,6 +204,8 @@ def _build(name: str, normals, offsets, extent, source: str, tolerance_um: float
     if not (np.all(np.isfinite(normals)) and np.all(np.isfinite(offsets))):
         raise GaugeError(f"{where}: face normals and offsets must be finite numbers")
     n_faces = normals.shape[0]
+    if n_faces > MAX_RIDGES + 1:
+        raise GaugeError(f"{where}: {n_faces} faces; expected at most {MAX_RIDGES + 1} ({MAX_RIDGES} ridges)")
     if n_faces < MIN_RIDGES + 1:
         raise GaugeError(f"{where}: expected at least {MIN_RIDGES + 1} faces ({MIN_RIDGES} ridges), got {n_faces}")
     lengths = np.linalg.norm(normals, axis=1)
@@ -269,7 +286,7 @@ def _refuse_ambiguous(gauge: Gauge, mounting: str, where: str) -> Gauge:
     """The gauge, or a GaugeError if it is ambiguous and the mounting is not given."""
     if gauge.ambiguity is not None and mounting == "auto":
         raise GaugeError(f"{where}: gauge '{gauge.name}' is ambiguous: {gauge.ambiguity}; give the mounting "
-                         "(--mounting normal|reversed, or mounting='normal'|'reversed') to use it")
+                         "(--mounting normal|reversed)")
     return gauge
 
 
@@ -300,9 +317,12 @@ def load_gauge(path, mounting: str = "auto") -> Gauge:
     """
     path = Path(path)
     _check_mounting(mounting, str(path))
-    data = load_yaml(path, expected="a gauge YAML file", error=GaugeError)
+    data = load_yaml(path, expected="a gauge YAML file", error=GaugeError, limit=MAX_GAUGE_BYTES)
     if not isinstance(data, dict):
         raise GaugeError(f"{path}: expected a mapping with keys 'name' and 'planes', got {type(data).__name__}")
+    planes = data.get("planes")
+    if isinstance(planes, list) and len(planes) > MAX_RIDGES + 1:      # size before any per-plane work
+        raise GaugeError(f"{path}: {len(planes)} planes; expected at most {MAX_RIDGES + 1} ({MAX_RIDGES} ridges)")
     try:
         model = _GaugeModel.model_validate(data)
     except ValidationError as exc:

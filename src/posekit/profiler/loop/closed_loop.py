@@ -25,7 +25,7 @@ MAX_STEP_MM = 50.0
 
 def closed_loop(gauge="demo-5", *, runs: int = 3, axes=("x", "y", "z", "xyz"), steps_mm=(1.0, 2.0),
                 noise_um: float = 5.0, seed: int = 0, realtime: bool = False, linear: bool = False,
-                camera: bool = True, out=None, overwrite: bool = False,
+                camera: bool = True, out=None, overwrite: bool = False, replace_own: bool = False,
                 progress: Callable | None = None) -> tuple[LoopExperiment, dict]:
     """Open vs closed loop step responses over loopback TCP, and Table III's timings.
 
@@ -54,6 +54,9 @@ def closed_loop(gauge="demo-5", *, runs: int = 3, axes=("x", "y", "z", "xyz"), s
         before the runs, written whole or not at all).
     overwrite : bool
         Replace a non-empty ``out``.
+    replace_own : bool
+        Replace ``out`` while everything in it was written by posekit (a verb's default
+        folder: its marker lists the files); a user's file there stops the run first.
     progress : callable, optional
         Wraps the list of runs.
 
@@ -69,13 +72,13 @@ def closed_loop(gauge="demo-5", *, runs: int = 3, axes=("x", "y", "z", "xyz"), s
                           f"got {list(steps)}")
     gauge = resolve_gauge(gauge)
     if out is not None:
-        check_out_folder(out, overwrite=overwrite)
+        check_out_folder(out, overwrite=overwrite, replace_own=replace_own)
     exp = run_loop_experiment(gauge, axes=tuple(axes), steps_mm=steps, repeats=runs,
                               noise=NoiseModel.from_z_um(noise_um), seed=seed, realtime=realtime,
                               nonlinear=not linear, camera=camera, progress=progress)
     paths = {}
     if out is not None:
-        with staged_folder(out, overwrite=overwrite) as tmp:
+        with staged_folder(out, overwrite=overwrite, replace_own=replace_own) as tmp:
             paths = write_loop_report(exp, tmp)
             paths = {k: Path(out) / Path(v).relative_to(tmp) for k, v in paths.items()}
     return exp, paths

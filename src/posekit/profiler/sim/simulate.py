@@ -64,7 +64,7 @@ class Simulation:
 def simulate(gauge, count: int = 100, *, noise_um: float = 5.0, noise_x_um: float | None = None,
              outliers: float = 0.0, dropouts: float = 0.0, translation_mm=(10.0, 10.0, 40.0),
              rotation_deg=(4.0, 4.0, 8.0), standoff_mm: float | None = None, realistic: bool = False,
-             seed: int = 0, out=None, overwrite: bool = False) -> Simulation:
+             seed: int = 0, out=None, overwrite: bool = False, replace_own: bool = False) -> Simulation:
     """Simulate ``count`` profiles of a gauge at random poses (``posekit profiler simulate``).
 
     Parameters
@@ -93,6 +93,9 @@ def simulate(gauge, count: int = 100, *, noise_um: float = 5.0, noise_x_um: floa
         Write ``profiles.npz`` and ``truth.csv`` into this folder (:func:`write_simulation`).
     overwrite : bool
         Replace a non-empty ``out`` folder.
+    replace_own : bool
+        Replace ``out`` while everything in it was written by posekit (a verb's default
+        folder: its marker lists the files); a user's file there stops the run first.
 
     Returns
     -------
@@ -109,17 +112,17 @@ def simulate(gauge, count: int = 100, *, noise_um: float = 5.0, noise_x_um: floa
     workspace = Workspace(translation_mm=tuple(translation_mm), rotation_deg=tuple(rotation_deg),
                           standoff_mm=standoff_mm)
     if out is not None:
-        check_out_folder(out, overwrite=overwrite)
+        check_out_folder(out, overwrite=overwrite, replace_own=replace_own)
     rng = np.random.default_rng(seed)
     Ts = sample_poses(gauge, count, rng, workspace)
     profiles = render_profiles(gauge, Ts, noise, rng, realism=RealismModel.realistic() if realistic else None)
     sim = Simulation(gauge=gauge, profiles=profiles, T_G_F=Ts, realistic=bool(realistic))
     if out is not None:
-        write_simulation(sim, out, overwrite=overwrite)
+        write_simulation(sim, out, overwrite=overwrite, replace_own=replace_own)
     return sim
 
 
-def write_simulation(sim: Simulation, out, overwrite: bool = False) -> dict:
+def write_simulation(sim: Simulation, out, overwrite: bool = False, replace_own: bool = False) -> dict:
     """Write ``profiles.npz`` and ``truth.csv`` into the folder ``out`` (whole or not at all).
 
     Returns
@@ -127,7 +130,7 @@ def write_simulation(sim: Simulation, out, overwrite: bool = False) -> dict:
     dict
         ``{"profiles": Path, "truth": Path}`` in ``out``.
     """
-    with staged_folder(out, overwrite=overwrite) as tmp:
+    with staged_folder(out, overwrite=overwrite, replace_own=replace_own) as tmp:
         np.savez_compressed(tmp / "profiles.npz", profiles=sim.profiles.astype(np.float64), T_G_F=sim.T_G_F)
         write_truth_csv(tmp / "truth.csv", sim.T_G_F, quaternion_from_matrix(sim.T_G_F[:, :3, :3]))
     return {"profiles": Path(out) / "profiles.npz", "truth": Path(out) / "truth.csv"}

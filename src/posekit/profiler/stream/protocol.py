@@ -189,7 +189,8 @@ class FrameDecoder:
 
     Feed it whatever ``recv`` returned; it returns the frames completed by that chunk and
     a :class:`FrameError` for each malformed stretch, in stream order. Its buffer never
-    holds more than ``MAX_FRAME_BYTES`` between calls.
+    holds more than ``MAX_FRAME_BYTES`` between calls, unless ``max_frames`` stopped a call
+    early (then it also holds the rest of that chunk, decoded by the next call).
 
     Attributes
     ----------
@@ -211,20 +212,32 @@ class FrameDecoder:
         """Bytes held waiting for the rest of a frame."""
         return len(self._buf)
 
+    def has_frame(self) -> bool:
+        """True when the buffer starts with a complete, well-formed frame (left by ``max_frames``)."""
+        buf = self._buf
+        if self._resync or len(buf) < HEADER_SIZE or buf[:4] != MAGIC:
+            return False
+        _, version, _flags, _seq, _t, count = HEADER.unpack_from(buf, 0)
+        return version == VERSION and count <= MAX_POINTS and len(buf) >= HEADER_SIZE + 8 * count
+
     @property
     def mid_frame(self) -> bool:
         """True when the buffer holds the start of an incomplete frame."""
         return bool(self._buf) and not self._resync
 
-    def feed(self, data, t_recv_ns: int | None = None) -> list:
+    def feed(self, data, t_recv_ns: int | None = None, max_frames: int | None = None) -> list:
         """Decode the frames completed by ``data``.
 
         Parameters
         ----------
         data : bytes-like
-            The next bytes of the stream (any length, including 0).
+            The next bytes of the stream (any length, including 0: decode what is buffered).
         t_recv_ns : int, optional
             Arrival time of ``data`` (:func:`time.perf_counter_ns`); default: now.
+        max_frames : int, optional
+            Decode at most this many frames; the bytes after the last one stay buffered
+            (the server's per-connection rate limit: a flood is not decoded faster than it
+            is allowed to be processed).
 
         Returns
         -------
@@ -239,7 +252,8 @@ class FrameDecoder:
         out = []
         pos = 0
         end = len(buf)
-        while pos < end:
+        budget = -1 if max_frames is None else int(max_frames)
+        while pos < end and budget != 0:
             if self._resync:
                 i = buf.find(MAGIC, pos)
                 if i < 0:
@@ -287,6 +301,7 @@ class FrameDecoder:
             del pts                    # release the export of buf before it is resized
             out.append(Frame(seq, t_sensor, points, t_recv_ns))
             pos += size
+            budget -= 1
         if pos:
             del buf[:pos]
             self._base += pos

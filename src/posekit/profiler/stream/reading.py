@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ConfigError, InputFileError
-from ...io import check_input_file, load_npy, load_npz_member, npz_members, quote, read_text
+from ...io import check_input_file, check_rows, load_npy, load_npz_member, npz_members, parse_number, quote, read_text
 
 __all__ = ["ReadOptions", "read_csv", "read_profiles", "read_profile_file", "check_units", "units_hint", "apply_roi",
            "parse_columns", "parse_delimiter", "parse_roi", "METRES_LIMIT", "METRES_SPAN"]
@@ -24,6 +24,9 @@ __all__ = ["ReadOptions", "read_csv", "read_profiles", "read_profile_file", "che
 #: A profile whose every |x|, |z| is below this (and that spans less than METRES_SPAN) is in metres.
 METRES_LIMIT = 2.0
 METRES_SPAN = 1.0
+#: Most points of the one profile a CSV holds (an LJ-X8400 profile has 3,200; the stream protocol's
+#: frames at most 8,192): counted before any row is parsed.
+MAX_CSV_POINTS = 100_000
 
 
 @dataclass(frozen=True)
@@ -88,7 +91,7 @@ def parse_roi(text: str | None, flag: str) -> tuple[float, float] | None:
         return None
     parts = str(text).split(":")
     try:
-        a, b = (float(p) for p in parts)
+        a, b = (parse_number(p) for p in parts)
         good = math.isfinite(a) and math.isfinite(b) and a < b
     except ValueError:
         good = False
@@ -120,6 +123,7 @@ def _header_hint(names: list[str], opts: ReadOptions) -> str:
 def read_csv(path: Path, opts: ReadOptions) -> np.ndarray:
     expected = _csv_expected(opts)
     text = read_text(path, expected=expected)
+    check_rows(text, str(path), "points (one profile)", error=InputFileError, limit=MAX_CSV_POINTS + 1)
     try:
         reader = csv.reader(io.StringIO(text, newline=""), delimiter=opts.delimiter)
         numbered = [(reader.line_num, r) for r in reader]
@@ -166,7 +170,7 @@ def read_csv(path: Path, opts: ReadOptions) -> np.ndarray:
                 out[i, j] = np.nan
                 continue
             try:
-                out[i, j] = float(cell)
+                out[i, j] = parse_number(cell)
             except ValueError:
                 hint = " (a decimal comma? posekit reads a decimal point)" if "," in cell else ""
                 raise InputFileError(f"{path}: line {line}: {quote(cell)} is not a number (mm) or empty/nan"

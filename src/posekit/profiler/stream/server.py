@@ -7,8 +7,9 @@ per frame to the robot interface over TCP.
 
 Threads and buffers::
 
-    sensors ──TCP──▶ receiver ──▶ deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
-                     (hello, decode, drop-oldest, never blocks     CD → PC → controller → send
+    sensors ──TCP──▶ receiver ──▶ one deque(maxlen=queue_size) ──▶ worker ──TCP──▶ robot
+                     (hello, decode,   per sensor, drop-oldest,      (the queues in turn)
+                      rate limit,      never blocks                  CD → PC → controller → send
                       timeouts)
 
 - The **receiver** serves every sensor connection at once from one thread (non-blocking
@@ -19,10 +20,18 @@ Threads and buffers::
   ``idle_timeout_s``); a connection that exceeds one is closed and logged. With a
   ``token``, a client must first send a hello carrying it
   (:func:`~posekit.profiler.stream.protocol.encode_hello`), compared in constant time; a wrong
-  or missing one closes the connection. The receiver never waits for the worker: when the
-  buffer is full the *oldest* frame is dropped (and counted), so the pose that goes out
-  is always from the newest profile and the sensor is never blocked. After a disconnect
-  (also mid-frame) it logs it and discards the partial frame.
+  or missing one closes the connection. A connection counts as a sensor only once it has
+  proved itself (the hello with the token; without a token, a well-formed hello or frame) within
+  ``hello_timeout_s``: until then it is *pending*, has a limit of its own (``max_pending``)
+  and never displaces a sensor; an active sensor is closed for a newcomer only when it has
+  sent nothing for ``hello_timeout_s`` (see :mod:`~posekit.profiler.stream.server_receiver`).
+  Each sensor may send ``max_rate_hz`` frames per second; beyond it the receiver stops
+  reading it for a while (TCP slows it down). The receiver never waits for the worker: each
+  sensor has its own buffer of ``queue_size`` frames, and when it is full that sensor's
+  *oldest* frame is dropped (and counted), so the pose that goes out is always from the
+  newest profile and the sensor is never blocked; the worker takes the sensors' buffers in
+  turn, so a flooding sensor delays another by at most one of its own frames. After a
+  disconnect (also mid-frame) it logs it and discards the partial frame.
 - The **worker** takes one frame at a time: corners, pose and verdict
   (:func:`~posekit.profiler.estimate.fast.estimate_profile_unchecked`, the estimator's own
   path, so the pose, its covariance, χ² and status are those of the offline
@@ -132,7 +141,8 @@ class PoseServer(SensorReceiver, PoseWorker):
         ``record_sink.put(record)`` gets every record (e.g.
         :class:`~posekit.profiler.stream.server_records.RecordSink`); it must not block.
     queue_size : int
-        Frames buffered between receiver and worker; when full the oldest is dropped.
+        Frames buffered per sensor between receiver and worker; when full that sensor's
+        oldest is dropped.
     method : {'mle', 'cf'}
     mounting : {'auto', 'normal', 'reversed'}
     log : logging.Logger, optional
@@ -153,8 +163,23 @@ class PoseServer(SensorReceiver, PoseWorker):
         A sensor stamp older than this at receipt (or in the future, or earlier than the
         previous one) is not believed: DT unknown, counted in ``bad_stamps``.
     max_connections : int
-        Sensor connections served at once; a new one beyond it closes the connection
-        that has gone longest without a complete frame.
+        Sensors served at once (connections that proved themselves: the token, or a frame).
+        A sensor beyond it is refused, unless one of them has sent nothing for
+        ``hello_timeout_s``: that one is closed for it.
+    max_pending : int
+        Connections that have not proved themselves yet; a new one beyond it closes the
+        oldest of them (never a sensor).
+    hello_timeout_s : float
+        A connection must prove itself (the hello with the token; without a token, a
+        well-formed hello or frame) within this of connecting, s.
+    max_rate_hz : float
+        Frames per second one sensor may send (bursts of ``rate_burst``); beyond it the
+        server reads it more slowly.
+    rate_burst : int
+        Frames a sensor may send at once above its rate.
+    max_accept_hz : float
+        New connections accepted per second (bursts of 64); more wait in the kernel's backlog,
+        so a storm of connections cannot take the receiver's time from the sensors.
     params : CornerParams
     noise : NoiseModel or None
         The sensor noise the verdict assumes (default the LJ-X8400's 10/5 µm, as
@@ -188,7 +213,8 @@ class PoseServer(SensorReceiver, PoseWorker):
                  history: int = 100_000, freeze_gc: bool = True, token: str | bytes | None = None,
                  idle_timeout_s: float = 30.0, read_timeout_s: float = 2.0, max_dt_s: float = 10.0,
                  max_connections: int = 16, pose_filter=None, record_sink=None, noise=DEFAULT_NOISE,
-                 significance: float = DEFAULT_SIGNIFICANCE):
+                 significance: float = DEFAULT_SIGNIFICANCE, max_pending: int = 64, hello_timeout_s: float = 2.0,
+                 max_rate_hz: float = 4000.0, rate_burst: int = 64, max_accept_hz: float = 100.0):
         if not isinstance(gauge, Gauge):
             raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
         if method not in METHODS:
@@ -224,11 +250,16 @@ class PoseServer(SensorReceiver, PoseWorker):
             raise ConfigError("PoseServer: record_sink must have put(record)")
         lo, hi = _SECONDS_RANGE
         for name, value in (("idle_timeout_s", idle_timeout_s), ("read_timeout_s", read_timeout_s),
-                            ("max_dt_s", max_dt_s)):
-            if not (isinstance(value, int | float) and lo <= value <= hi):
+                            ("max_dt_s", max_dt_s), ("hello_timeout_s", hello_timeout_s)):
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and lo <= value <= hi):
                 raise ConfigError(f"PoseServer: {name} must be a number of seconds in [{lo:g}, {hi:g}], got {value!r}")
-        if not (isinstance(max_connections, int) and max_connections >= 1):
-            raise ConfigError(f"PoseServer: max_connections must be an integer >= 1, got {max_connections!r}")
+        for name, value in (("max_connections", max_connections), ("max_pending", max_pending),
+                            ("rate_burst", rate_burst)):
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+                raise ConfigError(f"PoseServer: {name} must be an integer >= 1, got {value!r}")
+        for name, value in (("max_rate_hz", max_rate_hz), ("max_accept_hz", max_accept_hz)):
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and 1 <= value <= 1e6):
+                raise ConfigError(f"PoseServer: {name} must be a number in [1, 1e6] Hz, got {value!r}")
         if allow_remote and token is None:
             raise ConfigError("PoseServer: allow_remote=True (--allow-remote) needs a token (--token-file FILE) "
                               "that every sensor must present; refusing to accept remote sensors without one")
@@ -253,6 +284,11 @@ class PoseServer(SensorReceiver, PoseWorker):
         self.read_timeout_s = float(read_timeout_s)
         self.max_dt_s = float(max_dt_s)
         self.max_connections = max_connections
+        self.max_pending = max_pending
+        self.hello_timeout_s = float(hello_timeout_s)
+        self.max_rate_hz = float(max_rate_hz)
+        self.rate_burst = int(rate_burst)
+        self.max_accept_hz = float(max_accept_hz)
         self._listen_family, self._listen_addr = check_address(listen, "listen address", self.allow_remote)
         self._robot = None if robot is None else check_address(robot, "robot address", self.allow_remote)
         self.log = log if log is not None else logging.getLogger("posekit.server")
@@ -263,7 +299,8 @@ class PoseServer(SensorReceiver, PoseWorker):
         # A warm start whose χ² (2n - 6 dof) exceeds its 1e-6 tail went to a wrong minimum.
         self._chi2_gate = warm_gate(gauge.n_corners)
 
-        self._queue: deque = deque(maxlen=queue_size)
+        self._queues: dict = {}            # sensor key -> deque(maxlen=queue_size) of (Frame, dt_ns)
+        self._ready: deque = deque()       # keys with queued frames, in the worker's turn
         self._cond = threading.Condition(threading.Lock())
         self._stats_lock = threading.Lock()
         self._counts = Counts()
@@ -390,9 +427,14 @@ class PoseServer(SensorReceiver, PoseWorker):
             the full buffer), ``rejected`` (malformed stretches of the stream and NaN
             storms) with ``reasons`` (a :class:`collections.Counter` by reason),
             ``disconnects`` (every close, by either side), ``connections`` (accepted),
-            ``connected`` (open now), ``timeouts`` (closed by the idle or read timeout),
+            ``connected`` (sensors open now: connections that proved themselves),
+            ``timeouts`` (closed by the hello, idle or read timeout),
             ``auth_failures`` (closed for a missing, malformed or wrong hello),
-            ``evictions`` (closed to make room, see ``max_connections``), ``bad_stamps``
+            ``evictions`` (sensors closed for a new one, see ``max_connections``), ``shed``
+            (connections that had not proved themselves closed for newer ones, or sent too much
+            without doing so, and sensors refused because all places were taken by streaming
+            ones), ``rate_limited`` (times a sensor was read more slowly for its rate),
+            ``accept_limited`` (times new connections were left waiting, see ``max_accept_hz``), ``bad_stamps``
             (frames whose sensor stamp was not believed: DT unknown), ``cold_restarts``
             (warm starts that fell back to the closed form), ``sent``/``unsent`` records and
             ``robot_connects``/``robot_failures``, and ``queued``. Once idle, ``received ==
@@ -405,7 +447,7 @@ class PoseServer(SensorReceiver, PoseWorker):
             out["connected"] = self._n_conns
             out["suspect"] = self._n_suspect
         with self._cond:
-            out["queued"] = len(self._queue)
+            out["queued"] = sum(len(q) for q in self._queues.values())
         return out
 
     def timings(self) -> dict:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import ConfigError
-from ...io import atomic_file
+from ...io import atomic_file, open_stream
 from .lines import encode_command
 
 __all__ = ["SERVE_CSV_COLUMNS", "RecordOutput", "RecordSink", "record_csv_row", "output_format"]
@@ -101,11 +101,8 @@ class _Writer:
             if not out.stream:
                 raise ConfigError(f"{out.flag} -: stdout is only for a stream (--jsonl -)")
             self.fh = sys.stdout
-        elif out.stream:
-            try:
-                self.fh = open(out.target, "w", encoding="utf-8", newline="")
-            except OSError as exc:
-                raise ConfigError(f"{out.flag} {out.target}: cannot write ({exc.strerror or exc})") from None
+        elif out.stream:              # an existing FILE is only emptied by the first record
+            self.fh = open_stream(out.target, flag=out.flag)
             self._own = True
         else:
             self._atomic = atomic_file(out.target, "w", flag=out.flag, encoding="utf-8", newline="")
@@ -141,9 +138,7 @@ class _Writer:
                 self.error = self.error or f"{self.out.flag} {self.out.target}: cannot write ({exc.strerror or exc})"
         elif self._own:
             try:
-                self.fh.close()
-                if discard and not self._wrote:              # the run never started: leave nothing
-                    Path(self.out.target).unlink()
+                self.fh.close(discard=discard)   # the run never started: a file it created is removed
             except OSError as exc:
                 self.error = self.error or f"{self.out.flag} {self.out.target}: cannot write ({exc.strerror or exc})"
         else:

@@ -157,9 +157,26 @@ class SensorConnection:
         When the first byte of the incomplete frame (or hello) arrived; None between frames.
     greeted : bool
         True once the hello phase is over (frames are decoded from then on).
+    said_hello : bool
+        True when the connection began with a well-formed hello (with the right token, on a
+        server that has one).
+    active : bool
+        True once the connection has proved itself a sensor: its hello carried the token (or,
+        on a server without one, it sent a well-formed hello or frame). Only active connections count
+        against ``max_connections``, get their frames processed and are never closed for a
+        newcomer that has not.
+    key : int
+        The connection's number (its frames' queue).
+    tokens : float
+        Frames it may still send now (its rate limit's bucket).
+    received_bytes : int
+        Bytes received so far.
     """
 
-    def __init__(self, sock, peer: str, t_ns: int, digest: bytes | None = None):
+    _next_key = 0
+
+    def __init__(self, sock, peer: str, t_ns: int, digest: bytes | None = None, rate_hz: float = 4000.0,
+                 burst: int = 64):
         self.sock = sock
         self.peer = peer
         self.decoder = FrameDecoder()
@@ -167,12 +184,32 @@ class SensorConnection:
         self.t_progress_ns = t_ns
         self.t_partial_ns = t_ns if digest is not None else None     # the hello is due at once
         self.greeted = False
+        self.said_hello = False
+        self.active = False
+        SensorConnection._next_key += 1
+        self.key = SensorConnection._next_key
+        self.rate_hz = float(rate_hz)
+        self.burst = float(burst)
+        self.tokens = float(burst)
+        self._t_tokens_ns = t_ns
+        self.received_bytes = 0
+        self.paused = False
         self._digest = digest
         self._hello = bytearray()
         self._last_stamp = None
 
-    def feed(self, data, t_recv_ns: int) -> tuple[list, str | None]:
-        """Decode ``data``, just received.
+    def refill(self, now_ns: int) -> float:
+        """Add the tokens earned since the last refill (at most ``burst``); the tokens now."""
+        self.tokens = min(self.burst, self.tokens + (now_ns - self._t_tokens_ns) * 1e-9 * self.rate_hz)
+        self._t_tokens_ns = now_ns
+        return self.tokens
+
+    def next_token_ns(self, now_ns: int) -> int:
+        """When the bucket holds a whole token again."""
+        return now_ns + int(max(0.0, 1.0 - self.tokens) / self.rate_hz * 1e9) + 1
+
+    def feed(self, data, t_recv_ns: int, max_frames: int | None = None) -> tuple[list, str | None]:
+        """Decode ``data``, just received (at most ``max_frames`` frames; the rest stays buffered).
 
         Returns
         -------
@@ -182,6 +219,7 @@ class SensorConnection:
             Why the connection must be closed now (a missing, malformed or wrong hello),
             else None.
         """
+        self.received_bytes += len(data)
         if not self.greeted:
             self._hello += data
             got = decode_hello(self._hello)
@@ -200,6 +238,7 @@ class SensorConnection:
                 if self._digest is not None and not hmac.compare_digest(token_digest(got.token), self._digest):
                     refused = "wrong token"
                 start = got.size
+                self.said_hello = refused is None
             if refused is not None:
                 self._hello = bytearray()             # nothing of a refused stream is decoded
                 return [], refused
@@ -208,7 +247,7 @@ class SensorConnection:
             self._hello = bytearray()
             self.t_partial_ns = None
             data = memoryview(data)[start:]
-        items = self.decoder.feed(data, t_recv_ns)
+        items = self.decoder.feed(data, t_recv_ns, max_frames)
         if any(not isinstance(item, FrameError) for item in items):
             self.t_progress_ns = t_recv_ns
         if not self.decoder.mid_frame:
@@ -217,14 +256,18 @@ class SensorConnection:
             self.t_partial_ns = t_recv_ns     # approximately: the chunk that started the frame
         return items, None
 
-    def expired(self, now_ns: int, idle_ns: int, read_ns: int) -> str | None:
+    def expired(self, now_ns: int, idle_ns: int, read_ns: int, hello_ns: int | None = None) -> str | None:
         """Why the connection has timed out at ``now_ns``, or None.
 
-        A connection times out when a frame (or the hello) it started has not been completed
-        within ``read_ns`` (the read timeout), or when it has delivered no complete frame for
-        ``idle_ns`` (the idle timeout: a silent sensor, or one sending only bytes that never
-        make a frame).
+        A connection times out when it has not proved itself a sensor (the hello with the
+        token, or without a token a well-formed hello or frame) within ``hello_ns`` of its accept, when
+        a frame (or the hello) it started has not been completed within ``read_ns`` (the read
+        timeout), or when it has delivered no complete frame for ``idle_ns`` (the idle timeout:
+        a silent sensor, or one sending only bytes that never make a frame).
         """
+        if not self.active and hello_ns is not None and now_ns - self.t_accept_ns > hello_ns:
+            what = "hello with the token" if self._digest is not None else "well-formed hello or frame"
+            return f"not a sensor: no {what} within {hello_ns * 1e-9:g} s of connecting"
         if self.t_partial_ns is not None and now_ns - self.t_partial_ns > read_ns:
             what = "a frame" if self.greeted else "the hello" if self._digest is not None else "a hello or frame"
             got = len(self._hello) if not self.greeted else self.decoder.buffered
@@ -335,6 +378,9 @@ class Counts:
     auth_failures: int = 0
     evictions: int = 0
     bad_stamps: int = 0
+    shed: int = 0
+    rate_limited: int = 0
+    accept_limited: int = 0
 
 
 class RobotLink:

@@ -41,11 +41,11 @@ class PoseWorker:
         try:
             while True:
                 with self._cond:
-                    while not self._queue and not self._stop.is_set():
+                    while not self._ready and not self._stop.is_set():
                         self._cond.wait(_POLL_S)
                     if self._stop.is_set():
                         break
-                    frame, dt_ns = self._queue.popleft()
+                    frame, dt_ns = self._next_frame()      # the sensors' queues in turn
                 try:
                     record = self._process(frame, dt_ns)
                 except Exception as exc:  # a bug, never bad input: report it and go on
@@ -82,9 +82,10 @@ class PoseWorker:
         qw_ms = (t0 - frame.t_recv_ns) * 1e-6
         rec = _error_record(frame, None)
         pts = frame.points
-        res = self._estimate(pts, None if self._last_T is None else (self._last_T, self._last_rev))
         n_pts = pts.shape[0]
-        n_nan = n_pts - res.n_valid
+        res = None if n_pts == 0 else self._estimate(pts, None if self._last_T is None else (self._last_T,
+                                                                                             self._last_rev))
+        n_nan = 0 if res is None else n_pts - res.n_valid      # (an empty frame costs no estimate)
         if n_pts == 0 or n_nan > self.nan_storm_fraction * n_pts:
             detail = (f"seq {seq}: {n_nan} of {n_pts} points have no return "
                       f"(more than {100 * self.nan_storm_fraction:.0f} % NaN)")

@@ -355,7 +355,7 @@ def write_report(study, out) -> Path:
     raise ConfigError(f"write_report: expected a study result, got {type(study).__name__}")
 
 
-def run_study(config, out=None, *, scheduler=None, n_workers=None, overwrite: bool = False, progress=None):
+def run_study(config, out=None, *, scheduler=None, n_workers=None, overwrite: bool = False, replace_own: bool = False, progress=None):
     """Run a design study and write its report (``posekit profiler study corners|noise|limits``).
 
     Parameters
@@ -370,6 +370,9 @@ def run_study(config, out=None, *, scheduler=None, n_workers=None, overwrite: bo
         of ``n_workers`` processes).
     overwrite : bool
         Replace a non-empty ``out``.
+    replace_own : bool
+        Replace ``out`` while everything in it was written by posekit (a verb's default
+        folder: its marker lists the files); a user's file there stops the run first.
     progress : callable, optional
         As :func:`posekit.sweep.run_tasks`.
 
@@ -383,9 +386,9 @@ def run_study(config, out=None, *, scheduler=None, n_workers=None, overwrite: bo
         raise ConfigError(f"run_study: expected a CornersConfig, NoiseConfig or LimitsConfig, got "
                           f"{type(config).__name__}")
     if out is not None:
-        check_out_folder(out, overwrite=overwrite)
+        check_out_folder(out, overwrite=overwrite, replace_own=replace_own)
     study = fn(config, scheduler=scheduler, n_workers=n_workers, progress=progress)
     if out is not None:
-        with staged_folder(out, overwrite=overwrite) as tmp:
+        with staged_folder(out, overwrite=overwrite, replace_own=replace_own) as tmp:
             write_report(study, tmp)
     return study

@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from posekit.errors import InputFileError
 from posekit.geometry import invert_transform, quaternion_from_matrix, transform_from_quaternion
+from posekit.io import parse_number
 from posekit.seam.frontend.config import (
     MAX_STEPS,
     FilterConfig,
@@ -239,9 +240,11 @@ def write_episode_log(folder, cfg: SeamConfig, data, seed: int) -> Path:
 
 def _csv_rows(path: Path, expected: str, max_rows: int):
     """``(header, [(line number, fields)])`` of a small CSV (comma-separated, ``#`` comments)."""
-    from posekit.io import read_text
+    from posekit.io import check_rows, read_text
 
     text = read_text(path, expected=expected, error=InputFileError)
+    check_rows(text, str(path), "lines (rows, comments and blank lines)", error=InputFileError,
+               limit=2 * max_rows + 1000)          # before splitting: comments and blank lines leave room
     header, rows = None, []
     for lineno, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
@@ -265,7 +268,7 @@ def _number(path: Path, lineno: int, name: str, field: str, *, empty_ok: bool) -
             return math.nan
         raise InputFileError(f"{path} line {lineno}: {name} is empty; expected a number")
     try:
-        v = float(field)
+        v = parse_number(field)
     except ValueError:
         raise InputFileError(f"{path} line {lineno}: {name} is '{field[:30]}'; expected a number") from None
     if not math.isfinite(v):

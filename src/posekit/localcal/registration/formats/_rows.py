@@ -5,6 +5,7 @@ import numpy as np
 
 from posekit.errors import InputFileError
 from posekit.geometry import transform_from_quaternion
+from posekit.io import check_rows, parse_number
 
 from ..tum import QUATERNION_NORM_TOL, Trajectory, _is_float
 
@@ -39,6 +40,10 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
     InputFileError
         ``FILE:LINE: expected ..., found ...`` for the first malformed row, or no rows at all.
     """
+    check_rows(text, str(path), "poses (one per line)", error=InputFileError)
+    fast = _parse_fast(text, n_fields, at_least, separator)
+    if fast is not None:
+        return fast
     rows, lines = [], []
     for number, raw in enumerate(text.splitlines(), start=1):
         s = raw.strip()
@@ -49,7 +54,7 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
         if len(fields) < n_fields or (not at_least and len(fields) != n_fields):
             raise InputFileError(f"{path}:{number}: expected {what}, found {len(fields)} fields")
         try:
-            rows.append([float(f) for f in fields[:n_fields]])
+            rows.append([parse_number(f) for f in fields[:n_fields]])
         except ValueError:
             bad = next(f for f in fields[:n_fields] if not _is_float(f))
             shown = bad if len(bad) <= 40 else bad[:37] + "..."
@@ -58,6 +63,30 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
     if not rows:
         raise InputFileError(f"{path}: no poses found (expected lines of {what})")
     return np.asarray(rows, dtype=np.float64), np.asarray(lines)
+
+
+def _parse_fast(text: str, n_fields: int, at_least: bool, separator: str | None):
+    """``(rows, lines)`` of a well-formed text parsed in C (``np.loadtxt``: 2e6 rows in seconds and
+    a few hundred MB instead of half a minute and 1.6 GB); None when anything is unusual, so that
+    the line-by-line parser names the line."""
+    import io
+    import warnings
+
+    if not text.isascii() or "_" in text or (separator is None and "," in text):
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            a = np.loadtxt(io.StringIO(text), comments="#", delimiter=separator, ndmin=2, dtype=np.float64)
+    except ValueError:
+        return None
+    if a.ndim != 2 or a.shape[0] == 0 or a.shape[1] < n_fields or (a.shape[1] != n_fields and not at_least):
+        return None
+    lines = np.array([k for k, raw in enumerate(text.splitlines(), start=1)
+                      if raw.strip() and not raw.lstrip().startswith("#")])
+    if lines.size != a.shape[0]:
+        return None
+    return np.ascontiguousarray(a[:, :n_fields]), lines
 
 
 def trajectory_from_rows(path, t_s, p_m, q_wxyz, records: list[str] | np.ndarray, *,

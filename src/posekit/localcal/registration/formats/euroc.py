@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from posekit.io import read_text
+from posekit.errors import InputFileError
+from posekit.io import check_rows, read_text
 
 from ..tum import Trajectory
 from ._rows import parse_numbers, trajectory_from_rows
@@ -38,6 +39,7 @@ def read_euroc(path) -> Trajectory:
     """
     path = Path(path)
     text = read_text(path, expected=f"a EuRoC ground-truth CSV file ({_LAYOUT} per line)")
+    check_rows(text, str(path), "poses (one per line)", error=InputFileError)      # before splitting
     lines = text.splitlines()
     for i, raw in enumerate(lines):            # a header of column names without '#'
         s = raw.strip()

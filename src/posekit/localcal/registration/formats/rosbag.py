@@ -59,12 +59,34 @@ def _open(path: Path):
     return highlevel.AnyReader([path], default_typestore=store)
 
 
+#: Most entries of a ROS 2 bag folder looked at (a bag has its metadata and a few storage files).
+_MAX_BAG_ENTRIES = 10_000
+
+
+def _check_entries(path: Path) -> None:
+    """Every entry of a bag folder is a regular file or a folder: a named pipe would block the
+    reader forever, a link to /dev/zero would grow without end (both refused in one line)."""
+    from posekit.io import check_input_file
+
+    for k, entry in enumerate(path.iterdir()):
+        if k >= _MAX_BAG_ENTRIES:
+            raise InputFileError(f"{path}: more than {_MAX_BAG_ENTRIES} entries; expected a ROS 2 bag folder "
+                                 "(metadata.yaml and its storage files)")
+        if not entry.is_dir():
+            check_input_file(entry, expected="a file of a ROS 2 bag folder (metadata.yaml, .db3 or .mcap)")
+
+
 def _check_path(path: Path) -> None:
     if not path.exists():
         raise InputFileError(f"{path}: no such file or folder; expected {_EXPECTED}")
+    if not path.is_dir():      # a regular file: not a named pipe (which would block forever) or a device
+        from posekit.io import check_input_file
+
+        check_input_file(path, expected=_EXPECTED)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise InputFileError(f"{path}: a folder without metadata.yaml; expected {_EXPECTED}")
     if path.is_dir():          # size, encoding and YAML structure checked here, before rosbags parses it
+        _check_entries(path)
         from posekit.io import load_yaml
         meta = path / "metadata.yaml"
         doc = load_yaml(meta, expected="the metadata of a ROS 2 bag folder")
@@ -135,8 +157,8 @@ def read_rosbag(path, topic: str | None = None, tf_parent: str | None = None,
     if (tf_parent is None) != (tf_child is None):
         raise InputFileError(f"{path}: --tf-parent and --tf-child go together; give both frames")
     _check_path(path)
-    reader = _open(path)
     try:
+        reader = _open(path)
         if tf_parent is not None:
             from .tf import read_tf
             with reader:
