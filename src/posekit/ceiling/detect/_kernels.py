@@ -64,6 +64,41 @@ def _thresholds(var, bgu, baru, thr, r0, r1, z, v_scene, floor):
 
 
 @njit(cache=True, boundscheck=False, fastmath=True)
+def _update_bytes(frame, bg, var, bgu, baru, thr, guessed, i, k0, k1, mode, alpha, alpha_out, z, v_scene, floor):
+    """Bytes k0:k1 (whole pixels) of row i of :func:`_update_band`, all in one ``mode`` (0: plain,
+    2: absorbed); float32 arithmetic, no branch on the byte (a select), so the loop vectorises."""
+    z32 = np.float32(z)
+    vs = np.float32(v_scene)
+    fl = np.float32(max(floor, 1.0))
+    a_in = np.float32(alpha)
+    a_out = np.float32(alpha_out)
+    absorbed = mode == 2                      # every byte an inlier
+    for j in range(k0 // 3, k1 // 3):
+        if guessed[i, j] > 0:
+            guessed[i, j] -= 1
+    for k in range(k0, k1):
+        fi = np.int32(frame[i, k])
+        f = np.float32(fi)
+        m = bg[i, k]
+        v0 = var[i, k]
+        d = f - m
+        b = np.float32(baru[i, k])
+        inl = absorbed or abs(fi - np.int32(bgu[i, k])) <= np.int32(baru[i, k])
+        a = a_in if inl else a_out
+        dev2 = d * d if inl else b * b
+        m = m + a * d
+        v = v0 + a * (dev2 - v0)
+        bg[i, k] = m
+        var[i, k] = v
+        mu = min(max(np.int32(m + np.float32(0.5)), 0), 255)
+        bgu[i, k] = np.uint8(mu)
+        bb = min(max(z32 * np.sqrt(v + vs), fl), np.float32(255.0))
+        bi = np.int32(bb + np.float32(0.5))
+        baru[i, k] = np.uint8(bi)
+        thr[i, k] = np.uint8(min(mu + bi, 255))
+
+
+@njit(cache=True, boundscheck=False, fastmath=True)
 def _update_band(frame, bg, var, bgu, baru, thr, r0, r1, alpha, alpha_out, z, v_scene, floor, rects, only_rects,
                  guessed):
     """One pass over rows r0:r1 of the running mean and variance of every byte, then of the
@@ -87,36 +122,30 @@ def _update_band(frame, bg, var, bgu, baru, thr, r0, r1, alpha, alpha_out, z, v_
         for r in range(n_rect):
             if rects[r, 0] <= i < rects[r, 1]:
                 active += 1
-        if only_rects and not active:
+        if not active:
+            if not only_rects:                   # no rectangle on this row: one tight loop
+                _update_bytes(frame, bg, var, bgu, baru, thr, guessed, i, 0, w3, 0, alpha, alpha_out, z, v_scene,
+                              floor)
             continue
-        for k in range(w3):
+        k = 0
+        while k < w3:                            # runs of bytes of one mode
+            j = k // 3
             mode = 0
-            if active:
-                j = k // 3
-                for r in range(n_rect):
-                    if rects[r, 0] <= i < rects[r, 1] and rects[r, 2] <= j < rects[r, 3]:
+            nxt = w3                             # where the mode may change next (a rectangle's edge), bytes
+            for r in range(n_rect):
+                if rects[r, 0] <= i < rects[r, 1]:
+                    if rects[r, 2] <= j < rects[r, 3]:
                         mode = rects[r, 4]
-            if mode == 1 or (only_rects and mode == 0):
-                continue
-            if k % 3 == 0 and guessed[i, k // 3] > 0:
-                guessed[i, k // 3] -= 1
-            f = np.float32(frame[i, k])
-            m = bg[i, k]
-            d = f - m
-            b = np.float32(baru[i, k])
-            if mode == 2 or abs(np.int32(frame[i, k]) - np.int32(bgu[i, k])) <= baru[i, k]:
-                m += alpha * d
-                v = var[i, k] + alpha * (d * d - var[i, k])
-            else:
-                m += alpha_out * d
-                v = var[i, k] + alpha_out * (b * b - var[i, k])
-            bg[i, k] = m
-            var[i, k] = v
-            mu = np.uint8(min(max(math.floor(m + 0.5), 0.0), 255.0))
-            bgu[i, k] = mu
-            bb = _bar_of(v, z, v_scene, floor)
-            baru[i, k] = bb
-            thr[i, k] = np.uint8(min(np.int32(mu) + np.int32(bb), 255))
+                        nxt = min(nxt, 3 * rects[r, 3])
+                    elif j < rects[r, 2]:
+                        nxt = min(nxt, 3 * rects[r, 2])
+                    else:
+                        pass
+            k1 = max(min(nxt, w3), k + 3)
+            if not (mode == 1 or (only_rects and mode == 0)):
+                _update_bytes(frame, bg, var, bgu, baru, thr, guessed, i, k, k1, mode, alpha, alpha_out, z,
+                              v_scene, floor)
+            k = k1
 
 
 @njit(cache=True, boundscheck=False)

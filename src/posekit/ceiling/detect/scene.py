@@ -308,7 +308,7 @@ class StaticLights:
             return False
         tail = P[-m:]
         net = tail[-1] - tail[0]
-        return bool(np.all(np.diff(tail, axis=0) @ net > 0))
+        return bool(np.all((tail[1:] - tail[:-1]) @ net > 0))
 
     # -- what it learned -------------------------------------------------------------------
     def settled_uv(self, keep=()) -> list:
