@@ -31,8 +31,10 @@ Status of a frame, for the primary dot (red; its x, y are the track):
 ``predicted``
     no accepted dot this frame (the dot fell into an air-conditioning hole, was occluded
     or gated out) and the last accepted one is at most ``max_predict_s`` old; x, y is the
-    constant-velocity prediction, and its ``std_mm`` grows with the time coasted by
-    ``coast_speed_share`` of the distance travelled (the robot may stop or turn unseen).
+    constant-velocity prediction, and its ``std_mm`` grows with the time coasted as the
+    motion model predicts (``q t³ / 3`` per axis), with the process noise ``q`` the larger of
+    the configured one and the one fitted from the track's own measurements
+    (:func:`fitted_accel_psd`: a robot that has stopped and turned in view may do it unseen).
 ``lost``
     no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
     (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
@@ -76,6 +78,30 @@ __all__ = [
 
 
 # --- the world-plane tracker ---------------------------------------------------------------
+
+def fitted_accel_psd(st: DotState) -> float:
+    """The spectral density q̂ (mm²/s³ per axis) of the white acceleration noise that the track's
+    own accepted measurements show, NaN until 8 second differences of each lag are in.
+
+    For measurements Δt apart, the second difference at lag L, ``z(t - LΔt) - 2 z(t) + z(t +
+    LΔt)``, of a constant-velocity motion driven by white acceleration of density q, measured
+    with independent noise σ per axis, has ``E|Δ²z|² = 2 · ⅔ q (LΔt)³ + 12 σ²``. The means of
+    lags 1 and 2 over the whole track (its manoeuvres: starts, stops, turns) give both:
+    ``q̂ = 3 (m₂ - m₁) / (28 Δt³)``, at least 0.
+    """
+    h = st.noise_stats
+    if not h or min(h.get("n1", 0), h.get("n2", 0)) < 8:
+        return float("nan")
+    m1, m2 = h["sum1"] / h["n1"], h["sum2"] / h["n2"]
+    dt3 = h["sum_dt3"] / h["n1"]
+    return max(3.0 * (m2 - m1) / (28.0 * dt3), 0.0)
+
+
+def _extra_psd(st: DotState, q: float) -> float:
+    """``max(q̂ - q, 0)``: the process noise the track's data add to the filter's ``q``."""
+    qh = fitted_accel_psd(st)
+    return max(qh - q, 0.0) if np.isfinite(qh) else 0.0
+
 
 def _as_candidates(value, colour: str) -> np.ndarray:
     """(K, 2) float array of candidate world positions (K may be 0)."""
@@ -354,18 +380,19 @@ class Tracker:
         why.pop(c1, None)
 
     def _coast_var(self, st: DotState, t_s: float) -> float:
-        """Variance per axis (mm²) of the manoeuvre a robot may make unseen since the last
-        accepted dot: ``(coast_speed_share · |v| · t)²``."""
+        """Variance per axis (mm²) of the manoeuvre the track's own data says the robot may make
+        unseen since the last accepted dot, beyond what the filter's process noise already
+        predicts: ``max(q̂ - q, 0) t³ / 3`` (:func:`fitted_accel_psd`)."""
         since = t_s - st.t_meas_s
         if st.x is None or not np.isfinite(since) or since <= 0:
             return 0.0
-        return (self.config.coast_speed_share * float(np.hypot(*st.x[2:])) * since) ** 2
+        return _extra_psd(st, self.config.accel_psd_mm2_s3) * since ** 3 / 3.0
 
     def _std_mm(self, st: DotState, t_s: float) -> float:
         """1σ of the position (largest axis), the coasting manoeuvre included, mm; while the
         identity is in doubt, that of the two-hypothesis mixture (:func:`verdicts.mixture_std`)."""
         std = float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
-        return verdicts.mixture_std(std, st.x[:2], st.alt, t_s, self.config.coast_speed_share)
+        return verdicts.mixture_std(std, st.x[:2], st.alt, t_s)
 
     def _follow_doubt(self, st: DotState, t_s: float, z, R, usable, rival_seen: bool) -> None:
         """Carry the alternative hypothesis of a dot in probation: follow it with the usable
@@ -376,7 +403,7 @@ class Tracker:
         cfg = self.config
         until, jump, conflicted = st.probation
         if st.alt is not None and verdicts.follow_alternative(st.alt, t_s, z, R, usable, cfg.accel_psd_mm2_s3,
-                                                               cfg.gate_chi2, cfg.coast_speed_share):
+                                                               cfg.gate_chi2):
             conflicted = True
         conflicted = conflicted or rival_seen
         st.probation = (until, jump, conflicted)
@@ -492,7 +519,7 @@ class Tracker:
         st.n_rejected += 1
         if st.n_rejected < cfg.reinit_after:
             return None
-        prev = verdicts.open_alternative(st.x, st.P, t_s, st.t_meas_s)
+        prev = verdicts.open_alternative(st.x, st.P, t_s, st.t_meas_s, _extra_psd(st, cfg.accel_psd_mm2_s3))
         got = self._acquire(st, t_s, z, R, eligible & assoc, None if moving is None else moving & assoc)
         if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
             st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - prev.x[:2]))), False)
@@ -599,11 +626,11 @@ class Tracker:
         if inflate > 1.0:
             st.P = st.P * inflate
         st.x, st.P = kf_update(st.x, st.P, z, R)
-        if not self.config.adapt_noise or t_s is None:
+        if t_s is None:
             return
         hist = st.noise_stats
         if hist is None:
-            hist = st.noise_stats = {"z": [], "d2": []}
+            hist = st.noise_stats = {"z": [], "d2": [], "sum1": 0.0, "n1": 0, "sum2": 0.0, "n2": 0, "sum_dt3": 0.0}
         zs = hist["z"]
         if zs:
             gap = t_s - zs[-1][0]
@@ -611,17 +638,30 @@ class Tracker:
             if not 0 < gap <= 1.5 * prev:            # not consecutive frames: start again
                 zs.clear()
         zs.append((t_s, np.array(z, dtype=float)))
-        if len(zs) == 3:
-            (t0, z0), (t1, z1), (t2, z2) = zs
+        if len(zs) >= 3:
+            (t0, z0), (t1, z1), (t2, z2) = zs[-3:]
             if abs((t2 - t1) - (t1 - t0)) <= 0.2 * (t1 - t0):
                 dd = z0 - 2.0 * z1 + z2
                 hist["d2"].append(float(dd @ dd))
                 del hist["d2"][:-25]
-            zs.pop(0)
+                hist["sum1"] += float(dd @ dd)            # the whole track's: its manoeuvres
+                hist["sum_dt3"] += (0.5 * (t2 - t0)) ** 3
+                hist["n1"] += 1
+                if len(zs) == 5:                          # lag 2 (five evenly spaced measurements)
+                    (ta, za), (tb, zb), (tc, zc) = zs[0], zs[2], zs[4]
+                    if abs((tc - tb) - (tb - ta)) <= 0.2 * (tb - ta):
+                        dd2 = za - 2.0 * zb + zc
+                        hist["sum2"] += float(dd2 @ dd2)
+                        hist["n2"] += 1
+            else:
+                zs[:] = zs[-1:]
+            del zs[:-4]
         if len(hist["d2"]) >= 8:
             var = float(np.median(hist["d2"])) / (6.0 * 2.0 * np.log(2.0))
-            trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
-            st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
+            hist["noise_var"] = var
+            if self.config.adapt_noise:
+                trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
+                st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
 
     def _update_heading(self, t_s: float, measured: dict) -> tuple[float, float]:
         """Circular filter of the red→green direction; returns (degrees in (-180, 180], 1σ in

@@ -15,8 +15,8 @@ Rules (each row of a dot that was measured and accepted this frame):
   rival is seen, the identity stays in doubt for the rest of the track.
 
 While the identity is in doubt the track carries the **alternative** — the previous track,
-predicted on at constant velocity (its covariance grown by the manoeuvre a robot may make
-unseen, ``coast_speed_share`` of the distance it would travel) and updated by the candidates
+predicted on at constant velocity (its covariance grown by the process noise fitted from the
+track's own measurements, :func:`~posekit.ceiling.track.tracker.fitted_accel_psd`) and updated by the candidates
 that fall inside its gate. Every row (``suspect`` or ``predicted``) then reports the 1σ of the
 two-hypothesis mixture about the reported position: ``σ² = σ_main² + d²/2``, ``d`` the
 distance between the two hypotheses — an error of ``d`` (the other hypothesis was the laser)
@@ -44,6 +44,8 @@ class Alternative:
         State ``[x, y, vx, vy]`` and covariance at ``t_s``.
     t_s, t_meas_s : float
         Time of the state, and of its last measurement.
+    q_extra : float
+        Process noise (mm²/s³ per axis) the previous track's data add to the filter's.
     seen : bool
         A candidate was found in its gate since it was opened (the previous dot is back).
     """
@@ -52,6 +54,7 @@ class Alternative:
     P: np.ndarray
     t_s: float
     t_meas_s: float
+    q_extra: float = 0.0
     seen: bool = False
 
 
@@ -81,25 +84,25 @@ def rival(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, moving, ac
     return z[int(np.flatnonzero(far)[0])]
 
 
-def open_alternative(x: np.ndarray, P: np.ndarray, t_s: float, t_meas_s: float) -> Alternative:
+def open_alternative(x: np.ndarray, P: np.ndarray, t_s: float, t_meas_s: float, q_extra: float = 0.0) -> Alternative:
     """The previous track as the alternative hypothesis (copies)."""
-    return Alternative(np.array(x, float), np.array(P, float), float(t_s), float(t_meas_s))
+    return Alternative(np.array(x, float), np.array(P, float), float(t_s), float(t_meas_s), float(q_extra))
 
 
-def _coast_var(alt: Alternative, t_s: float, share: float) -> float:
+def _coast_var(alt: Alternative, t_s: float) -> float:
     since = t_s - alt.t_meas_s
-    return (share * float(np.hypot(*alt.x[2:])) * since) ** 2 if since > 0 else 0.0
+    return alt.q_extra * since ** 3 / 3.0 if since > 0 else 0.0
 
 
 def follow_alternative(alt: Alternative, t_s: float, z: np.ndarray, R: np.ndarray, usable, q: float,
-                       gate_chi2: float, share: float) -> bool:
+                       gate_chi2: float) -> bool:
     """Predict the alternative to ``t_s`` and update it with the nearest usable candidate inside
     its gate (the χ² gate of its prediction widened by the unseen manoeuvre); True if one was."""
     alt.x, alt.P = cv_predict(alt.x, alt.P, max(t_s - alt.t_s, 0.0), q)
     alt.t_s = t_s
     if len(z) == 0 or usable is None or not np.any(usable):
         return False
-    d2 = _mahalanobis2(z - alt.x[:2], alt.P[:2, :2] + R + _coast_var(alt, t_s, share) * np.eye(2))
+    d2 = _mahalanobis2(z - alt.x[:2], alt.P[:2, :2] + R + _coast_var(alt, t_s) * np.eye(2))
     d2 = np.where(usable, d2, np.inf)
     k = int(np.argmin(d2))
     if not d2[k] <= gate_chi2:
@@ -110,14 +113,14 @@ def follow_alternative(alt: Alternative, t_s: float, z: np.ndarray, R: np.ndarra
     return True
 
 
-def mixture_std(std_main: float, main_xy: np.ndarray, alt: Alternative | None, t_s: float, share: float) -> float:
+def mixture_std(std_main: float, main_xy: np.ndarray, alt: Alternative | None, t_s: float) -> float:
     """1σ (mm) about the reported position ``main_xy`` when ``alt`` may be the laser instead:
     ``sqrt(σ_main² + (d² + σ_alt²) / 2)``, ``d`` the distance to the alternative's prediction and
     ``σ_alt`` its own 1σ (the unseen manoeuvre included); ``std_main`` without one."""
     if alt is None:
         return std_main
     d = float(np.hypot(*(np.asarray(main_xy, float) - alt.x[:2])))
-    s_alt2 = float(np.linalg.eigvalsh(alt.P[:2, :2])[-1]) + _coast_var(alt, t_s, share)
+    s_alt2 = float(np.linalg.eigvalsh(alt.P[:2, :2])[-1]) + _coast_var(alt, t_s)
     return float(np.sqrt(std_main ** 2 + 0.5 * (d * d + s_alt2)))
 
 
