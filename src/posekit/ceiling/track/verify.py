@@ -133,8 +133,9 @@ def verify_candidates(index: int, dots, lights, signatures: dict, std_floor_px: 
         Least 1σ of a centroid, px (the camera's ``detection_std_px``).
     tests : LaserTests, optional
     followed : dict, optional
-        ``{colour: identity}`` of the image track the tracker follows (None: none); the
-        candidates of other, settled image tracks that are not moving are dropped.
+        ``{colour: identity}`` of the image track the tracker follows (None: none), or
+        ``{colour: set of identities}`` when several robots carry that colour; the candidates of
+        other, settled image tracks that are not moving are dropped.
 
     Returns
     -------
@@ -146,9 +147,14 @@ def verify_candidates(index: int, dots, lights, signatures: dict, std_floor_px: 
     states = lights.update(index, [(d.u, d.v) for d in dots], [d.color for d in dots])
     ids = lights.ids
     followed = followed or {}
+
+    def own(colour, identity):
+        f = followed.get(colour)
+        return identity in f if isinstance(f, (set, frozenset)) else identity == f
+
     by, el, mv, sd, kept = {}, {}, {}, {}, []
     for k, (d, s) in enumerate(zip(dots, states)):
-        if ids[k] != followed.get(d.color) and s == STATIC:
+        if not own(d.color, ids[k]) and s == STATIC:
             continue                                   # another object: it sat in view apart from the track
         kept.append(k)
         sig = signatures[d.color]
@@ -159,7 +165,7 @@ def verify_candidates(index: int, dots, lights, signatures: dict, std_floor_px: 
                                           and d.background_p > tests.alpha_background)
         std = sig.std_px(d, std_floor_px)
         r = float(np.sqrt(max(d.area_px, 1) / np.pi))
-        if lights.settled_near((d.u, d.v), r + 2.0, exclude=followed.get(d.color)):
+        if lights.settled_near((d.u, d.v), r + 2.0, exclude=ids[k] if own(d.color, ids[k]) else None):
             std = max(std, 0.5 * r)                    # on a static light: the merged centroid is pulled by it
         sd.setdefault(d.color, []).append(std)
     return Candidates({c: np.asarray(v, dtype=float).reshape(-1, 2) for c, v in by.items()},
