@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.detect.dots import LASER_COLORS, Dot, DotDetector
+from posekit.ceiling.detect.dots import DotDetector
 from posekit.ceiling.detect.lines import LineDetector
+from posekit.ceiling.detect.spots import LASER_COLORS, Dot
 from posekit.ceiling.sim.render import CeilingScene, SceneConfig, robot_path
 from posekit.errors import ConfigError, InputFileError
 

@@ -6,7 +6,8 @@ never ``ok`` on anything but the laser dot, corners are re-acquired in the frame
 import numpy as np
 import pytest
 
-from posekit.ceiling.detect.dots import DotDetector, DotSignature
+from posekit.ceiling.detect.dots import DotDetector
+from posekit.ceiling.detect.signature import DotSignature
 from posekit.ceiling.track.pipeline import track_frames
 from tests.ceiling.test_pipeline import ACQUIRE
 from tests.ceiling.test_track_scene import Scene, ok_errors
@@ -100,7 +101,7 @@ def test_static_lights_model_learns_the_lamps_not_a_moving_dot():
 
 
 def test_signature_tells_a_dim_or_large_blob_from_the_laser():
-    from posekit.ceiling.detect.dots import Dot
+    from posekit.ceiling.detect.spots import Dot
     sig = DotSignature()
     for k in range(10):
         sig.update(Dot("red", 0.0, 0.0, 30, 500.0))

@@ -69,9 +69,8 @@ an image of the ceiling without dots can be given instead (``background=``).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -79,83 +78,15 @@ from posekit._extras import lazy
 
 from ...errors import ConfigError, InputFileError
 from . import _kernels as K
+from .background import BackgroundModel
+from .spots import LASER_COLORS, Dot
 
 cv2 = lazy("cv2", "vision", "the ceiling system (laser-dot detection)")
 
-__all__ = ["Dot", "LaserColor", "LASER_COLORS", "DotDetector", "DotSignature"]
+__all__ = ["DotDetector"]
 
 
-@dataclass(frozen=True)
-class LaserColor:
-    """Colour thresholds of one laser.
-
-    ``hue_deg = (lo, hi)`` is the accepted hue range in degrees on [0, 360); ``lo > hi`` wraps
-    through 0° (red). ``min_saturation`` applies to the light a blob adds, summed over the
-    blob (on [0, 1]); ``channel``: the laser's own channel in BGR order (2: red, 1: green),
-    which it drives to the sensor's white level.
-    """
-
-    name: str
-    hue_deg: tuple[float, float]
-    min_saturation: float = 0.45
-    channel: int = 2
-
-    def hue_mask(self, hue_deg: np.ndarray) -> np.ndarray:
-        """Which hues (degrees) are this laser's."""
-        lo, hi = self.hue_deg
-        return (hue_deg >= lo) & (hue_deg <= hi) if lo <= hi else (hue_deg >= lo) | (hue_deg <= hi)
-
-
-#: Red ~650 nm and green ~532 nm laser pointers as an RGB camera sees them. Summed over the
-#: spot (as shares of each channel's headroom), the light a red dot adds keeps a hue within
-#: 330°-30° and a saturation >= 0.15 in all but the worst compression; where it does not
-#: (JPEG q60 applied twice on a bright pavement: the test generator's dot turns magenta-white,
-#: hue 310°, saturation 0.18), the spot is saturated and its colour unknown (see
-#: :meth:`DotDetector._colour`).
-LASER_COLORS = {
-    "red": LaserColor("red", (330.0, 30.0), min_saturation=0.15, channel=2),
-    "green": LaserColor("green", (75.0, 170.0), min_saturation=0.3, channel=1),
-}
-
-
-@dataclass(frozen=True)
-class Dot:
-    """A detected laser dot.
-
-    ``u, v``: sub-pixel position in px (pixel-centre convention: the top-left pixel's centre
-    is (0, 0)); ``area_px``: pixels in its blob; ``peak``: the largest background difference
-    in the blob, summed over the three channels (grey levels, 0-765); ``stray``: the blob is a
-    static light (:class:`~posekit.ceiling.detect.scene.StaticLights`; set by the caller, never
-    by the detector), so it must not start or re-acquire a track; ``saturated``: some pixel of
-    the blob reaches ``core_level`` in a channel — a laser pointer is far brighter than the
-    room it lights, so its core saturates a camera exposed for the room (only such blobs may
-    start a track; a dim reflection or a person's red shirt does not); ``noise_px``: 1σ per
-    axis of the centroid that the background's measured noise under the blob's window gives
-    (px; a dot on flickering tape or a compressed, textured background moves by this much);
-    ``background_p``: p-value of "the spot's surroundings are the unchanged background" (the
-    ring test of :class:`DotDetector`; small: the spot sits on something that moved in, such
-    as a car or a person); ``bbox``: its blob's rows y0:y1 and columns x0:x1, px;
-    ``colour_known``: its added light showed the laser's colour (False: a saturated spot whose
-    colour compression and clipping washed out, taken for the laser's colour because its own
-    channel took the largest share); ``clipped_px``: pixels of its window whose background is at
-    the white level (a lamp under the dot: the spot's light is cut there, its centroid pulled away).
-    """
-
-    color: str
-    u: float
-    v: float
-    area_px: int
-    peak: float
-    stray: bool = False
-    saturated: bool = False
-    noise_px: float = 0.0
-    background_p: float = 1.0
-    bbox: tuple = (0, 0, 0, 0)
-    colour_known: bool = True
-    clipped_px: int = 0
-
-
-class DotDetector:
+class DotDetector(BackgroundModel):
     """Finds laser dots of the given colours in BGR frames of a fixed camera.
 
     Parameters
@@ -285,11 +216,6 @@ class DotDetector:
         self.rebuilds = 0
         self.relights = 0
 
-    @property
-    def background(self) -> np.ndarray | None:
-        """The current background model, float32 (H, W, 3) BGR grey levels (a copy), or None."""
-        return None if self._bg is None else self._bg.copy()
-
     def _check_frame(self, frame, name="frame") -> np.ndarray:
         frame = np.asarray(frame)
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
@@ -305,96 +231,6 @@ class DotDetector:
         if self._alpha_pixel is not None or self._bg is None:
             return self._alpha_pixel or 1e-6
         return 1.0 / self._bg.size
-
-    def _set_background(self, bg_u8: np.ndarray, bg_f: np.ndarray | None = None) -> None:
-        if getattr(self, "_guessed", None) is None or self._guessed.shape != bg_u8.shape[:2]:
-            self._guessed = np.zeros(bg_u8.shape[:2], np.uint8)
-        self._bg = bg_u8.astype(np.float32) if bg_f is None else bg_f
-        self._z = float(self._ndtri(1.0 - self.alpha_pixel))
-        if self._var is None or self._var.shape != self._bg.shape:
-            # until measured frame to frame: the frame's own fine-scale noise (MAD of the
-            # difference to a 3×3 median, per byte) stands for every byte's variance
-            grey = cv2.absdiff(bg_u8, cv2.medianBlur(bg_u8, 3))
-            s0 = max(1.4826 * float(np.median(grey)), 1.0)
-            self._var = np.full(self._bg.shape, s0 * s0, np.float32)
-            self._v_scene = s0 * s0
-        self._bg_u8 = bg_u8.copy()
-        self._thr = np.empty_like(self._bg_u8)
-        self._bar_u8 = np.empty_like(self._bg_u8)
-        self._threshold_rows(0, bg_u8.shape[0])
-        cap = max(256, int(self.max_lit_fraction * bg_u8.shape[0] * bg_u8.shape[1]))
-        self._coords = np.empty((cap, 2), np.int32)
-
-    @property
-    def bar_floor(self) -> float:
-        """The smallest bar, grey levels: ``contrast`` when given, else ``z σ_scene``."""
-        return float(self.contrast) if self.contrast is not None else self._z * float(np.sqrt(self._v_scene))
-
-    def _threshold_rows(self, r0: int, r1: int) -> None:
-        """The bar ``max(z sqrt(σ² + σ²_scene), contrast)`` (uint8) and ``thr = mean + bar`` (uint8,
-        saturated) for rows r0:r1."""
-        h = self._bg.shape[0]
-        K._thresholds(self._var.reshape(h, -1), self._bg_u8.reshape(h, -1), self._bar_u8.reshape(h, -1),
-                    self._thr.reshape(h, -1), r0, r1, self._z, self._v_scene, float(self.contrast or 0.0))
-
-    def _relight(self, frame: np.ndarray) -> None:
-        """Exposure steps: rescale the background by the median frame/background ratio on a
-        sparse grid when it is further than ``relight_gain`` from 1; rebuild when, after that,
-        more than ``max_lit_fraction`` of the grid is still lit (the scene itself changed)."""
-        fs = frame[4::16, 4::16].astype(np.float32)
-        bs = self._bg[4::16, 4::16]
-        g = np.median((fs + 1.0) / (bs + 1.0), axis=(0, 1))
-        if np.all(np.abs(g - 1.0) <= self.relight_gain):
-            return
-        self._bg *= g.astype(np.float32)
-        self._bg_u8 = cv2.convertScaleAbs(self._bg)
-        self._threshold_rows(0, self._bg.shape[0])
-        self.relights += 1
-        self.status = "relit"
-        lit = np.any(frame[4::16, 4::16] > self._thr[4::16, 4::16], axis=2)
-        if lit.mean() > self.max_lit_fraction:
-            self._rebuild(frame)
-
-    def _rebuild(self, frame: np.ndarray) -> None:
-        self._start_background(frame)
-        self.rebuilds += 1
-        self.status = "rebuilt"
-
-    def blind_fraction(self, uv, radius_px: int = 6) -> float:
-        """Fraction of the pixels within ``radius_px`` of ``uv`` (px) where no channel can exceed
-        the background (every channel's bar at 255): a dot there cannot be told from the scene
-        (a saturated lamp, a sunlit wall). 0 before the first frame."""
-        if self._thr is None:
-            return 0.0
-        u, v = int(round(float(uv[0]))), int(round(float(uv[1])))
-        h, w = self._thr.shape[:2]
-        y0, y1, x0, x1 = max(v - radius_px, 0), min(v + radius_px + 1, h), max(u - radius_px, 0), min(u + radius_px + 1, w)
-        if y0 >= y1 or x0 >= x1:
-            return 0.0
-        return float(np.mean(np.min(self._thr[y0:y1, x0:x1], axis=2) >= 255))
-
-    def _start_background(self, frame: np.ndarray) -> None:
-        """Background from a frame: the pixels that could be a laser dot — small spots (at most
-        ``max_area_px``) where a laser's own channel is at the white level (``core_level``),
-        grown by the glow — replaced by the median of their neighbourhood (a robot standing
-        still is found at once; a lamp found there is absorbed once the static-light test calls
-        it static; large clipped areas, a sunlit wall or the sky, stay)."""
-        mask = np.zeros(frame.shape[:2], np.uint8)
-        for spec in self._specs:
-            clipped = (frame[..., spec.channel] >= self.core_level).astype(np.uint8)
-            n, labels, stats, _ = cv2.connectedComponentsWithStats(clipped, connectivity=8)
-            small = np.zeros(n, np.uint8)
-            small[1:] = stats[1:, cv2.CC_STAT_AREA] <= self.max_area_px
-            mask |= small[labels]
-        bg = frame.copy()
-        self._guessed = np.zeros(frame.shape[:2], np.uint8)
-        if mask.any():
-            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))) > 0
-            bg[mask] = cv2.medianBlur(frame, 21)[mask]
-            # a guess until the running mean has had a time constant of updates there: no evidence
-            # for the ring test (the median misses a grid bar or an edge under the spot)
-            self._guessed[mask] = min(int(np.ceil(1.0 / self.learning_rate / self.background_stride)) + 1, 255)
-        self._set_background(bg)
 
     # -- detection --
     def detect(self, frame_bgr: np.ndarray, predicted_uv=None, *, protect=None, absorb=None) -> list[Dot]:
@@ -607,101 +443,12 @@ class DotDetector:
         return Dot(color, float(row[K._U] + x0), float(row[K._V] + y0), int(row[K._AREA]), float(row[K._PEAK]),
                    noise_px=float(np.sqrt(max(row[K._VAR_UV], 0.0))), clipped_px=int(row[K._CLIPPED]))
 
-    def _update_background(self, frame: np.ndarray, rects: np.ndarray) -> None:
-        h = frame.shape[0]
-        stride = self.background_stride
-        band = self._frames % stride
-        r0, r1 = band * h // stride, (band + 1) * h // stride
-        if r1 <= r0:
-            return
-        alpha = 1.0 - (1.0 - self.learning_rate) ** stride
-        views = (frame.reshape(h, -1), self._bg.reshape(h, -1), self._var.reshape(h, -1), self._bg_u8.reshape(h, -1),
-                 self._bar_u8.reshape(h, -1), self._thr.reshape(h, -1))
-        floor = float(self.contrast or 0.0)
-        K._update_band(*views, r0, r1, np.float32(alpha), np.float32(alpha / self.outlier_slowdown), self._z,
-                       self._v_scene, floor, rects, False, self._guessed)
-        absorb = rects[rects[:, 4] == 2]
-        if len(absorb):               # static lights fade in every frame, whatever the band (no band-wise
-            rest = rects.copy()       # shrinking of a lit spot, which would walk its centroid steadily)
-            rest[(rest[:, 0] < r1) & (rest[:, 1] > r0) & (rest[:, 4] == 2), 4] = 1   # this band's: done above
-            y0, y1 = int(max(absorb[:, 0].min(), 0)), int(min(absorb[:, 1].max(), h))
-            rate = np.float32(self.learning_rate)
-            K._update_band(*views, y0, y1, rate, rate, self._z, self._v_scene, floor, rest, True, self._guessed)
-
-
 def _binomial_sf(k: int, n: int, p: float) -> float:
     """P(X >= k) for X ~ Binomial(n, p) (1 for k <= 0)."""
     if k <= 0 or n <= 0:
         return 1.0
     from scipy.special import bdtrc
     return float(bdtrc(k - 1, n, p))
-
-
-class DotSignature:
-    """What the tracked laser dot looks like, learned from the dots the tracker accepted.
-
-    The laser's brightness above the background (``peak``) and blob size (``area_px``) stay
-    within a factor of a few along a track (exposure steps, vignetting), while a lamp, a
-    reflection or a dim LED differ. Running means of their logarithms over the accepted dots
-    (a time constant of ``memory`` acceptances) give the reference; a candidate is
-    consistent with it when its peak is at least ``min_peak_ratio`` of the reference and its
-    area within a factor ``area_factor``. Until ``warmup`` dots were accepted everything
-    passes. Used for eligibility (starting or re-acquiring a track), never to drop a dot the
-    track follows.
-    """
-
-    def __init__(self, *, memory: float = 30.0, warmup: int = 5, min_peak_ratio: float = 0.35,
-                 area_factor: float = 4.0):
-        self.memory, self.warmup = float(memory), int(warmup)
-        self.min_peak_ratio, self.area_factor = float(min_peak_ratio), float(area_factor)
-        self.n = 0
-        self.log_peak = 0.0
-        self.log_area = 0.0
-        self.recent_area = 0.0
-
-    def update(self, dot: Dot) -> None:
-        """Learn from a dot the tracker accepted."""
-        lp, la = math.log(max(dot.peak, 1.0)), math.log(max(dot.area_px, 1))
-        a = 1.0 / min(self.n + 1, self.memory)
-        self.log_peak += a * (lp - self.log_peak)
-        self.log_area += a * (la - self.log_area)
-        b = 1.0 / min(self.n + 1, 10.0)
-        self.recent_area += b * (dot.area_px - self.recent_area)
-        self.n += 1
-
-    def std_px(self, dot: Dot, floor_px: float = 0.1) -> float:
-        """1σ per axis of the dot's centroid, px: ``0.04 sqrt(area)`` for a blooming or blurred
-        blob, or the noise the background under it gives (``dot.noise_px``), whichever is
-        larger (at least ``floor_px``); for a blob smaller than the recent ones (cut by an
-        occluder's edge, a vent or the image border) up to the dot's radius in proportion to
-        the missing area, since the centroid of a clipped dot moves away from the cut; for a
-        blob larger than the recent ones (merged with a bright thing beside it: the halo on a
-        white stripe saturates on that side) by ``extra/(1 + extra)`` of the radius, the shift
-        of a centroid by an added area ``extra`` times the dot's at about a radius; for a spot
-        partly on a background clipped at the white level (a lamp: its light is cut there) by
-        the clipped share of its window times the radius."""
-        s = max(floor_px, 0.04 * math.sqrt(max(dot.area_px, 1)), getattr(dot, "noise_px", 0.0))
-        clipped = getattr(dot, "clipped_px", 0)
-        if clipped:                                  # the spot lies partly on a clipped background
-            r = math.sqrt(max(dot.area_px, 1) / math.pi)
-            s = max(s, clipped / (clipped + dot.area_px) * r)
-        if self.n >= self.warmup and self.recent_area > 0:
-            r = math.sqrt(self.recent_area / math.pi)
-            missing = 1.0 - dot.area_px / self.recent_area
-            if missing > 0.15:
-                s = max(s, missing * r)
-            extra = dot.area_px / self.recent_area - 1.0
-            if extra > 0.15:                         # merged with something bright beside it
-                s = max(s, extra / (1.0 + extra) * r)
-        return s
-
-    def consistent(self, dot: Dot) -> bool:
-        """True if ``dot`` could be the laser that was tracked."""
-        if self.n < self.warmup:
-            return True
-        if math.log(max(dot.peak, 1.0)) < self.log_peak + math.log(self.min_peak_ratio):
-            return False
-        return abs(math.log(max(dot.area_px, 1)) - self.log_area) <= math.log(self.area_factor)
 
 
 def _clusters(pix: np.ndarray, h: int, w: int, margin: int, cell: int = 16) -> list[tuple[int, int, int, int]]:

@@ -193,8 +193,8 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
     (:func:`~posekit.ceiling.track.verify.verify_candidates`: static lights, the ring test, the
     colour, the signature of the robots' dots), and only one found moving starts a robot's track.
     """
-    from ..detect.dots import DotSignature
     from ..detect.scene import StaticLights
+    from ..detect.signature import DotSignature
     from .verify import verify_candidates
 
     if detector is None:

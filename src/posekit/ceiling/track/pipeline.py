@@ -181,8 +181,8 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
     uv : ndarray, shape (2,)
         The primary dot as detected in the camera used, px (NaN when not ``ok``).
     """
-    from ..detect.dots import DotSignature
     from ..detect.scene import StaticLights
+    from ..detect.signature import DotSignature
     from .verify import LaserTests, verify_candidates
 
     dots = parse_dots(dots)

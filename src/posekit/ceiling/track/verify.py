@@ -5,7 +5,7 @@ and the several-robot one (:func:`~posekit.ceiling.track.multitrack.iter_track_r
 A candidate is **eligible** (it may continue or resume a track) when it is not a static light
 (:class:`~posekit.ceiling.detect.scene.StaticLights`: an F test at ``alpha`` of the spot's motion
 against its centroid jitter, the jitter measured from the scene's static spots), its own channel
-reaches the sensor's white level (:attr:`~posekit.ceiling.detect.dots.Dot.saturated`) and, once a
+reaches the sensor's white level (:attr:`~posekit.ceiling.detect.spots.Dot.saturated`) and, once a
 track has been followed, its brightness and size are like the tracked laser's
 (:class:`~posekit.ceiling.detect.dots.DotSignature`).
 
@@ -16,12 +16,12 @@ stated significance level, each with its noise measured from the scene:
 * *it moves like a robot*: the static-light model found it moving (the F test rejects "static"
   at ``alpha`` and the sign test of its last steps at 1/16: see :mod:`posekit.ceiling.detect.scene`);
 * *on the ceiling*: the spot is light added to an unchanged background — the ring test of the
-  detector (:attr:`~posekit.ceiling.detect.dots.Dot.background_p`: the surroundings' outliers
+  detector (:attr:`~posekit.ceiling.detect.spots.Dot.background_p`: the surroundings' outliers
   against the scene's measured outlier rate, binomial) does not reject at
   ``alpha_background`` (a tail light sits on a car, a glint on a windscreen, a red sleeve on a
   person: none of them on the unchanged ceiling);
 * *of the laser's colour*: its added light showed it, not washed out by compression and
-  clipping (:attr:`~posekit.ceiling.detect.dots.Dot.colour_known`).
+  clipping (:attr:`~posekit.ceiling.detect.spots.Dot.colour_known`).
 
 A candidate that lies on a settled spot other than the tracked dot's own (within its radius)
 has a centroid pulled by that spot: its 1σ is at least half its radius.
@@ -77,7 +77,7 @@ class Candidates:
     std_px : dict
         ``{colour: (K,) px}``: 1σ per axis of each centroid.
     dots : list
-        The detections kept (:class:`~posekit.ceiling.detect.dots.Dot`), in the order of the
+        The detections kept (:class:`~posekit.ceiling.detect.spots.Dot`), in the order of the
         arrays.
     states, ids : ndarray
         Their states and image-track identities in the static-light model.
