@@ -99,7 +99,6 @@ def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     leaf = _leaf(parser, argv)
     if not leaf._defaults.get("_flag_config"):
         return
-    from ..io import load_yaml  # here, not above: --help and verbs without --config import no numpy
     keys = config_keys(leaf)
     if "--dump-config" in argv:
         for action in keys.values():
@@ -109,6 +108,7 @@ def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     path = _option_value(argv, "--config")
     if path is None:
         return
+    from ..io import load_yaml  # here, not above: --help and verbs without --config import no numpy
     data = load_yaml(path, expected="a YAML mapping of the command's parameters", error=ConfigError)
     if data is None:
         data = {}

@@ -16,7 +16,6 @@ step (or impulse) instant. Conventions, chosen to match the paper's Table IV:
 """
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ...errors import ConfigError
 
@@ -379,6 +378,8 @@ def impulse_resonance(t_s, y_mm, *, t_free_s: float, y_rest_mm: float | None = N
         basis = np.exp(-sigma * tf)[:, None] * np.stack([np.cos(wd * tf), np.sin(wd * tf)], 1)
         c, *_ = np.linalg.lstsq(basis, e, rcond=None)
         return basis @ c - e
+
+    from scipy.optimize import least_squares  # imported here: 0.5-1 s, and only this fit needs it
 
     wd_max = np.pi / np.mean(np.diff(tf))                                # Nyquist
     starts = [(2 * np.pi * f * z, min(2 * np.pi * f * np.sqrt(1 - z * z), 0.9 * wd_max))

@@ -23,7 +23,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ...errors import ConfigError, GaugeError
 from ...sweep import run_tasks, task_seed
@@ -204,6 +203,8 @@ def _tilt_gauge(n, beta_deg, rng):
 
 
 def _tilt_task(task):
+    from scipy.spatial.transform import Rotation  # imported here: only the limits study needs it
+
     cfg, beta, k = task
     ss_gauge, ss_poses, ss_noise = task_seed(cfg.seed, _TAG_TILT, round(1000 * beta), k).spawn(3)
     gauge = _tilt_gauge(cfg.n_corners, beta, np.random.default_rng(ss_gauge))
