@@ -1,12 +1,13 @@
 """The coasting 1σ of the ceiling tracker comes from the motion model's process noise fitted on the
-track's own measurements (:func:`posekit.ceiling.track.tracker.fitted_accel_psd`), checked on a
+track's own measurements (:func:`posekit.ceiling.track.motion_noise.fitted_accel_psd`), checked on a
 constant-velocity motion driven by white acceleration of known density, written here (world
 measurements, no video, not the renderer)."""
 
 import numpy as np
 import pytest
 
-from posekit.ceiling.track.tracker import Tracker, fitted_accel_psd
+from posekit.ceiling.track.motion_noise import fitted_accel_psd
+from posekit.ceiling.track.tracker import Tracker
 from posekit.ceiling.track.types import TrackerConfig
 
 FPS = 15.0

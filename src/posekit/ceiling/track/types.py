@@ -205,7 +205,7 @@ class TrackRow:
     std_mm : float
         1σ of the position: square root of the largest eigenvalue of the position
         covariance, mm (NaN when lost); while coasting it grows with the process noise
-        fitted from the track (:func:`~posekit.ceiling.track.tracker.fitted_accel_psd`).
+        fitted from the track (:func:`~posekit.ceiling.track.motion_noise.fitted_accel_psd`).
     std_heading_deg : float
         1σ of the heading, degrees (NaN with one dot or without a heading).
     reasons : tuple of str

@@ -16,7 +16,7 @@ Rules (each row of a dot that was measured and accepted this frame):
 
 While the identity is in doubt the track carries the **alternative** — the previous track,
 predicted on at constant velocity (its covariance grown by the process noise fitted from the
-track's own measurements, :func:`~posekit.ceiling.track.tracker.fitted_accel_psd`) and updated by the candidates
+track's own measurements, :func:`~posekit.ceiling.track.motion_noise.fitted_accel_psd`) and updated by the candidates
 that fall inside its gate. Every row (``suspect`` or ``predicted``) then reports the 1σ of the
 two-hypothesis mixture about the reported position: ``σ² = σ_main² + d²/2``, ``d`` the
 distance between the two hypotheses — an error of ``d`` (the other hypothesis was the laser)
@@ -31,7 +31,7 @@ import numpy as np
 
 from ._kalman import _mahalanobis2, cv_predict, kf_update
 
-__all__ = ["Alternative", "rival", "open_alternative", "follow_alternative", "mixture_std", "doubt_reason"]
+__all__ = ["Alternative", "rival", "open_alternative", "follow_alternative", "mixture_std", "doubt_reason", "why_not"]
 
 
 @dataclass
@@ -131,3 +131,27 @@ def doubt_reason(jump_mm: float, conflicted: bool, probation_s: float) -> str:
                 "spot, or the previous dot, was seen since: which is the laser cannot be told")
     return (f"re-acquired {jump_mm:.0f} mm from where the track was predicted ({probation_s:g} s of probation: "
             "the previous dot may only be hidden)")
+
+
+def why_not(st, t_s: float, n: int, had: bool, eligible, moving, alive: bool, cfg) -> tuple:
+    """The reason of a row without an accepted dot (``st`` a DotState, ``n`` candidates, ``had``:
+    the track was alive before this frame, ``alive``: it still is, ``cfg`` the TrackerConfig)."""
+    if alive:
+        since = t_s - st.t_meas_s
+        if n == 0:
+            return (f"no dot seen this frame; predicted {since:.2f} s after the last one",)
+        if st.pending is not None:
+            return (f"a candidate near the prediction waits to be seen moving with the track ({since:.2f} s "
+                    "coasted)",)
+        return (f"{n} candidate(s), none inside the gate of the prediction ({since:.2f} s coasted)",)
+    if had:
+        return (f"no dot accepted for more than {cfg.max_predict_s:g} s",)
+    if n == 0:
+        return ("no dot seen",)
+    k = int(np.count_nonzero(eligible))
+    if moving is not None:
+        m = int(np.count_nonzero(moving))
+        if m > 1:
+            return (f"{m} moving laser-like spots: which is the laser cannot be told",)
+        return (f"{n} candidate(s), {k} laser-like, none seen moving yet (static lights are never acquired)",)
+    return (f"{n} candidate(s), {k} laser-like, none seen moving by {cfg.min_move_mm:g} mm yet",)
