@@ -36,7 +36,7 @@ import numpy as np
 from ...errors import ConfigError
 from ._kalman import _mahalanobis2
 from .cameras import Camera
-from .pipeline import _TimedRows
+from .results import _TimedRows
 from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["MultiRobotTracker", "RobotsResult", "iter_track_robots", "track_robots_frames", "track_robots_video"]
@@ -260,7 +260,7 @@ def track_robots_video(source, calibration, n_robots: int, *, config: TrackerCon
     calibration, ``camera`` the lens model); ``on_row(row, robot)`` as in
     :func:`track_robots_frames`.
     """
-    from .pipeline import frame_groups, make_cameras, open_sources
+    from .setup import frame_groups, make_cameras, open_sources
 
     streams = open_sources([source], fps, loop=loop, max_frames=max_frames, live=live)
     cams = make_cameras(streams, [calibration], camera)

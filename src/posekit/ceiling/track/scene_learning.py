@@ -17,7 +17,7 @@ import numpy as np
 from ..detect.dots import DotDetector
 from ..detect.scene import MOVING, Light, StaticLights, save_scene
 from .cameras import Camera
-from .pipeline import _as_calibration, _as_lens, fit_calibration
+from .setup import _as_calibration, _as_lens, fit_calibration
 from .sources import is_live_source, open_frames, open_live
 
 __all__ = ["SceneLearning", "learn_scene"]
