@@ -1,6 +1,13 @@
-"""The heading of a two-dot robot (case B of the paper): a circular constant-rate filter of the
-red→green direction, restarted on a measurement more than 3σ from its prediction, and the
-second dot found again at the robot's fixed separation after a turn on the spot."""
+"""The heading of a two-dot robot (case B of the paper), and the second dot found again at the
+robot's fixed separation after a turn on the spot.
+
+The heading is the direction from the red to the green dot, filtered by a circular
+constant-turn-rate filter on the unwrapped angle (innovations wrapped to (-π, π]), with its 1σ
+(``std_heading_deg``, from the two dots' covariances: ``σθ² = n̂ᵀ(R_red + R_green)n̂ / d²``); a
+measured direction more than 3σ from the filter's prediction (a turn on the spot) restarts the
+filter on the measurement, so the heading of a frame whose two dots were measured never lies
+more than 3σ from what they say.
+"""
 
 import numpy as np
 

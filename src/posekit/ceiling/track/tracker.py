@@ -39,21 +39,12 @@ Status of a frame, for the primary dot (red; its x, y are the track):
     no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
     (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
 
-A row is never ``ok`` without a dot. Heading (case B of the paper) is the direction from
-the red to the green dot, filtered by a circular constant-turn-rate filter on the unwrapped
-angle (innovations wrapped to (-π, π]), with its 1σ (``std_heading_deg``, from the two dots'
-covariances: ``σθ² = n̂ᵀ(R_red + R_green)n̂ / d²``); a measured direction more than 3σ from
-the filter's prediction (a turn on the spot) restarts the filter on the measurement, so the
-heading of a frame whose two dots were measured never lies more than 3σ from what they say.
-NaN with one dot, or when the green or red dot has not been seen for ``max_predict_s``.
-
-Every row carries ``reasons``: why it is not ``ok``.
-
-:class:`Tracker` works on world measurements (no video needed).
-:class:`~posekit.ceiling.cameras.MultiCameraTracker` (case D, :mod:`posekit.ceiling.cameras`;
-also importable from here) takes image detections from several calibrated cameras, maps them to the world,
-picks one camera per frame (the active one while its dot stays clear of the image border,
-else the one whose dot is farthest from its border) and feeds one :class:`Tracker`.
+A row is never ``ok`` without a dot; every row carries ``reasons``: why it is not ``ok``.
+Heading (case B of the paper): the direction from the red to the green dot with its 1σ
+(:mod:`~posekit.ceiling.track.heading`), never more than 3σ from what a frame's two measured
+dots say; NaN with one dot, or when either dot has not been seen for ``max_predict_s``.
+:class:`Tracker` works on world measurements (no video needed); the cameras' side is
+:class:`~posekit.ceiling.track.cameras.MultiCameraTracker`.
 """
 
 from collections.abc import Mapping
@@ -68,16 +59,7 @@ from .heading import second_dot_at_separation, update_heading
 from .motion_noise import extra_psd, record_measurement
 from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
 
-__all__ = [
-    "STATUSES",
-    "TrackerConfig",
-    "TrackRow",
-    "DotState",
-    "HeadingState",
-    "Tracker",
-    "cv_predict",
-    "kf_update",
-]
+__all__ = ["STATUSES", "TrackerConfig", "TrackRow", "DotState", "HeadingState", "Tracker", "cv_predict", "kf_update"]
 
 
 # --- the world-plane tracker ---------------------------------------------------------------
