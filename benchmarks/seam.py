@@ -38,40 +38,43 @@ DEFAULT_STEPS = 300
 class Scenario:
     """Inputs of every step of one episode along a seam, and the filter's seam polyline.
 
-    The tool follows the nominal trajectory; the joint readings carry the configured noise,
-    the force is the configured process force (base frame), and each laser measures the true
+    The tool follows the nominal trajectory; the joint readings carry the simulated joint noise,
+    the force is the simulated process force (base frame), and each laser measures the true
     (dense) seam in its plane with Gaussian noise.
     """
 
     def __init__(self, cfg, steps: int, seed: int = 0):
-        from posekit.seam.engine.filter import StepInputs
         from posekit.seam.engine.seamline import SeamLine
+        from posekit.seam.engine.step import StepInputs
         from posekit.seam.frontend.simulate import seam_knots
         from posekit.seam.frontend.trajectories import nominal_trajectory
 
         rng = np.random.default_rng(seed)
-        nom = nominal_trajectory(cfg.trajectory, cfg.robot)
+        nom = nominal_trajectory(cfg.trajectory, cfg.cell.robot)
         self.cfg = cfg
         self.nominal = nom
         self.polyline = seam_knots(cfg).polyline          # what run_episode gives the filter
         dense = SeamLine(nom.seam)
-        dist = np.array(cfg.sensors.resolved_distances_mm())
+        mounts = cfg.cell.sensors.resolved_mounts()
         T = nom.T_nominal
         n_steps = min(int(steps), len(T) - 1)
-        force_T = np.array(cfg.process.force_n, dtype=float)
-        joint_sigma = math.radians(cfg.robot.joint_noise_deg)
+        sim = cfg.simulation
+        force_T = np.array(sim.force_n, dtype=float)
+        joint_sigma = math.radians(sim.joint_noise_deg)
         self.inputs = []
         for k in range(1, n_steps + 1):
             Tk = T[k]
-            origins = Tk[:3, 3] + (Tk[:3, :3] @ np.c_[np.zeros(len(dist)), dist, np.zeros(len(dist))].T).T
-            normals = np.repeat(Tk[None, :3, 1], len(dist), axis=0)
+            S = Tk @ mounts                                # sensor frames, (S, 4, 4)
+            origins, normals = S[:, :3, 3], S[:, :3, 1]
             hit = dense.intersect(origins, normals)
             e = hit.point - origins
-            laser = np.c_[e @ Tk[:3, 0], e @ Tk[:3, 2]] + cfg.sensors.noise_mm * rng.standard_normal((len(dist), 2))
+            laser = (np.c_[np.einsum("si,si->s", e, S[:, :3, 0]), np.einsum("si,si->s", e, S[:, :3, 2])]
+                     + sim.laser_noise_mm * rng.standard_normal((len(mounts), 2)))
             laser[~hit.found] = np.nan
             self.inputs.append(StepInputs(T_increment=Tk @ np.linalg.inv(T[k - 1]), T_nominal=Tk,
                                           q_meas=nom.q[k] + joint_sigma * rng.standard_normal(nom.q.shape[1]),
-                                          force_n=Tk[:3, :3] @ force_T, laser_mm=laser))
+                                          force_n=Tk[:3, :3] @ force_T, time_s=float(nom.t_s[k]), q_ref=nom.q[k],
+                                          laser_mm=laser))
         self.T_start = T[0]
 
 
@@ -79,27 +82,33 @@ class UserStepFilter:
     """The same filter step written with scipy ``Rotation`` objects and filterpy's resampling.
 
     State: ``R`` (a ``Rotation`` of N orientations) and ``p`` (N, 3) positions, mm. The
-    densities are those of :mod:`posekit.seam.engine.densities` (eq. 3, 8, 9), written out here.
+    densities are those of :mod:`posekit.seam.engine.densities` (eq. 3, 8, 9) with the
+    configuration's profile (walk per √mm of travel, plateau with bending, tails, joint and laser
+    noise, the pose jitter through each sensor's lever), written out here; no compliance model,
+    no latency (the benchmark's sensors have none).
     """
 
     def __init__(self, cfg, polyline, T_init, seed=0):
         from scipy.spatial.transform import Rotation
 
+        from posekit.seam.engine.step import jitter_variances
         from posekit.seam.frontend.trajectories import tool_chain
 
         self.Rotation = Rotation
         self.cfg = cfg
-        f = cfg.filter
+        self.prof = prof = cfg.profile_model()
         self.rng = np.random.default_rng(seed)
         np.random.seed(seed)                    # filterpy draws from the global NumPy generator
-        self.chain = tool_chain(cfg.robot)
-        self.dist = np.array(cfg.sensors.resolved_distances_mm())
+        self.chain = tool_chain(cfg.cell.robot)
+        self.mounts = cfg.cell.sensors.resolved_mounts()
+        self.lever = np.linalg.norm(self.mounts[:, :3, 3], axis=1)
+        self.var = prof.sensor_sigma_mm(len(self.mounts))[:, None] ** 2 + jitter_variances(self.mounts, prof.jitter)
         self.P = np.asarray(polyline, dtype=float)
-        self.n = f.particles
+        self.n = cfg.filter.particles
         xi = self.rng.standard_normal((self.n, 6))
         R0 = Rotation.from_matrix(T_init[:3, :3])
-        self.R = R0 * Rotation.from_rotvec(xi[:, 3:] * math.radians(f.init_sigma_r_deg))
-        self.p = T_init[:3, 3] + R0.apply(xi[:, :3] * f.init_sigma_t_mm)
+        self.R = R0 * Rotation.from_rotvec(xi[:, 3:] * prof.d0_rad)
+        self.p = T_init[:3, 3] + R0.apply(xi[:, :3] * prof.d0_mm)
         self.logw = np.full(self.n, -math.log(self.n))
 
     # -- densities
@@ -114,58 +123,61 @@ class UserStepFilter:
         return -math.log((2 * math.pi) ** (0.5 * k) * math.sqrt(np.linalg.det(Sigma)) + vol) - 0.5 * maha
 
     def propagate(self, inputs):
-        f = self.cfg.filter
-        fn = float(np.linalg.norm(inputs.force_n))
-        st = f.sigma_t_mm + f.k_force_t * fn
-        sr = math.radians(f.sigma_r_deg) + math.radians(f.k_force_r) * fn
+        travel = float(np.linalg.norm(inputs.T_increment[:3, 3]))
+        sig = np.asarray(self.prof.walk) * math.sqrt(travel)
         xi = self.rng.standard_normal((self.n, 6))
         R_inc = self.Rotation.from_matrix(inputs.T_increment[:3, :3])
         t_inc = inputs.T_increment[:3, 3]
-        self.p = R_inc.apply(self.p + self.R.apply(xi[:, :3] * st)) + t_inc
-        self.R = R_inc * self.R * self.Rotation.from_rotvec(xi[:, 3:] * sr)
+        self.p = R_inc.apply(self.p + self.R.apply(xi[:, :3] * sig[:3])) + t_inc
+        self.R = R_inc * self.R * self.Rotation.from_rotvec(xi[:, 3:] * sig[3:])
 
     def loglik(self, inputs):
-        f = self.cfg.filter
-        deg = math.pi / 180
+        pr = self.prof
         q = np.asarray(inputs.q_meas, dtype=float)
         T_mu = self.chain.forward_kinematics(q)
         J = self.chain.geometric_jacobian(q)
-        S = (f.joint_sigma_deg * deg) ** 2 * (J @ J.T)
+        S = pr.joint_sigma_rad ** 2 * (J @ J.T)
         fn = float(np.linalg.norm(inputs.force_n))
         R_mu = self.Rotation.from_matrix(T_mu[:3, :3])
         dt = self.p - T_mu[:3, 3]
         dr = (self.R * R_mu.inv()).as_rotvec()
-        d_r = (f.d0_deg + f.kd_deg_per_n * fn) * deg
+        d_t = pr.d0_mm + pr.kd_mm_per_n * fn
+        d_r = pr.d0_rad + pr.kd_rad_per_n * fn
+        Sigma_t = S[:3, :3] + pr.tail_mm ** 2 * np.eye(3)
         A = np.eye(3)  # rotation plateau shape: radius d0 about the force, d_r across it (bending)
-        if f.bending_plateau and fn > 0 and d_r > 0:
+        if fn > 0 and d_r > 0:
             u = np.asarray(inputs.force_n, dtype=float) / fn
-            A += (d_r / max(f.d0_deg * deg, 1e-3 * d_r) - 1.0) * np.outer(u, u)
-        logw = (self._plateau(dt, f.d0_mm + f.kd_mm_per_n * fn, S[:3, :3] + f.robot_floor_t_mm ** 2 * np.eye(3))
-                + self._plateau(dr @ A.T, d_r, A @ (S[3:, 3:] + (f.robot_floor_r_deg * deg) ** 2 * np.eye(3)) @ A.T)
+            A += (d_r / max(pr.d0_rad, 1e-3 * d_r) - 1.0) * np.outer(u, u)
+        logw = (self._plateau(dt, d_t, Sigma_t)
+                + self._plateau(dr @ A.T, d_r, A @ (S[3:, 3:] + pr.tail_rad ** 2 * np.eye(3)) @ A.T)
                 + math.log(abs(np.linalg.det(A))))
         if inputs.laser_mm is None:
             return logw
         Rm = self.R.as_matrix()
-        sig2 = f.laser_sigma_mm ** 2
-        Tn = inputs.T_nominal
-        for i, dist in enumerate(self.dist):
+        reach = d_t + 3.0 * math.sqrt(np.trace(Sigma_t))
+        for i, M in enumerate(self.mounts):
             m = inputs.laser_mm[i]
             if not np.all(np.isfinite(m)):
                 continue
-            # §II-E: only the knot segments near the nominal laser plane are searched
-            centre = Tn[:3, 3] + Tn[:3, :3] @ np.array([m[0], dist, m[1]])
-            s_knot = (self.P - centre) @ Tn[:3, 1]
-            w = f.search_window_mm
+            s2 = 0.5 * (self.var[i, 0] + self.var[i, 1])
+            # §II-E: only the knot segments near the reading seen from the kinematic pose are searched, as far
+            # as the robot density reaches
+            Sk = T_mu @ M
+            centre = Sk[:3, 3] + Sk[:3, :3] @ np.array([m[0], 0.0, m[1]])
+            w = reach + d_r * self.lever[i]
+            s_knot = (self.P - centre) @ Sk[:3, 1]
             near = (np.minimum(s_knot[:-1], s_knot[1:]) <= w) & (np.maximum(s_knot[:-1], s_knot[1:]) >= -w)
-            seg_len = np.linalg.norm(self.P[1:] - self.P[:-1], axis=1)
-            d_end = np.minimum(np.linalg.norm(self.P[:-1] - centre, axis=1), np.linalg.norm(self.P[1:] - centre, axis=1))
-            near &= d_end <= 10.0 * w + 50.0 + seg_len
-            a, v = self.P[:-1][near], (self.P[1:] - self.P[:-1])[near]
+            v_all = self.P[1:] - self.P[:-1]
+            g = np.clip(np.einsum("ki,ki->k", centre - self.P[:-1], v_all)
+                        / np.maximum(np.einsum("ki,ki->k", v_all, v_all), 1e-300), 0.0, 1.0)
+            near &= np.linalg.norm(self.P[:-1] + g[:, None] * v_all - centre, axis=1) <= 10.0 * w + 50.0
+            a, v = self.P[:-1][near], v_all[near]
             if len(a) == 0:
-                logw = logw - 0.5 * w * w / sig2 - math.log(2 * math.pi * sig2)
+                logw = logw - 0.5 * w * w / s2 - math.log(2 * math.pi * s2)
                 continue
-            m_hat = self.p + self.R.apply([m[0], dist, m[1]])
-            n = Rm[:, :, 1]
+            RS = Rm @ M[:3, :3]                                # (N, 3, 3) sensor axes
+            m_hat = self.p + Rm @ M[:3, 3] + RS @ np.array([m[0], 0.0, m[1]])
+            n = RS[:, :, 1]
             sa = n @ a.T - (n * m_hat).sum(1)[:, None]
             nv = n @ v.T
             cross = (sa * (sa + nv) <= 0) & (nv != 0)
@@ -174,9 +186,9 @@ class UserStepFilter:
             j = np.argmin(d2, axis=1)
             found = np.isfinite(d2[np.arange(self.n), j])
             e = m_hat - pts[np.arange(self.n), j]
-            e_local = self.R.inv().apply(e)
-            e2 = np.where(found, e_local[:, 0] ** 2 + e_local[:, 2] ** 2, f.search_window_mm ** 2)
-            logw = logw - 0.5 * e2 / sig2 - math.log(2 * math.pi * sig2)
+            e2 = np.where(found, np.einsum("ni,ni->n", e, RS[:, :, 0]) ** 2
+                          + np.einsum("ni,ni->n", e, RS[:, :, 2]) ** 2, w * w)
+            logw = logw - 0.5 * e2 / s2 - math.log(2 * math.pi * s2)
         return logw
 
     def step(self, inputs):
@@ -204,17 +216,27 @@ class UserStepFilter:
 
 
 def bench_config(particles: int, *, shipped: bool = False, steps: int | None = None):
-    """The default configuration (xy seam, two sensors at 20 and 40 mm) with N particles.
+    """The default configuration (xy seam, two sensors at 20 and 40 mm, the shipped default profile) with N
+    particles.
 
-    By default: resampling at every step and no tempered update (``anneal_stages = 0``), so that
-    both sides run the same algorithm at its worst case; ``shipped``: the filter's own
-    defaults (resampling below half the particles, tempered update when the ESS collapses).
+    By default: plain resampling at every step and no tempered update (``ess_threshold 1``, ``regularize_h 0``,
+    ``anneal_stages 0``), so that both sides run the same algorithm at its worst case; ``shipped``: the filter's
+    own defaults (kernel resampling below half the particles, tempered update when the ESS collapses).
     ``steps``: trajectory samples (default: the configuration's 500)."""
     from posekit.seam.frontend.config import apply_overrides, config_from_dict
     over = {"filter.particles": int(particles), "trajectory.steps": steps}
     if not shipped:
-        over.update({"filter.ess_threshold": 1.0, "filter.anneal_stages": 0})
+        over.update({"filter.ess_threshold": 1.0, "filter.anneal_stages": 0, "filter.regularize_h": 0.0})
     return apply_overrides(config_from_dict({}, "defaults"), over)
+
+
+def _filter(cfg, scen, seed):
+    """posekit's filter for ``cfg`` on the scenario (its first cloud drawn about the start)."""
+    from posekit.seam.engine.filter import SeamParticleFilter
+    from posekit.seam.frontend.config_cell import cell_from_config
+
+    return SeamParticleFilter(cell_from_config(cfg.cell), cfg.filter.settings(), cfg.profile_model(), scen.polyline,
+                              seed, T_init=scen.T_start, seam_normal=scen.nominal.seam_normal)
 
 
 def _time(step, inputs):
@@ -279,8 +301,6 @@ def run(count=None, verbose=True, sizes=SIZES):
     ``count``: filter steps timed per particle count (default 300; the peer at N = 10,000 runs
     at most 100 of them). ``sizes``: the particle counts.
     """
-    from posekit.seam.engine.filter import SeamParticleFilter
-
     steps = DEFAULT_STEPS if count is None else max(int(count), 3)
     rows = []
     scen = Scenario(bench_config(sizes[0]), steps)
@@ -289,15 +309,13 @@ def run(count=None, verbose=True, sizes=SIZES):
         peer_steps = scen.inputs[:min(len(scen.inputs), 100 if n >= 10_000 and count is None else len(scen.inputs))]
         # warm-up (caches, allocator, CPU clock): a few steps of each, thrown away
         warm = scen.inputs[:5]
-        for s in (SeamParticleFilter(cfg, scen.polyline, 1, T_init=scen.T_start, seam_normal=scen.nominal.seam_normal),
-                  UserStepFilter(cfg, scen.polyline, scen.T_start, seed=1)):
+        for s in (_filter(cfg, scen, 1), UserStepFilter(cfg, scen.polyline, scen.T_start, seed=1)):
             for inp in warm:
                 s.step(inp)
-        ours = SeamParticleFilter(cfg, scen.polyline, 0, T_init=scen.T_start, seam_normal=scen.nominal.seam_normal)
+        ours = _filter(cfg, scen, 0)
         t_ours, out_ours = _time(ours.step, scen.inputs)
         # the shipped filter: resampling when the ESS falls below N/2, tempering when it collapses
-        shipped = SeamParticleFilter(bench_config(n, shipped=True), scen.polyline, 0, T_init=scen.T_start,
-                                     seam_normal=scen.nominal.seam_normal)
+        shipped = _filter(bench_config(n, shipped=True), scen, 0)
         t_shipped, out_shipped = _time(shipped.step, scen.inputs)
         peer = UserStepFilter(cfg, scen.polyline, scen.T_start, seed=0)
         t_peer, out_peer = _time(peer.step, peer_steps)
@@ -307,7 +325,7 @@ def run(count=None, verbose=True, sizes=SIZES):
                      "baseline": "scipy Rotation + filterpy systematic_resample (same densities)",
                      "baseline_ms": b, "baseline_p99_ms": float(np.percentile(t_peer, 99)), "speedup": b / m,
                      "realtime_factor": SENSOR_PERIOD_MS / m, "realtime_factor_1khz": CONTROL_PERIOD_MS / m,
-                     "particles": n, "sensors": int(cfg.sensors.count), "steps": len(t_ours),
+                     "particles": n, "sensors": int(cfg.cell.sensors.count), "steps": len(t_ours),
                      "baseline_steps": len(t_peer), "ours_median_error_mm": _errors(est, scen),
                      "baseline_median_error_mm": _errors(est_peer, scen),
                      "ours_shipped_ms": float(np.median(t_shipped)),

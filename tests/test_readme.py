@@ -78,16 +78,18 @@ def _expand(arg: str, cwd: Path) -> list[str]:
     return [arg]
 
 
-@pytest.mark.parametrize("lang, line, code", RUN, ids=[f"README.md:{line}" for _, line, _ in RUN])
-def test_readme_block_runs(lang, line, code, workdir, monkeypatch, capsys):
+def test_readme_blocks_run_in_order(workdir, monkeypatch, capsys):
+    """One test, not one per block: a block uses what the blocks before it wrote (a parametrized
+    test per block could run a later block first, on another pytest-xdist worker)."""
     monkeypatch.chdir(workdir)
-    if lang == "python":
-        # Padded with blank lines so that a traceback gives the line number in README.md.
-        exec(compile("\n" * line + code, str(README), "exec"), {"__name__": "__readme__"})
-        return
-    for argv in commands(code):
-        assert argv[0] == "posekit", f"README.md:{line}: only posekit commands are run here: {argv}"
-        args = [a for arg in argv[1:] for a in _expand(arg, workdir)]
-        rc = main(args)
-        err = capsys.readouterr().err
-        assert rc == 0, f"README.md:{line}: {' '.join(argv)} exited {rc}: {err[-500:]}"
+    for lang, line, code in RUN:
+        if lang == "python":
+            # Padded with blank lines so that a traceback gives the line number in README.md.
+            exec(compile("\n" * line + code, str(README), "exec"), {"__name__": "__readme__"})
+            continue
+        for argv in commands(code):
+            assert argv[0] == "posekit", f"README.md:{line}: only posekit commands are run here: {argv}"
+            args = [a for arg in argv[1:] for a in _expand(arg, workdir)]
+            rc = main(args)
+            err = capsys.readouterr().err
+            assert rc == 0, f"README.md:{line}: {' '.join(argv)} exited {rc}: {err[-500:]}"

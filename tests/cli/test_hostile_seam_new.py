@@ -12,7 +12,7 @@ import pytest
 
 from posekit.errors import one_line
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.log import write_episode_log
+from posekit.seam.frontend.logs import write_episode_log
 from posekit.seam.frontend.simulate import simulate_data
 from tests.cli_helpers import assert_one_line_error, run_cli
 
@@ -269,7 +269,7 @@ def test_design_config_and_out(capsys, tmp_path):
         (["--config", tmp_path / "nan.yaml"], f"{tmp_path / 'nan.yaml'}: trajectory.steps: expected a finite number, "
                                               "got nan"),
         (["--config", tmp_path / "list.yaml"], f"{tmp_path / 'list.yaml'}: expected a mapping of sections (seed, "
-                                               "trajectory, robot, process, sensors, filter), got list"),
+                                               "trajectory, cell, simulation, filter, profile), got list"),
         (["--config", tmp_path / "bomb.yaml"], f"{tmp_path / 'bomb.yaml'}: expands to more than "
                                                f"{2 * len(BOMB) + 64:,} values (YAML aliases); expected a plain "
                                                "document"),

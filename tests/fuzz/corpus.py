@@ -77,7 +77,7 @@ def _text_seeds() -> dict:
 def _episode_seed() -> dict:
     """A recorded seam episode of 12 steps (file name -> bytes), made by posekit's writer."""
     from posekit.seam.frontend.config import config_from_dict
-    from posekit.seam.frontend.log import write_episode_log
+    from posekit.seam.frontend.logs import write_episode_log
     from posekit.seam.frontend.simulate import simulate_data
 
     cfg = config_from_dict({"trajectory": {"steps": 12}, "filter": {"particles": 20}})
@@ -152,11 +152,16 @@ def _readers() -> dict:
     from posekit.profiler.stream.server import read_token_file
     from posekit.robots import load_urdf
     from posekit.seam import load_config
-    from posekit.seam.frontend.log import read_episode_log
+    from posekit.seam.frontend.logs import read_episode_log
+    from posekit.seam.frontend.profile import load_profile
 
     t = _text_seeds()
     gauges = [(EXAMPLES / "gauges" / f"demo-{n}.yaml").read_bytes() for n in (4, 5, 7, 10)]
-    seam_cfgs = [p.read_bytes() for p in sorted((EXAMPLES / "seam").glob("*.yaml"))]
+    # the example configurations that stand alone (the others name a profile file beside them), and the profiles
+    seam_yaml = sorted((EXAMPLES / "seam").glob("*.yaml"))
+    seam_profiles = [p.read_bytes() for p in seam_yaml if p.name.endswith("-profile.yaml")]
+    seam_cfgs = [p.read_bytes() for p in seam_yaml
+                 if not p.name.endswith("-profile.yaml") and b"-profile.yaml" not in p.read_bytes()]
     urdfs = [p.read_bytes() for p in sorted((EXAMPLES / "robots").glob("*.urdf"))]
     seed = {p.name: p.read_bytes() for p in SEEDS.iterdir()}
     episode = _episode_seed()
@@ -177,6 +182,7 @@ def _readers() -> dict:
         "profile-npz-member+estimate": (use["profiles"], ("npz", "profiles.npz"), [_npz_member(seed["profiles.npz"])]),
         "gauge": (load_gauge, "gauge.yaml", gauges),
         "seam-config": (load_config, "seam.yaml", seam_cfgs),
+        "seam-profile": (load_profile, "profile.yaml", seam_profiles),
         "seam-episode-setup": (read_episode_log, ("ep", "setup.yaml", episode), [episode["setup.yaml"]]),
         "seam-episode-log": (read_episode_log, ("ep", "log.csv", episode), [episode["log.csv"]]),
         "seam-episode-seam": (read_episode_log, ("ep", "seam.csv", episode), [episode["seam.csv"]]),

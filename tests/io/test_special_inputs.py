@@ -23,7 +23,7 @@ from posekit.profiler.stream.reading import read_profile_file
 from posekit.profiler.stream.server import read_token_file
 from posekit.robots import load_urdf
 from posekit.seam import load_config
-from posekit.seam.frontend.log import read_episode_log
+from posekit.seam.frontend.logs import read_episode_log
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 READERS = {

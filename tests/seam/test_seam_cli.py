@@ -76,20 +76,20 @@ def test_simulate_bad_config_one_line(capsys, tmp_path):
 
 def test_flags_override_the_config_file(capsys, tmp_path):
     cfg = tmp_path / "c.yaml"
-    cfg.write_text("seed: 4\ntrajectory: {kind: yz, steps: 40}\nsensors: {count: 2, distances_mm: [15, 35]}\n"
+    cfg.write_text("seed: 4\ntrajectory: {kind: yz, steps: 40}\ncell: {sensors: {count: 2, distances_mm: [15, 35]}}\n"
                    "filter: {particles: 100}\n")
     rc, out, _ = _run(capsys, "seam", "simulate", "--config", str(cfg), "--dump-config")
     d = yaml.safe_load(out)
     assert rc == 0
     assert (d["seed"], d["trajectory"]["kind"], d["trajectory"]["steps"], d["filter"]["particles"]) == \
         (4, "yz", 40, 100)
-    assert d["sensors"]["distances_mm"] == [15.0, 35.0]
+    assert d["cell"]["sensors"]["distances_mm"] == [15.0, 35.0]
     rc, out, _ = _run(capsys, "seam", "simulate", "--config", str(cfg), "--dump-config", "--trajectory", "xy",
                       "--sensors", "1", "--particles", "7", "--seed", "9", "--steps", "30")
     d = yaml.safe_load(out)
     assert (d["seed"], d["trajectory"]["kind"], d["trajectory"]["steps"], d["filter"]["particles"]) == \
         (9, "xy", 30, 7)
-    assert d["sensors"]["count"] == 1 and d["sensors"]["distances_mm"] == [15.0]   # the file's first sensor
+    assert d["cell"]["sensors"]["count"] == 1 and d["cell"]["sensors"]["distances_mm"] == [15.0]  # its first sensor
 
 
 def test_study_bad_flags(capsys, tmp_path):
@@ -98,8 +98,9 @@ def test_study_bad_flags(capsys, tmp_path):
                                        "it cannot be combined with --scheduler")
     rc, _, err = _run(capsys, "seam", "study", "--parameters", "filter.nope", "--out", str(tmp_path))
     assert rc == 1 and err.strip() == "posekit: error: study factor 'filter.nope': no such configuration key"
-    rc, _, err = _run(capsys, "seam", "study", "--parameters", "filter.d0_mm=1:x", "--out", str(tmp_path))
-    assert rc == 1 and err.strip() == "posekit: error: --parameters: expected KEY or KEY=LOW:HIGH, got 'filter.d0_mm=1:x'"
+    rc, _, err = _run(capsys, "seam", "study", "--parameters", "profile.plateau.d0_mm=1:x", "--out", str(tmp_path))
+    assert rc == 1 and err.strip() == ("posekit: error: --parameters: expected KEY or KEY=LOW:HIGH, got "
+                                       "'profile.plateau.d0_mm=1:x'")
     rc, _, err = _run(capsys, "seam", "study", "--parameters", "filter.particles=0:10", "--runs", "3",
                       "--out", str(tmp_path))
     assert rc == 1 and err.strip().startswith(
@@ -231,7 +232,8 @@ def test_demo_prints_rmse_per_axis(capsys, tmp_path):
     assert rows["xy, 2 sensors"][0] < 0.5 * rows["xy, FK only"][0]
 
 
-EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples" / "seam").glob("*.yaml"))
+EXAMPLES = sorted(p for p in (Path(__file__).resolve().parents[2] / "examples" / "seam").glob("*.yaml")
+                  if not p.name.endswith("-profile.yaml"))
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])

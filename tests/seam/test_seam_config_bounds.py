@@ -39,27 +39,34 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "seam" / "default.y
 
 CRASHES = [
     # (section, key, YAML value, needles: key, range with unit, what arrived)
-    ("filter", "d0_mm", "1e308", ["filter.d0_mm", "0..1000 mm", "1e308"]),
-    ("filter", "d0_deg", "1e308", ["filter.d0_deg", "0..180 deg", "1e308"]),
-    ("filter", "joint_sigma_deg", "1e308", ["filter.joint_sigma_deg", "0..180 deg", "1e308"]),
-    ("filter", "robot_floor_t_mm", "1e308", ["filter.robot_floor_t_mm", "1e-09..1000 mm", "1e308"]),
-    ("filter", "robot_floor_r_deg", "1e308", ["filter.robot_floor_r_deg", "1e-09..180 deg", "1e308"]),
+    ("profile.plateau", "d0_mm", "1e308", ["profile.plateau.d0_mm", "0..1000 mm", "1e+308"]),
+    ("profile.plateau", "d0_deg", "1e308", ["profile.plateau.d0_deg", "0..180 deg", "1e+308"]),
+    ("profile.joints", "sigma_deg", "1e308", ["profile.joints.sigma_deg", "0..180 deg", "1e+308"]),
+    ("profile.plateau", "tail_mm", "1e308", ["profile.plateau.tail_mm", "1e-09..1000 mm", "1e+308"]),
+    ("profile.plateau", "tail_deg", "1e308", ["profile.plateau.tail_deg", "1e-09..180 deg", "1e+308"]),
     ("trajectory", "seam_extension_mm", "1e308", ["trajectory.seam_extension_mm", "0..1000 mm", "1e308"]),
-    ("filter", "laser_sigma_mm", "1e-320", ["filter.laser_sigma_mm", "1e-09..1000 mm", "1e-320"]),
+    ("profile.plateau", "tail_mm", "1e-320", ["profile.plateau.tail_mm", "1e-09..1000 mm", "e-321"]),
     ("trajectory", "steps", str(2**63), ["trajectory.steps", "2..100000", str(2**63)]),
     ("trajectory", "steps", "1e30", ["trajectory.steps", "2..100000", "1e30"]),
     ("trajectory", "steps", "1000000000", ["trajectory.steps", "2..100000", "1000000000"]),
     ("filter", "particles", str(2**63), ["filter.particles", "1..1000000", str(2**63)]),
     ("filter", "particles", "1e30", ["filter.particles", "1..1000000", "1e30"]),
     ("filter", "particles", "1000000000", ["filter.particles", "1..1000000", "1000000000"]),
-    ("filter", "d0_mm", "true", ["filter.d0_mm", "expected a number, got the boolean true", "0..1000 mm"]),
+    ("simulation", "laser_noise_mm", "true", ["simulation.laser_noise_mm", "expected a number, got the boolean true",
+                                               "0..1000 mm"]),
 ]
+
+
+def _yaml(section: str, body: str) -> str:
+    """``a.b`` and ``key: value`` as nested YAML."""
+    parts = section.split(".")
+    return "".join(f"{'  ' * i}{p}:\n" for i, p in enumerate(parts)) + "  " * len(parts) + body + "\n"
 
 
 @pytest.mark.parametrize("section, key, value, needles", CRASHES, ids=[f"{c[1]}={c[2]}" for c in CRASHES])
 def test_values_that_crashed_the_run_are_one_line_errors(capsys, tmp_path, section, key, value, needles):
     cfg = tmp_path / "cfg.yaml"
-    cfg.write_text(f"{section}:\n  {key}: {value}\n")
+    cfg.write_text(_yaml(section, f"{key}: {value}"))
     out = tmp_path / "out"
     rc, stdout, err = run_cli(capsys, "seam", "simulate", "--config", cfg, "--steps", 20, "--particles", 20,
                            "--out", out)
@@ -69,23 +76,23 @@ def test_values_that_crashed_the_run_are_one_line_errors(capsys, tmp_path, secti
 
 
 @pytest.mark.parametrize("yaml_value", ["true", "false", "yes", "on"])
-@pytest.mark.parametrize("key", ["filter.d0_mm", "filter.particles", "seed", "trajectory.start_mm.0",
-                                 "process.force_n.2", "sensors.count"])
+@pytest.mark.parametrize("key", ["simulation.laser_noise_mm", "filter.particles", "seed", "trajectory.start_mm.0",
+                                 "simulation.force_n.2", "cell.sensors.count", "profile.plateau.d0_mm"])
 def test_yaml_booleans_are_never_numbers(tmp_path, key, yaml_value):
     parts = key.split(".")
     if parts[-1].isdigit():                                     # an item of a tuple key
-        base = {"trajectory": {"start_mm": [450, -100, 0]}, "process": {"force_n": [100, -1000, -5000]}}
+        base = {"trajectory": {"start_mm": [450, -100, 0]}, "simulation": {"force_n": [100, -1000, -5000]}}
         section, name, i = parts
         items = [str(v) for v in base[section][name]]
         items[int(i)] = yaml_value
         text = f"{section}:\n  {name}: [{', '.join(items)}]\n"
-    elif len(parts) == 2:
-        text = f"{parts[0]}:\n  {parts[1]}: {yaml_value}\n"
+    elif len(parts) >= 2:
+        text = _yaml(".".join(parts[:-1]), f"{parts[-1]}: {yaml_value}")
     else:
         text = f"{parts[0]}: {yaml_value}\n"
     path = tmp_path / "cfg.yaml"
     path.write_text(text)
-    with pytest.raises(ConfigError, match=r"expected a number, got the boolean (true|false) \(allowed ") as info:
+    with pytest.raises(ConfigError, match=r"expected a number(, got the boolean (true|false) \(allowed | or)") as info:
         load_config(path)
     assert key in str(info.value) and "\n" not in str(info.value)
 
@@ -117,8 +124,8 @@ def test_episode_size_is_bounded(data, needles):
 
 def test_range_messages_name_key_range_unit_and_value():
     cases = {
-        ("filter", "sigma_r_deg", 1e9): "cfg.yaml: filter.sigma_r_deg: expected <= 180.0, got 1000000000.0 "
-                                        "(allowed 0..180 deg)",
+        ("simulation", "angle_noise_deg", 1e9): "cfg.yaml: simulation.angle_noise_deg: expected <= 180.0, got "
+                                                "1000000000.0 (allowed 0..180 deg)",
         ("trajectory", "dt_s", 0): "cfg.yaml: trajectory.dt_s: expected >= 1e-05, got 0 (allowed 1e-05..10 s)",
         ("filter", "ess_threshold", 0): "cfg.yaml: filter.ess_threshold: expected > 0.0, got 0 (allowed > 0 and <= 1)",
         ("trajectory", "bend_deg", 91): "cfg.yaml: trajectory.bend_deg: expected <= 90.0, got 91 "
@@ -136,9 +143,10 @@ def test_range_messages_name_key_range_unit_and_value():
     assert str(info.value) == ("cfg.yaml: trajectory.start_mm.0: expected <= 100000.0, got 1000000000.0 "
                                "(allowed -100000..100000 mm)")
     with pytest.raises(ConfigError) as info:
-        config_from_dict({"robot": {"ik_seed_deg": list(range(1000))}}, "cfg.yaml")
+        config_from_dict({"cell": {"robot": {"ik_seed_deg": list(range(1000))}}}, "cfg.yaml")
     msg = str(info.value)
-    assert msg.startswith("cfg.yaml: robot.ik_seed_deg: expected at most 64 values, got [0, 1, 2") and len(msg) < 200
+    assert msg.startswith("cfg.yaml: cell.robot.ik_seed_deg: expected at most 64 values, got [0, 1, 2")
+    assert len(msg) < 200
 
 
 def test_cli_limits_equal_the_configs():
@@ -160,22 +168,24 @@ def _is_tuple(annotation) -> bool:
     return typing.get_origin(annotation) is tuple or any(_is_tuple(a) for a in typing.get_args(annotation))
 
 
-def _numeric_keys():
-    """``[(section or None, key, is_tuple)]`` for every number of SeamConfig."""
+def _numeric_keys(model=SeamConfig, section=None):
+    """``[(section or None, key, is_tuple)]`` for every number of SeamConfig (sections dotted: ``cell.robot``;
+    the profile is a model of its own, checked in tests/seam/test_seam_profile.py)."""
     keys = []
-    for name, field in SeamConfig.model_fields.items():
+    for name, field in model.model_fields.items():
         ann = field.annotation
+        if name == "profile":
+            continue
         if isinstance(ann, type) and issubclass(ann, BaseModel):
-            keys += [(name, k, _is_tuple(f.annotation)) for k, f in ann.model_fields.items()
-                     if f.annotation is not bool and _numeric(f.annotation)]
-        elif _numeric(ann):
-            keys.append((None, name, False))
+            keys += _numeric_keys(ann, name if section is None else f"{section}.{name}")
+        elif ann is not bool and _numeric(ann):
+            keys.append((section, name, _is_tuple(ann)))
     return keys
 
 
-#: The 4x4 matrices (robot.tool, sensors.mounts: rows of four numbers each within ±1e5, and a rigid
+#: The 4x4 matrices (cell.robot.tool, cell.sensors.mounts: rows of four numbers each within ±1e5, and a rigid
 #: transform) are nested tuples; tests/seam/test_seam_config_mounts.py checks them.
-MATRIX_KEYS = {("robot", "tool"), ("sensors", "mounts")}
+MATRIX_KEYS = {("cell.robot", "tool"), ("cell.sensors", "mounts")}
 NUMERIC_KEYS = [k for k in _numeric_keys() if k[:2] not in MATRIX_KEYS]
 
 NUMBERS = st.one_of(
@@ -194,10 +204,16 @@ NUMBERS = st.one_of(
 def _bounds(field, item: bool):
     meta = field.metadata
     if item:
-        for arg in typing.get_args(field.annotation):
-            for inner in [arg, *typing.get_args(arg)]:
-                if typing.get_origin(inner) is typing.Annotated:
-                    meta = [m for x in typing.get_args(inner)[1:] for m in getattr(x, "metadata", [x])]
+        def walk(t):
+            if typing.get_origin(t) is typing.Annotated:
+                yield t
+            for a in typing.get_args(t):
+                if a is not Ellipsis:
+                    yield from walk(a)
+
+        for inner in walk(field.annotation):
+            meta = [m for x in typing.get_args(inner)[1:] for m in getattr(x, "metadata", [x])]
+            break
     lo = hi = None
     for m in meta:
         lo = m.ge if isinstance(m, annotated_types.Ge) else m.gt if isinstance(m, annotated_types.Gt) else lo
@@ -206,8 +222,16 @@ def _bounds(field, item: bool):
 
 
 def _field(section, key):
-    model = SeamConfig if section is None else SeamConfig.model_fields[section].annotation
+    model = SeamConfig
+    for part in ([] if section is None else section.split(".")):
+        model = model.model_fields[part].annotation
     return model.model_fields[key]
+
+
+def _node(root, section):
+    for part in ([] if section is None else section.split(".")):
+        root = root.setdefault(part, {}) if isinstance(root, dict) else getattr(root, part)
+    return root
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
@@ -216,7 +240,7 @@ def test_any_number_for_any_key_is_a_one_line_error_or_a_bounded_config(picks):
     doc, sent = {}, {}
     for (section, key, is_tuple), data in picks:
         value = data.draw(st.lists(NUMBERS, max_size=8) if is_tuple else NUMBERS)
-        (doc if section is None else doc.setdefault(section, {}))[key] = value
+        _node(doc, section)[key] = value
         sent[(section, key)] = value              # a key picked twice keeps its last value
     try:
         cfg = config_from_dict(doc, "fuzz.yaml")
@@ -233,7 +257,7 @@ def test_any_number_for_any_key_is_a_one_line_error_or_a_bounded_config(picks):
     assert steps * seam_points <= MAX_STEP_SEAM_POINTS
     assert 0 <= cfg.seed <= SEED_MAX
     for section, key, is_tuple in NUMERIC_KEYS:
-        value = getattr(cfg if section is None else getattr(cfg, section), key)
+        value = getattr(_node(cfg, section), key)
         values = ([] if value is None else list(value)) if is_tuple else [value]
         lo, hi = _bounds(_field(section, key), is_tuple)
         for v in values:

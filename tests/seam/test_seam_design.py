@@ -54,9 +54,11 @@ def test_ranking_matches_episodes_run_here():
         assert [r["rmse_rx_deg"], r["rmse_ry_deg"], r["rmse_rz_deg"]] == pytest.approx(np.degrees(rm[3:]), rel=1e-9)
         score = np.linalg.norm(rm[:3]) + 100.0 * np.linalg.norm(rm[3:])
         assert r["score"] == pytest.approx(score, rel=1e-9)
-    # two sensors see the seam where none sees nothing: the best has sensors, the last has none
-    assert rows[0]["sensors"] == 2 and rows[-1]["sensors"] == 0
-    assert rows[-1]["score"] < rows[-1]["kinematic_score"] * 1.2
+    # two sensors see the seam where none sees nothing: the best has two; without sensors the filter is the kinematics
+    # (one sensor over these 60 short, fast steps confuses translation and rotation and may rank below none)
+    assert rows[0]["sensors"] == 2
+    none = next(r for r in rows if r["sensors"] == 0)
+    assert none["score"] < none["kinematic_score"] * 1.2 and rows[0]["score"] < 0.5 * none["score"]
 
 
 def test_design_cli_writes_ranking_and_figure(tmp_path, capsys):

@@ -1,15 +1,15 @@
-"""The spread bound (engine/spread_bound.py): a Kalman covariance from the lasers' Jacobian, capped at
-the robot plateau, reported where the particle cloud is narrower (issue 15, an honest spread)."""
+"""The spread bound (engine/spread_bound.py) and the linearised filter the tuner uses (engine/ekf.py): a Kalman
+covariance from the lasers' Jacobian, capped at the robot plateau; compiled = NumPy; the EKF pass finds a pose
+offset on a hand-made seam and its negative log-likelihood is the prediction-error decomposition."""
 
 import math
 
 import numpy as np
 import pytest
 
+from posekit.seam.engine import _linear as _l
 from posekit.seam.engine.densities import RobotMeasurement
-from posekit.seam.engine.spread_bound import InformationBound, laser_jacobian, plateau_covariance
-from posekit.seam.frontend.config import apply_overrides, config_from_dict
-from posekit.seam.frontend.simulate import integrity_summary, run_episode
+from posekit.seam.engine.spread_bound import InformationBound, Readings, laser_jacobian, plateau_covariance
 
 # a straight seam along base y through the origin, the tool at the origin looking down (tool = base)
 SEAM = np.stack([np.zeros(81), np.linspace(-40.0, 120.0, 81), np.zeros(81)], axis=1)
@@ -21,23 +21,27 @@ def _mount(d):
     return M
 
 
-def _readings(T, dists):
+def _readings(T, dists, var=0.05 ** 2):
     """Noise-free readings of sensors on the tool y axis (the seam crossing their x-z plane), by hand."""
-    out = []
+    mx, mz, Ms = [], [], []
     for d in dists:
         S = T @ _mount(d)
-        # plane through S's origin with normal S's y axis meets the seam x = z = 0 at base y = s:
         n, o = S[:3, 1], S[:3, 3]
-        s = (n @ o) / n[1]
+        s = (n @ o) / n[1]  # the plane meets the seam x = z = 0 at base y = s
         p = np.array([0.0, s, 0.0]) - o
-        out.append((float(p @ S[:3, 0]), float(p @ S[:3, 2]), _mount(d), 0, SEAM.shape[0] - 1))
-    return out
+        mx.append(float(p @ S[:3, 0]))
+        mz.append(float(p @ S[:3, 2]))
+        Ms.append(_mount(d))
+    k = len(dists)
+    return Readings(mx, mz, np.stack(Ms) if k else np.zeros((0, 4, 4)), [0] * k, [SEAM.shape[0] - 1] * k,
+                    np.full((k, 2), var))
 
 
 def _numeric_jacobian(T, dists, h=1e-4):
     """Central differences of the hand-made readings (an independent model of the in-plane error)."""
     def y(Tp):
-        return np.concatenate([[-mx, -mz] for mx, mz, *_ in _readings(Tp, dists)])
+        r = _readings(Tp, dists)
+        return np.concatenate([[-a, -b] for a, b in zip(r.mx, r.mz)])
 
     J = np.empty((2 * len(dists), 6))
     for j in range(6):
@@ -58,15 +62,17 @@ def _numeric_jacobian(T, dists, h=1e-4):
     return J
 
 
+def _meas(A=None):
+    return RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 3.0, math.radians(0.5), A_r=A)
+
+
 def test_laser_jacobian_matches_an_independent_model_and_sees_no_roll_or_travel():
     T = np.eye(4)
     T[:3, 3] = [0.3, 5.0, -2.0]  # off the seam by 0.3 mm across and 2 mm along the tool axis
     dists = (20.0, 40.0)
-    # the readings the filter would get at T itself: the error of T at its own reading is zero
-    H = laser_jacobian(T, _readings(T, dists), SEAM)
+    H, e = laser_jacobian(T, _readings(T, dists), SEAM)
     assert H.shape == (4, 6)
-    # the in-plane error moves with the reading the pose would see (a hand-made model; the sign is
-    # the kernel's error convention, irrelevant to the covariance HᵀH)
+    np.testing.assert_allclose(e, 0.0, atol=1e-9)  # the error of T at its own readings is zero
     np.testing.assert_allclose(H, _numeric_jacobian(T, dists), atol=2e-3)
     # travel along the seam (y) is invisible; the roll (ry) only through the 2 mm offset
     assert np.abs(H[:, 1]).max() < 1e-6
@@ -74,146 +80,87 @@ def test_laser_jacobian_matches_an_independent_model_and_sees_no_roll_or_travel(
 
 
 def test_no_reading_leaves_the_plateau_and_the_cap_holds():
-    meas = RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 3.0, math.radians(0.5))
+    meas = _meas()
     C = plateau_covariance(meas, np.eye(3))
     np.testing.assert_allclose(np.diag(C), [9 / 5 + 0.01] * 3 + [math.radians(0.5) ** 2 / 5 + 1e-6] * 3)
-    b = InformationBound(0.05)
+    b = InformationBound()
     for _ in range(50):  # the random walk would grow beyond the plateau: the cap keeps it there
-        s = b.update(np.eye(4), meas, 10.0, 1.0, [], SEAM)
+        s = b.update(np.eye(4), meas, np.r_[[100.0] * 3, [1.0] * 3], Readings.none(), SEAM)
     np.testing.assert_allclose(s, np.sqrt(np.diag(C)), rtol=1e-12)
 
 
-def test_lasers_shrink_what_they_see_and_leave_travel_at_the_plateau():
-    meas = RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 3.0, math.radians(0.5))
+def test_lasers_shrink_what_they_see_and_one_step_is_the_kalman_covariance():
+    meas = _meas()
     T = np.eye(4)
-    b = InformationBound(0.05)
+    b = InformationBound()
     for _ in range(20):
-        s = b.update(T, meas, 0.0, 0.0, _readings(T, (20.0, 40.0)), SEAM)
+        s = b.update(T, meas, np.zeros(6), _readings(T, (20.0, 40.0)), SEAM)
     C = np.sqrt(np.diag(plateau_covariance(meas, np.eye(3))))
     assert s[1] == C[1]  # y: never seen
-    # x, z, rx, rz: 4 readings per step, 20 steps, noise 0.05: far below the plateau
     assert s[0] < 0.03 and s[2] < 0.03 and s[3] < math.radians(0.05) and s[5] < math.radians(0.05)
-    # one step of a linear Gaussian model by hand: the Kalman covariance
-    H = laser_jacobian(T, _readings(T, (20.0, 40.0)), SEAM)
+    # one step from the plateau with per-reading variances: the Kalman form by hand
+    rd = _readings(T, (20.0, 40.0))
+    rd.r2[:] = [[0.05 ** 2 * 1.7, 0.05 ** 2 * 2.0], [0.05 ** 2 * 3.0, 0.05 ** 2]]
+    H, _ = laser_jacobian(T, rd, SEAM)
+    R = np.diag(rd.r2.reshape(-1))
     P0 = plateau_covariance(meas, np.eye(3))
-    P1 = np.linalg.inv(np.linalg.inv(P0) + H.T @ H / 0.05 ** 2)
     b.reset()
-    s1 = b.update(T, meas, 0.0, 0.0, _readings(T, (20.0, 40.0)), SEAM)
-    np.testing.assert_allclose(s1, np.sqrt(np.diag(P1)), rtol=1e-6)
-
-
-def test_reported_spread_is_at_least_the_cloud_and_helps_a_wrong_start():
-    # (the cloud floor off: it widens the cloud to a share of the bound, so the bound would change the estimate)
-    base = {"trajectory.steps": 120, "filter.particles": 300, "filter.init_offset_mm": [8.0, 8.0, 8.0],
-            "filter.init_offset_deg": [3.0, 3.0, 3.0], "filter.cloud_floor": 0.0}
-    on = run_episode(apply_overrides(config_from_dict({}), base), 0)
-    off = run_episode(apply_overrides(config_from_dict({}), {**base, "filter.spread_bound": 0.0}), 0)
-    # same data and the same random draws: the estimate is the same, only the reported spread grows
-    np.testing.assert_allclose(on.estimate, off.estimate)
-    assert np.all(on.spread >= off.spread - 1e-12)
-    cov_on = integrity_summary([on])[0]
-    cov_off = integrity_summary([off])[0]
-    assert np.all(cov_on >= cov_off) and cov_on.mean() > cov_off.mean()
+    b.update(T, meas, np.zeros(6), rd, SEAM)
+    np.testing.assert_allclose(b.P, np.linalg.inv(np.linalg.inv(P0) + H.T @ np.linalg.solve(R, H)), rtol=1e-6,
+                               atol=1e-12)
 
 
 def test_compiled_step_equals_the_numpy_reference():
     rng = np.random.default_rng(4)
-    A = np.diag([1.0, 1.0, 3.0])
-    meas = RobotMeasurement(np.eye(4), 0.04 * np.eye(3), 2e-6 * np.eye(3), 4.0, math.radians(0.8), A_r=A)
-    a, b = InformationBound(0.05), InformationBound(0.05)
+    meas = _meas(np.diag([1.0, 1.0, 3.0]))
+    a, b = InformationBound(), InformationBound()
+    q2 = np.r_[[0.02 ** 2] * 3, [1e-3 ** 2] * 3]
     for k in range(15):
         T = np.eye(4)
         T[:3, 3] = rng.normal(0.0, 1.0, 3)
-        rd = _readings(T, (20.0, 40.0)) if k % 4 else []
-        sa = a.update(T, meas, 0.02, 1e-3, rd, SEAM)
-        sb = b.update_numpy(T, meas, 0.02, 1e-3, rd, SEAM)
+        rd = _readings(T, (20.0, 40.0)) if k % 4 else Readings.none()
+        Q = np.diag(rng.uniform(0, 1e-4, 6))
+        sa = a.update(T, meas, q2, rd, SEAM, Q)
+        sb = b.update_numpy(T, meas, q2, rd, SEAM, Q)
         np.testing.assert_allclose(sa, sb, rtol=1e-6, atol=1e-12)
         np.testing.assert_allclose(a.P, b.P, rtol=1e-6, atol=1e-12)
 
 
-def test_per_reading_variances_match_the_numpy_reference_and_the_kalman_form():
-    # the filter may pass each reading's weighing variance (filter.bound_inflation); compiled = NumPy, and one
-    # step from the plateau is the Kalman covariance with R = diag(variances), by hand
-    meas = RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 3.0, math.radians(0.5))
-    T = np.eye(4)
-    T[:3, 3] = [0.2, 1.0, -0.5]
-    rd = _readings(T, (20.0, 40.0))
-    v = [0.05 ** 2 * 1.7, 0.05 ** 2 * 3.0]
-    a, b = InformationBound(0.05), InformationBound(0.05)
-    sa = a.update(T, meas, 0.0, 0.0, rd, SEAM, v)
-    sb = b.update_numpy(T, meas, 0.0, 0.0, rd, SEAM, v)
-    np.testing.assert_allclose(sa, sb, rtol=1e-9)
-    H1, H2 = laser_jacobian(T, rd[:1], SEAM), laser_jacobian(T, rd[1:], SEAM)
-    H = np.vstack([H1, H2])
-    R = np.diag([v[0]] * H1.shape[0] + [v[1]] * H2.shape[0])
-    P0 = plateau_covariance(meas, np.eye(3))
-    np.testing.assert_allclose(a.P, np.linalg.inv(np.linalg.inv(P0) + H.T @ np.linalg.solve(R, H)), rtol=1e-6,
-                               atol=1e-12)
-    # sigma² for every reading is the default
-    c = InformationBound(0.05)
-    np.testing.assert_allclose(c.update(T, meas, 0.0, 0.0, rd, SEAM, [0.05 ** 2] * 2),
-                               InformationBound(0.05).update(T, meas, 0.0, 0.0, rd, SEAM), rtol=1e-12)
-    with pytest.raises(ValueError, match=r"sigma2: expected one variance per reading \(2\), got 1"):
-        InformationBound(0.05).update(T, meas, 0.0, 0.0, rd, SEAM, [0.01])
-
-
-def test_bound_inflation_widens_only_the_report_when_the_floor_is_off():
-    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0}
-    cfg = apply_overrides(config_from_dict({}), base)
-    off = run_episode(cfg, 2)
-    on = run_episode(apply_overrides(cfg, {"filter.bound_inflation": 1.0}), 2)
-    np.testing.assert_array_equal(on.estimate, off.estimate)
-    # the bound at the particles' weighing variance (~1.35 sigma² when converged): wider on every axis on average
-    assert np.all(on.spread.mean(axis=0) > off.spread.mean(axis=0))
-    assert np.all(on.spread.mean(axis=0) < 1.5 * off.spread.mean(axis=0))
-
-
-def test_the_bound_takes_the_particles_inflation_only_while_re_acquiring():
-    # (the shrink limit off: it too widens the report after a loss, tested below)
-    base = {"trajectory.steps": 150, "filter.particles": 300, "filter.cloud_floor": 0.0, "filter.bound_inflation": 0.0,
-            "filter.spread_shrink_reacquire": 0.0}
-    start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
-    cfg = apply_overrides(config_from_dict({}), start)
-    on = run_episode(cfg, 0)
-    off = run_episode(apply_overrides(cfg, {"filter.bound_inflation_reacquire": 0.0}), 0)
-    np.testing.assert_array_equal(on.estimate, off.estimate)
-    lost = np.flatnonzero(on.status == "lost")
-    assert lost.size and lost.max() < 20
-    after = slice(lost.max() + 1, 150)  # within bound_reacquire_steps (500) of the loss
-    assert np.all(on.spread[after].mean(axis=0) > off.spread[after].mean(axis=0))
-    # a run that never lost the track is the same with or without it
-    nominal = apply_overrides(config_from_dict({}), base)
-    a = run_episode(nominal, 1)
-    b = run_episode(apply_overrides(nominal, {"filter.bound_inflation_reacquire": 0.0}), 1)
-    assert "lost" not in set(a.status)
-    np.testing.assert_array_equal(a.spread, b.spread)
-
-
-def test_after_a_loss_the_reported_spread_shrinks_at_most_by_the_limit_per_step():
-    base = {"trajectory.steps": 150, "filter.particles": 300}
-    start = {**base, "filter.init_offset_mm": [8.0, 8.0, 8.0], "filter.init_offset_deg": [3.0, 3.0, 3.0]}
-    cfg = apply_overrides(config_from_dict({}), start)
-    assert cfg.filter.spread_shrink_reacquire == 0.97 and cfg.filter.bound_reacquire_steps == 500
-    on = run_episode(cfg, 0)
-    off = run_episode(apply_overrides(cfg, {"filter.spread_shrink_reacquire": 0.0}), 0)
-    np.testing.assert_array_equal(on.estimate, off.estimate)  # the report only: the estimate is the same
-    lost = np.flatnonzero(on.status == "lost")
-    assert lost.size and lost.max() < 20
-    after = np.arange(lost.min() + 1, 150)
-    ratio = on.spread[after] / on.spread[after - 1]
-    assert ratio.min() >= 0.97 - 1e-12
-    assert (off.spread[after] / off.spread[after - 1]).min() < 0.9  # without it a step halved part of the spread
-    assert np.all(on.spread >= off.spread) and np.any(on.spread[after] > off.spread[after])
-    # beyond bound_reacquire_steps after the last loss the limit no longer applies (the report only differs within)
-    window = {"filter.bound_reacquire_steps": 40}
-    short = run_episode(apply_overrides(cfg, window), 0)
-    short_off = run_episode(apply_overrides(cfg, {**window, "filter.spread_shrink_reacquire": 0.0}), 0)
-    late = slice(int(lost.max()) + 41, 150)  # steps 1 .. 40 after the last lost one are within
-    np.testing.assert_array_equal(short.spread[late], short_off.spread[late])
-    assert np.any(short.spread[: late.start] > short_off.spread[: late.start])
-    # a run that never lost the track is the same with or without it
-    nominal = apply_overrides(config_from_dict({}), base)
-    a = run_episode(nominal, 1)
-    b = run_episode(apply_overrides(nominal, {"filter.spread_shrink_reacquire": 0.0}), 1)
-    assert "lost" not in set(a.status)
-    np.testing.assert_array_equal(a.spread, b.spread)
+def test_ekf_pass_finds_an_offset_and_its_likelihood_is_the_prediction_error_decomposition():
+    # a pose 0.3 mm across and 0.5 mm down off the seam, static (identity motion), exact readings each step: the
+    # linearised filter's pose converges on x and z; its NLL is the sum of the innovations' Gaussian terms, here
+    # recomputed step by step with the same P in NumPy
+    n, S = 30, 2
+    T0 = np.eye(4)
+    truth = np.eye(4)
+    truth[:3, 3] = [0.3, 10.0, -0.5]
+    rd = _readings(truth, (20.0, 40.0))
+    laser = np.repeat(np.c_[rd.mx, rd.mz][None], n, axis=0)
+    Ms = np.repeat(np.stack([_mount(20.0), _mount(40.0)])[None], n, axis=0)
+    T0[:3, 3] = [0.0, 10.0, 0.0]
+    U = np.repeat(np.eye(4)[None], n, axis=0)
+    K = np.repeat(T0[None], n, axis=0)
+    St = np.repeat((0.01 * np.eye(3))[None], n, axis=0)
+    Sr = np.repeat((1e-6 * np.eye(3))[None], n, axis=0)
+    Ai = np.repeat(np.eye(3)[None], n, axis=0)
+    r2 = np.full((S, 2), 0.01 ** 2)
+    out_T, out_P = np.empty((n, 4, 4)), np.empty((n, 6))
+    nll = _l.ekf_pass(U, T0, K, St, Sr, Ai, np.full(n, 3.0), np.full(n, math.radians(0.5)), laser, Ms, r2,
+                      np.zeros(6), np.full(n, 0.01), SEAM, np.array([20.0, 40.0]), 1e-3, 1e-5, out_T, out_P)
+    np.testing.assert_allclose(out_T[-1][[0, 2], 3], [0.3, -0.5], atol=1e-3)
+    assert out_P[-1, 0] < out_P[0, 0] and out_P[-1, 1] == pytest.approx(out_P[0, 1])  # y unseen
+    # the same recursion in NumPy: predict (no walk), H and e at the pose, Kalman update, NLL terms
+    P = plateau_covariance(RobotMeasurement(T0, St[0], Sr[0], 3.0, math.radians(0.5)), np.eye(3))
+    T = T0.copy()
+    want = 0.0
+    for _ in range(n):
+        H, e = laser_jacobian(T, Readings(rd.mx, rd.mz, Ms[0], [0, 0], [SEAM.shape[0] - 1] * 2, r2), SEAM)
+        Sm = H @ P @ H.T + np.diag(np.full(H.shape[0], 0.01 ** 2))
+        want += 0.5 * (e @ np.linalg.solve(Sm, e) + np.linalg.slogdet(Sm)[1] + H.shape[0] * math.log(2 * math.pi))
+        G = P @ H.T @ np.linalg.inv(Sm)
+        dx = -G @ e
+        P = P - G @ H @ P
+        out = np.empty((4, 4))
+        _l.exp_right(T, dx, out)
+        T = out
+    assert nll == pytest.approx(want, rel=1e-6)

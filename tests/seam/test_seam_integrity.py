@@ -10,11 +10,16 @@ from scipy.stats import chi2
 from posekit.geometry import matrix_from_rotation_vector, se3_exp, transform_from
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import RobotMeasurement, laser_loglik
-from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
 from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, robot_consistency
 from posekit.seam.engine.seamline import SeamLine
-from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.engine.step import StepInputs
 from posekit.seam.frontend.trajectories import nominal_trajectory
+from tests.seam.helpers import config, make_filter
+
+
+def _mon(window=10, alpha_degraded=1e-3, alpha_lost=1e-7, ess_min=0.002, recovery=0, max_force_n=0.0,
+         window_long=0, n=500):
+    return IntegrityMonitor(n, window, alpha_degraded, alpha_lost, ess_min, recovery, max_force_n, window_long)
 
 
 def test_nis_is_chi2_on_consistent_linear_gaussian_data():
@@ -28,7 +33,7 @@ def test_nis_is_chi2_on_consistent_linear_gaussian_data():
     for _ in range(1500):
         x = rng.standard_normal((400, 2)) @ L.T
         m = rng.standard_normal(2) @ L.T + sigma * rng.standard_normal(2)
-        v, dof = innovation_nis(m - x, np.full(400, 1 / 400), sigma)
+        v, dof = innovation_nis(m - x, np.full(400, 1 / 400), sigma ** 2)
         assert dof == 2
         nis.append(v)
     nis = np.array(nis)
@@ -36,7 +41,7 @@ def test_nis_is_chi2_on_consistent_linear_gaussian_data():
     assert np.mean(nis > chi2.isf(0.01, 2)) == pytest.approx(0.01, abs=0.01)
     # a reading 1 mm off (20 sigma of the predictive spread): far in the tail
     x = rng.standard_normal((400, 2)) @ L.T
-    assert innovation_nis(np.array([1.0, 0.0]) - x, np.full(400, 1 / 400), sigma)[0] > 15
+    assert innovation_nis(np.array([1.0, 0.0]) - x, np.full(400, 1 / 400), sigma ** 2)[0] > 15
 
 
 def test_nis_weights_misses_and_no_readings():
@@ -45,9 +50,12 @@ def test_nis_weights_misses_and_no_readings():
     # the miss is dropped, weights renormalised to 2/3, 1/3: mean 0.1667, var (2/3·1/3·0.2²) + σ²
     mean = 0.5 / 3
     var = (2 / 3) * (0.1 - mean) ** 2 + (1 / 3) * (0.3 - mean) ** 2 + 0.05 ** 2
-    assert innovation_nis(e, w, 0.05)[0] == pytest.approx(mean ** 2 / var, rel=1e-12)
-    assert innovation_nis(np.full((3, 2), np.nan), w, 0.05) == (np.inf, 2)
-    assert innovation_nis(np.empty((3, 0)), w, 0.05) == (0.0, 0)
+    assert innovation_nis(e, w, 0.05 ** 2)[0] == pytest.approx(mean ** 2 / var, rel=1e-12)
+    assert innovation_nis(np.full((3, 2), np.nan), w, 0.05 ** 2) == (0.0, 0)  # beyond the seam model: no test
+    # a second reading only a particle of weight 1e-4 places on the seam: the cloud cannot explain both
+    e2 = np.c_[[[0.1, 0.0], [0.2, 0.0], [0.3, 0.0]], [[np.nan, np.nan], [0.1, 0.0], [np.nan, np.nan]]]
+    assert innovation_nis(e2, np.array([0.5, 1e-4, 0.4999]), 0.05 ** 2) == (np.inf, 4)
+    assert innovation_nis(np.empty((3, 0)), w, 0.05 ** 2) == (0.0, 0)
 
 
 def _meas(d_t=2.0, d_r=0.01, s_t=0.3, s_r=1e-3):
@@ -68,7 +76,7 @@ def test_robot_consistency_is_the_distance_outside_the_plateau():
 
 
 def test_monitor_levels_window_and_reasons():
-    mon = IntegrityMonitor(500, window=5, alpha_degraded=1e-3, alpha_lost=1e-7, ess_min=0.01)
+    mon = _mon(window=5, ess_min=0.01)
     q_deg, q_lost = chi2.isf(1e-3, 10), chi2.isf(1e-7, 10)
     for _ in range(5):
         r = mon.update(2.0, 2, 0.0, 0.0, 400.0)
@@ -94,7 +102,7 @@ def test_monitor_levels_window_and_reasons():
 
 
 def test_monitor_holds_degraded_while_re_acquiring_after_lost():
-    mon = IntegrityMonitor(500, window=3, recovery=4)
+    mon = _mon(window=3, recovery=4)
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0).status == "tracking"  # never lost: no hold
     assert mon.update(2.0, 2, 0.0, chi2.isf(1e-9, 3), 400.0).status == "lost"
     got = [mon.update(2.0, 2, 0.0, 0.0, 400.0) for _ in range(6)]
@@ -105,25 +113,41 @@ def test_monitor_holds_degraded_while_re_acquiring_after_lost():
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0).status == "degraded"
     mon.reset()
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0).status == "tracking"
-    # recovery 0 (the monitor's default): tracking right after
-    mon = IntegrityMonitor(500, window=3)
+    # recovery 0: tracking right after
+    mon = _mon(window=3)
     mon.update(2.0, 2, 0.0, np.nan, 400.0)
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0).status == "tracking"
 
 
 def test_monitor_a_force_beyond_the_plateau_s_measured_range_is_degraded_but_not_for_the_walk():
-    mon = IntegrityMonitor(500, window=3, max_force_n=12000.0)
+    mon = _mon(window=3, max_force_n=12000.0)
     r = mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=11999.0)
     assert r.status == "tracking" and r.tests_status == "tracking"
     r = mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=24900.0)
     assert r.status == "degraded" and r.tests_status == "tracking"
-    assert r.reason == "force 24.9 kN beyond the 12 kN the robot plateau was measured at (filter.plateau_max_force_n)"
+    assert r.reason == "force 24.9 kN beyond the 12 kN the robot plateau was fitted at (profile plateau.max_force_n)"
     assert mon.update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=np.nan).status == "degraded"  # an unreadable force
     # a failed test keeps its own level and both reasons are given
     r = mon.update(2.0, 2, 0.0, chi2.isf(1e-9, 3), 400.0, force_norm_n=24900.0)
-    assert r.status == "lost" and r.tests_status == "lost" and r.reason.endswith("(filter.plateau_max_force_n)")
+    assert r.status == "lost" and r.tests_status == "lost" and r.reason.endswith("(profile plateau.max_force_n)")
     # 0: no limit
-    assert IntegrityMonitor(500, window=3).update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=1e6).status == "tracking"
+    assert _mon(window=3).update(2.0, 2, 0.0, 0.0, 400.0, force_norm_n=1e6).status == "tracking"
+
+
+def test_a_small_inconsistency_that_persists_is_degraded_by_the_long_window_without_widening_the_walk():
+    # NIS per dof 1.3 on every step: no 10-step window fails (chi2(40) at 1e-3 is 73.4 > 52), the 300-step one does
+    # (chi2(1200) at 1e-3 is ~1352 < 1560 at the end); the walk reacts to the short tests only
+    mon, short = _mon(window=10, window_long=300), _mon(window=10)
+    got = [mon.update(1.3 * 4, 4, 0.0, 0.0, 400.0) for _ in range(300)]
+    assert all(short.update(1.3 * 4, 4, 0.0, 0.0, 400.0).status == "tracking" for _ in range(300))
+    first = next(i for i, r in enumerate(got) if r.status == "degraded")
+    q = [chi2.isf(1e-3, 4 * (k + 1)) for k in range(300)]
+    assert first == next(k for k in range(300) if 1.3 * 4 * (k + 1) > q[k] and k + 1 > 10)
+    assert all(r.status == "degraded" for r in got[first:]) and all(r.tests_status == "tracking" for r in got)
+    assert got[-1].reason == f"laser NIS {1.3 * 1200:.4g} > {q[-1]:.4g} over the last 300 steps (dof 1200)"
+    # consistent data (NIS per dof 1) never trip it: the long window forgets what left it
+    assert all(mon.update(4.0, 4, 0.0, 0.0, 400.0).status in ("tracking", "degraded") for _ in range(300))
+    assert mon.update(4.0, 4, 0.0, 0.0, 400.0).status == "tracking"
 
 
 def _numpy_plane_errors(T, m, M, P):
@@ -169,18 +193,20 @@ def test_laser_error_kernel_any_mount_matches_numpy():
 STEPS = 80
 
 
-def _episode(offset, seed=0, **filter_kw):
+def _episode(offset, seed=0, d0_mm=2.0):
     """An independent generator: the truth at a constant offset (tool frame) from the nominal line,
     exact lasers plus N(0, 0.05 mm) noise, joints = the program (kinematic pose = nominal), no force."""
-    f = {"particles": 300, "d0_mm": 2.0, "d0_deg": 0.5, "laser_sigma_mm": 0.05, **filter_kw}
-    cfg = config_from_dict({"trajectory": {"kind": "line", "steps": STEPS},
-                            "sensors": {"count": 2, "distances_mm": [20.0, 100.0]}, "filter": f})
-    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+    over = {"filter.particles": 300, "profile.plateau.d0_mm": d0_mm, "profile.plateau.d0_deg": 0.5,
+            "profile.plateau.tail_mm": 0.3, "profile.plateau.tail_deg": 0.05,
+            "profile.sensors": [{"latency_s": 0.0, "sigma_mm": 0.05, "angle_sigma_deg": 0.2}]}
+    cfg = config({"trajectory": {"kind": "line", "steps": STEPS},
+                  "cell": {"sensors": {"count": 2, "distances_mm": [20.0, 100.0]}}}, **over)
+    nt = nominal_trajectory(cfg.trajectory, cfg.cell.robot)
     Tn = nt.T_nominal
     truth = Tn @ se3_exp(np.asarray(offset, float))
     seam = SeamLine(nt.seam)
     rng = np.random.default_rng(seed)
-    pf = SeamParticleFilter(cfg, nt.seam, seed, T_init=Tn[0])
+    pf = make_filter(cfg, nt.seam, seed, T_init=Tn[0])
     out = []
     for k in range(STEPS):
         laser = np.full((2, 2), np.nan)
@@ -192,7 +218,7 @@ def _episode(offset, seed=0, **filter_kw):
                 e = hit.point[0] - o
                 laser[i] = [e @ R[:, 0], e @ R[:, 2]] + 0.05 * rng.standard_normal(2)
         inc = np.eye(4) if k == 0 else Tn[k] @ np.linalg.inv(Tn[k - 1])
-        out.append(pf.step(StepInputs(inc, Tn[k], nt.q[k], np.zeros(3), laser)))
+        out.append(pf.step(StepInputs(inc, Tn[k], nt.q[k], np.zeros(3), float(nt.t_s[k]), nt.q[k], laser)))
     return out
 
 
@@ -212,7 +238,7 @@ def test_status_not_tracking_when_the_robot_bends_beyond_its_plateau():
 
 
 def test_one_failed_step_does_not_condemn_the_window():
-    mon = IntegrityMonitor(500, window=10)
+    mon = _mon(window=10)
     r = mon.update(2.0e4, 4, 0.0, 0.0, 400.0)  # a wrong prior, corrected by the update
     assert r.status == "lost" and r.reason == f"laser NIS 2e+04 > {chi2.isf(1e-7, 4):.4g} at this step (dof 4)"
     assert mon.update(4.0, 4, 0.0, 0.0, 400.0).status == "tracking"

@@ -121,17 +121,17 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
 
     from posekit.cli.main import main
     from posekit.seam.frontend.config import config_from_dict
-    from posekit.seam.frontend.study import seam_study, write_study
+    from posekit.seam.frontend.study import seam_study, study_base, write_study
     from tests.seam.test_seam_plots import png_size
 
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump(TINY))
     serial = tmp_path / "serial"
     assert main(["seam", "study", "--config", str(cfg), "--runs", "6", "--seed", "11", "--scheduler", "serial",
-                 "--parameters", "filter.sigma_t_mm,filter.laser_sigma_mm=0.05:0.5", "--out", str(serial)]) == 0
+                 "--parameters", "profile.walk.z_mm,profile.plateau.d0_mm=1:4", "--out", str(serial)]) == 0
     out = capsys.readouterr().out
-    factors = make_factors(config_from_dict(TINY).model_dump(mode="json"), ["filter.sigma_t_mm"],
-                           ranges={"filter.laser_sigma_mm": (0.05, 0.5)})
+    factors = make_factors(study_base(config_from_dict(TINY)), ["profile.walk.z_mm"],
+                           ranges={"profile.plateau.d0_mm": (1.0, 4.0)})
     address = tmp_path / "address"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
                       dashboard_address=":0") as cluster, Client(cluster, set_as_default=False) as client:
@@ -140,23 +140,23 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
         assert cluster.scheduler_address.startswith("tcp://")
         assert main(["seam", "study", "--config", str(cfg), "--runs", "6", "--seed", "11",
                      "--scheduler", cluster.scheduler_address,
-                     "--parameters", "filter.sigma_t_mm,filter.laser_sigma_mm=0.05:0.5", "--out", str(address)]) == 0
+                     "--parameters", "profile.walk.z_mm,profile.plateau.d0_mm=1:4", "--out", str(address)]) == 0
     dask = tmp_path / "dask"
     write_study(study, dask)
     for f in ("runs.csv", "parameters_ranked.csv"):
         assert _read(serial / f) == _read(dask / f), f
         assert _read(serial / f) == _read(address / f), f
     runs = _read(serial / "runs.csv")
-    assert runs[0] == ["run", "status", *ERROR_NAMES, "error", "filter.sigma_t_mm", "filter.laser_sigma_mm"]
+    assert runs[0] == ["run", "status", *ERROR_NAMES, "error", "profile.walk.z_mm", "profile.plateau.d0_mm"]
     assert len(runs) == 7 and all(r[1] == "ok" for r in runs[1:])
     values = np.array([[float(v) for v in r[-2:]] for r in runs[1:]])
-    s0 = config_from_dict(TINY).filter.sigma_t_mm                      # the default sigma_t_mm ± 50 %
+    s0 = config_from_dict(TINY).profile.walk.z_mm.value                      # the profile's walk z ± 50 %
     assert np.all((values[:, 0] >= 0.5 * s0 - 1e-12) & (values[:, 0] <= 1.5 * s0 + 1e-12))
-    assert np.all((values[:, 1] >= 0.05) & (values[:, 1] <= 0.5))
+    assert np.all((values[:, 1] >= 1.0) & (values[:, 1] <= 4.0))
     assert len(np.unique(values[:, 0])) == 6
     ranked = _read(serial / "parameters_ranked.csv")
     assert ranked[0] == list(RANKED_COLUMNS)
-    assert sorted(r[1] for r in ranked[1:]) == ["filter.laser_sigma_mm", "filter.sigma_t_mm"]
+    assert sorted(r[1] for r in ranked[1:]) == ["profile.plateau.d0_mm", "profile.walk.z_mm"]
     assert png_size(serial / "fig6_pvalues.png") == (600, 580)
     assert (serial / "report.html").read_text().count("data:image/png;base64,") == 1
     assert "seam study: 6 runs × 1 episode(s), 2 parameters, 0 failed" in out
@@ -183,7 +183,7 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump(TINY))
     rc = main(["seam", "study", "--config", str(cfg), "--runs", "5", "--scheduler", "serial",
-               "--parameters", "filter.sigma_t_mm", "--out", str(tmp_path / "out")])
+               "--parameters", "profile.walk.z_mm", "--out", str(tmp_path / "out")])
     out, err = capsys.readouterr()
     assert rc == 1
     assert err == "posekit: error: 1 of 5 study runs failed; their rows in runs.csv say why\n"
@@ -194,7 +194,7 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     assert runs[2][head.index("error")] == "ZeroDivisionError: float division by zero"
     assert runs[2][head.index("rmse_x_mm")] == "nan" and runs[1][head.index("rmse_x_mm")] != "nan"
     ranked = _read(tmp_path / "out" / "parameters_ranked.csv")
-    assert [r[1] for r in ranked[1:]] == ["filter.sigma_t_mm"]      # the OLS used the 4 good runs
+    assert [r[1] for r in ranked[1:]] == ["profile.walk.z_mm"]      # the OLS used the 4 good runs
 
 
 def test_integer_parameters_take_whole_values():

@@ -33,10 +33,13 @@ def test_save_log_writes_the_four_files(simulated):
 def test_track_reproduces_simulate_and_reports_status(simulated, capsys):
     rc, out, err = run_cli(capsys, "seam", "track", simulated / "log", "--out", simulated / "tr")
     assert rc == 0, err
-    assert "status: tracking" in out
     m = json.loads((simulated / "tr" / "metrics.json").read_text())
     sim = json.loads((simulated / "sim" / "metrics.json").read_text())
     assert sum(m["status_counts"].values()) == 80
+    assert {k: v for k, v in sim["status_counts"].items() if v} == {k: v for k, v in m["status_counts"].items() if v}
+    assert m["status_counts"]["tracking"] >= 60
+    line = next(x for x in out.splitlines() if x.startswith("status: "))
+    assert sorted(line[len("status: "):].split(", ")) == sorted(f"{k} {v}" for k, v in m["status_counts"].items() if v)
     assert sorted(p.name for p in (simulated / "tr").iterdir()) == [".posekit-run.json", "errors_time.png", "ess.png",
                                                                     "estimates.csv", "metrics.json"]
     for a in ("x", "y", "z"):
@@ -77,7 +80,7 @@ def test_track_warns_when_the_truth_leaves_the_filter_plateau(simulated, tmp_pat
 
     shutil.copytree(simulated / "log", tmp_path / "log")
     setup = yaml.safe_load((tmp_path / "log" / "setup.yaml").read_text())
-    setup["filter"].update({"d0_mm": 0.2, "kd_mm_per_n": 3e-5})
+    setup["profile"] = {"plateau": {"d0_mm": 0.2, "kd_mm_per_n": 3e-5}}
     (tmp_path / "log" / "setup.yaml").write_text(yaml.safe_dump(setup))
     rc, out, err = run_cli(capsys, "seam", "track", tmp_path / "log", "--out", tmp_path / "tr")
     assert rc == 0
@@ -85,7 +88,8 @@ def test_track_warns_when_the_truth_leaves_the_filter_plateau(simulated, tmp_pat
     assert m["outside_plateau_steps"] > 0.5 and m["plateau_ratio_max"] > 2.0
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("warning: the true pose left the filter's robot plateau at ")
-    assert lines[0].endswith("(paper eq. 7)")
+    assert lines[0].endswith("fit the profile's plateau on episodes of this robot (posekit seam tune --with-truth; "
+                             "paper eq. 7)")
 
 
 def test_track_bad_log_is_one_line(simulated, tmp_path, capsys):

@@ -34,8 +34,8 @@ def _reading(T, dist, rng):
 def _track(corrupt: bool):
     rng = np.random.default_rng(0)
     cfg = config_from_dict({"trajectory": {"kind": "line", "steps": 300}, "filter": {"particles": 300},
-                            "sensors": {"distances_mm": [20, 40]}})
-    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+                            "cell": {"sensors": {"distances_mm": [20, 40]}}})
+    nt = nominal_trajectory(cfg.trajectory, cfg.cell.robot)
     T_kin = nt.chain.forward_kinematics(nt.q)
     T_true = T_kin @ se3_exp(np.array([0.8, 0.3, -0.5, 0.003, -0.002, 0.004]))
     seam = P0 + np.outer(np.linspace(0.0, 300.0, 601), D)

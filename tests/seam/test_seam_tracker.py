@@ -12,7 +12,7 @@ import yaml
 from posekit.errors import ConfigError
 from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam.frontend.config import config_from_dict, load_config
-from posekit.seam.frontend.log import read_episode_log, write_episode_log
+from posekit.seam.frontend.logs import read_episode_log, write_episode_log
 from posekit.seam.frontend.simulate import simulate_data
 from posekit.seam.frontend.tracker import SeamTracker, track_log, track_metrics
 
@@ -38,7 +38,13 @@ def test_online_steps_equal_the_recorded_run(tmp_path):
         assert np.allclose(est.T_base_tool, offline.estimate[k], atol=1e-9)
         assert est.status in ("tracking", "degraded", "lost")
         assert est.spread.shape == (6,)
+        v = est.verdict                          # the core verdict type: the status, its reason, the 1σ with units
+        assert v.status == est.status and v.reason == (est.raw.reason or "") and v.is_ok == (est.status == "tracking")
+        assert list(v.std) == ["x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg"]
+        np.testing.assert_allclose(list(v.std.values()), np.r_[est.spread[:3], np.degrees(est.spread[3:])])
     assert tracker.steps == 40
+    counts = track_metrics(offline)["status_counts"]       # posekit.verdict.status_counts: present words, any order
+    assert counts == {w: list(offline.status).count(w) for w in set(offline.status)}
 
 
 def test_urdf_robot_with_4x4_tool_and_mounts_tracks(tmp_path):
@@ -48,12 +54,14 @@ def test_urdf_robot_with_4x4_tool_and_mounts_tracks(tmp_path):
     (folder / "robots").mkdir(parents=True)
     shutil.copy(EXAMPLES / "robots" / "ur10.urdf", folder / "robots" / "arm.urdf")
     raw = yaml.safe_load((EXAMPLES / "seam" / "ur10-urdf.yaml").read_text())
-    raw["robot"]["urdf"] = "robots/arm.urdf"
+    raw["cell"]["robot"]["urdf"] = "robots/arm.urdf"
+    raw["profile"] = str(EXAMPLES / "seam" / "ur10-profile.yaml")
     tool = np.eye(4)
     tool[:3, :3] = matrix_from_rotation_vector(np.array([math.radians(10.0), 0.0, 0.0]))
     tool[:3, 3] = [0.0, 20.0, 140.0]
-    raw["robot"]["tool"] = tool.tolist()
-    raw["sensors"] = {"count": 2, "mounts": [_mount(0.0, [2.0, 25.0, -5.0]), _mount(-10.0, [0.0, 45.0, 0.0])]}
+    raw["cell"]["robot"]["tool"] = tool.tolist()
+    raw["cell"]["sensors"] = {"count": 2, "mounts": [_mount(0.0, [2.0, 25.0, -5.0]),
+                                                     _mount(-10.0, [0.0, 45.0, 0.0])]}
     raw["trajectory"].update({"steps": 80})
     raw["filter"] = {"particles": 150}
     (folder / "cfg.yaml").write_text(yaml.safe_dump(raw))
@@ -65,9 +73,9 @@ def test_urdf_robot_with_4x4_tool_and_mounts_tracks(tmp_path):
     setup = yaml.safe_load((log_dir / "setup.yaml").read_text())
     setup["robot"]["urdf"] = "../robots/arm.urdf"          # a cell's log names its URDF relatively
     (log_dir / "setup.yaml").write_text(yaml.safe_dump(setup))
-    log = read_episode_log(log_dir)
-    assert log.config.robot.urdf == str((folder / "robots" / "arm.urdf").resolve())
-    assert np.allclose(log.config.robot.tool_matrix(), tool)
+    log = read_episode_log(log_dir, profile=EXAMPLES / "seam" / "ur10-profile.yaml")
+    assert log.config.cell.robot.urdf == str((folder / "robots" / "arm.urdf").resolve())
+    assert np.allclose(log.config.cell.robot.tool_matrix(), tool)
     m = track_metrics(track_log(log))
     # the lasers pin the height (z) and, less well with turned planes, the side (x); see
     # test_seam_log.py for the cost of a wrong mount
@@ -79,8 +87,8 @@ def test_wrench_torque_enters_the_compliance_model():
     """With a joint compliance model the torque of a 6-D wrench deflects the kinematic pose by
     ``Δq = c J_ωᵀ m`` (computed here from the chain's Jacobian), beside ``c J_vᵀ f``."""
     c = 2e-5
-    cfg = config_from_dict({"trajectory": {"steps": 10}, "filter": {"particles": 50, "compliance_rad_per_nm": c},
-                            "sensors": {"count": 0}})
+    cfg = config_from_dict({"trajectory": {"steps": 10}, "filter": {"particles": 50},
+                            "cell": {"compliance_rad_per_nm": c, "sensors": {"count": 0}}})
     data = simulate_data(cfg, 1)
     nt = data.nominal
     chain = nt.chain

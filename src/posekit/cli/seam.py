@@ -1,4 +1,4 @@
-"""``posekit seam simulate|study|demo|track|design``."""
+"""``posekit seam simulate|study|demo|track|tune|design``."""
 
 __all__ = ["add_parser"]
 
@@ -15,5 +15,7 @@ def add_parser(sub):
     add_demo_parser(verbs)
     from .seam_design import add_design_parser
     from .seam_track import add_track_parser
+    from .seam_tune import add_tune_parser
     add_track_parser(verbs)
+    add_tune_parser(verbs)
     add_design_parser(verbs)

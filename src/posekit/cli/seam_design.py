@@ -51,6 +51,8 @@ def add_design_parser(verbs):
     p.add_argument("--config", default=None, help="YAML configuration of the cell and seam (default: the paper's)")
     from .seam_simulate import _PARTICLES, _STEPS, MAX_PARTICLES, MAX_STEPS, TRAJECTORIES
 
+    p.add_argument("--profile", default=None, metavar="PROFILE.yaml",
+                   help="the filter's fitted profile (posekit seam tune; overrides the configuration's)")
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None, help="overrides trajectory.kind")
     p.add_argument("--sensors", default="0,1,2", help="sensor counts to try, comma-separated, each 0..4 "
                                                        "(default 0,1,2)")
@@ -75,14 +77,17 @@ def add_design_parser(verbs):
 def run_design(args) -> int:
     from ..seam.frontend.config import apply_overrides, config_from_dict, load_config
     from ..seam.frontend.design import design_configurations, distance_grid, sensor_design, write_design
+    from .seam_simulate import layout_notes, with_profile
 
     check_dask_args(args)
     check_flags(args)
     _check_scheduler(args.scheduler)
     counts = parse_counts(args.sensors)
     grid = distance_grid(args.distances_mm)
-    cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
-    cfg = apply_overrides(cfg, {"trajectory.kind": args.trajectory, "filter.particles": args.particles,
+    with layout_notes():
+        cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
+    cfg = apply_overrides(with_profile(cfg, args.profile), {"trajectory.kind": args.trajectory,
+                                                            "filter.particles": args.particles,
                                 "trajectory.steps": args.steps})
     n = len(design_configurations(counts, grid, args.angle))
     if n * args.runs > MAX_DESIGN_EPISODES:

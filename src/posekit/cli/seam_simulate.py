@@ -65,6 +65,8 @@ def rmse_table(rows, decimals: int = 3) -> str:
 
 def _episode_flags(p):
     p.add_argument("--config", default=None, help="YAML configuration (every parameter; see examples/seam/)")
+    p.add_argument("--profile", default=None, metavar="PROFILE.yaml",
+                   help="the filter's fitted profile (posekit seam tune; overrides the configuration's)")
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="seam/trajectory kind (overrides trajectory.kind)")
     p.add_argument("--sensors", type=int, choices=(0, 1, 2, 3, 4), default=None,
@@ -119,7 +121,9 @@ def build_config(args):
     from ..seam.frontend.compare import with_sensors
     from ..seam.frontend.config import apply_overrides, config_from_dict, load_config
 
-    cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
+    with layout_notes():
+        cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
+    cfg = with_profile(cfg, getattr(args, "profile", None))
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
                              ("--seed", args.seed, 0)):
         if value is not None and value < low:
@@ -130,6 +134,47 @@ def build_config(args):
     if args.sensors is not None:
         cfg = with_sensors(cfg, args.sensors)
     return cfg
+
+
+def with_profile(cfg, path):
+    """``cfg`` with the profile file ``path`` (``--profile``) in place of its own; unchanged for None."""
+    if path is None:
+        return cfg
+    from ..seam.frontend.config import config_from_dict
+    from ..seam.frontend.profile import load_profile
+
+    data = _config_data(cfg)
+    data["profile"] = load_profile(path).model_dump(mode="python", exclude_none=True)
+    return config_from_dict(data, "--profile")
+
+
+class layout_notes:
+    """A context: the configuration layout notes (:class:`~posekit.seam.frontend.config.LayoutNote`) raised inside
+    are printed as one ``note: ...`` line each on stderr."""
+
+    def __enter__(self):
+        import warnings
+
+        self._ctx = warnings.catch_warnings(record=True)
+        self._rec = self._ctx.__enter__()
+        warnings.simplefilter("always")
+        return self
+
+    def __exit__(self, *exc):
+        from ..seam.frontend.config import LayoutNote
+
+        self._ctx.__exit__(*exc)
+        for w in self._rec:
+            if issubclass(w.category, LayoutNote):
+                print(f"note: {w.message}", file=sys.stderr)
+        return False
+
+
+def _config_data(cfg) -> dict:
+    """A configuration as the mapping that validates back into it (the profile whole, with its values)."""
+    data = cfg.model_dump(mode="python")
+    data["profile"] = cfg.profile.model_dump(mode="python", exclude_none=True)
+    return data
 
 
 def _check_runs(runs):
@@ -200,13 +245,13 @@ def run_simulate(args) -> int:
         paths = write_simulation(tmp, results, m, dump_config(cfg), comparison=comparison)
     if args.save_log:
         from ..io import staged_folder
-        from ..seam.frontend.log import write_episode_log
+        from ..seam.frontend.logs import write_episode_log
         from ..seam.frontend.simulate import simulate_data
 
         seed0 = results[0].seed
         with staged_folder(args.save_log, flag="--save-log", **_save_log_rules(args)) as tmp:
             write_episode_log(tmp, cfg, simulate_data(cfg, seed0), seed0)
-    count = cfg.sensors.count
+    count = cfg.cell.sensors.count
     label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"
     rows = [(label, _rmse_values(m))]
     if comparison:
@@ -232,8 +277,8 @@ def plateau_warning(who: str, where: str, peak) -> None:
     """One stderr line: ``who`` left the filter's robot plateau ``where``, up to ``peak`` (None: inf) radii."""
     size = "inf" if peak is None else f"{peak:.2f}"
     print(f"warning: {who} left the filter's robot plateau {where} (up to {size} times its radius): the filter's "
-          "model does not describe this robot and its spread cannot be trusted; set filter.d0_mm, kd_mm_per_n, "
-          "d0_deg and kd_deg_per_n to the robot's largest positioning error (paper eq. 7)", file=sys.stderr)
+          "model does not describe this robot and its spread cannot be trusted; fit the profile's plateau on "
+          "episodes of this robot (posekit seam tune --with-truth; paper eq. 7)", file=sys.stderr)
 
 
 def _status_text(counts: dict, long: bool = False) -> str:

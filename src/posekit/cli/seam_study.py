@@ -24,7 +24,7 @@ def add_study_parser(verbs):
 
     p.add_argument("--trajectory", choices=TRAJECTORIES, default=None,
                    help="overrides trajectory.kind")
-    p.add_argument("--sensors", type=int, choices=(0, 1, 2, 3, 4), default=None, help="overrides sensors.count, 0..4")
+    p.add_argument("--sensors", type=int, choices=(0, 1, 2, 3, 4), default=None, help="overrides cell.sensors.count, 0..4")
     from .seam_simulate import _PARTICLES, _STEPS, MAX_PARTICLES, MAX_STEPS
 
     p.add_argument("--particles", type=_PARTICLES, default=None,
@@ -37,7 +37,7 @@ def add_study_parser(verbs):
                         f"{MAX_STUDY_EPISODES:,} (default 1)")
     p.add_argument("--parameters", default=None,
                    help="comma-separated dotted keys to perturb, each optionally KEY=LOW:HIGH "
-                        "(default: the filter's noise, force, plateau and initial widths, ESS threshold)")
+                        "(default: the profile's walk and plateau, the filter's kernel bandwidth and ESS threshold)")
     p.add_argument("--spread", type=bounded_float(0.0, 1.0, lo_open=True, hi_open=True), default=0.5,
                    help="relative half-range of a perturbation around the base value, (0, 1) (default 0.5)")
     p.add_argument("--seed", type=seed, default=0, help="study seed (default 0; same seed, same table)")
@@ -49,7 +49,7 @@ def add_study_parser(verbs):
 
 
 def parse_factors(text: str | None):
-    """``'filter.d0_mm,filter.k_force_t=0:1e-5'`` -> (names, {name: (low, high)})."""
+    """``'profile.plateau.d0_mm,profile.walk.z_mm=0:0.1'`` -> (names, {name: (low, high)})."""
     if text is None:
         return None, {}
     names, ranges = [], {}
@@ -73,7 +73,7 @@ def parse_factors(text: str | None):
 
 def run_study(args) -> int:
     from ..seam.frontend.report import ERROR_AXES
-    from ..seam.frontend.study import make_factors, seam_study, write_study
+    from ..seam.frontend.study import make_factors, seam_study, study_base, write_study
     from ._common import out_folder, staged
     from .seam_simulate import build_config
 
@@ -87,7 +87,7 @@ def run_study(args) -> int:
         raise ConfigError(f"--runs {args.runs} × --episodes {args.episodes} = {args.runs * args.episodes:,} episodes; "
                           f"expected at most {MAX_STUDY_EPISODES:,} (about a day on 2 cores)")
     names, ranges = parse_factors(args.parameters)
-    factors = make_factors(cfg.model_dump(mode="json"), names, spread=args.spread, ranges=ranges)
+    factors = make_factors(study_base(cfg), names, spread=args.spread, ranges=ranges)
     out_folder(args)
     study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
                        scheduler=local_scheduler(args), n_workers=args.workers)

@@ -15,6 +15,8 @@ def add_track_parser(verbs):
     p = verbs.add_parser("track", help="run the filter on a recorded episode (setup.yaml, seam.csv, log.csv[, "
                                        "truth.csv]): estimates.csv with status and spreads, metrics.json")
     p.add_argument("logdir", metavar="LOGDIR", help="the recorded episode's folder")
+    p.add_argument("--profile", default=None, metavar="PROFILE.yaml",
+                   help="the cell's fitted profile (posekit seam tune; default: the setup's, else the shipped one)")
     p.add_argument("--jsonl", default=None, metavar="FILE|-",
                    help="also write one JSON object per step as it is produced (t_mm, q_wxyz, status, std_mm, "
                         "std_deg, ...); '-' for stdout")
@@ -25,12 +27,15 @@ def add_track_parser(verbs):
 
 
 def run_track(args) -> int:
-    from ..seam.frontend.log import read_episode_log
+    from ..seam.frontend.logs import read_episode_log
     from ..seam.frontend.tracker import step_record, track_log, write_track
 
     check_flags(args)
     out_folder(args)
-    log = read_episode_log(args.logdir)
+    from .seam_simulate import layout_notes
+
+    with layout_notes():
+        log = read_episode_log(args.logdir, profile=args.profile)
     stream = None
     if args.jsonl == "-":
         stream = sys.stdout
@@ -57,7 +62,7 @@ def run_track(args) -> int:
         m = write_track(tmp, result)
     s = len(log.setup.sensors)
     print(f"seam track: {m['steps']} steps ({m['interpolated_steps']} with interpolated joints), "
-          f"{log.config.robot.label}, {s} sensor{'s' if s != 1 else ''}, {log.config.filter.particles} particles; "
+          f"{log.config.cell.robot.label}, {s} sensor{'s' if s != 1 else ''}, {log.config.filter.particles} particles; "
           f"filter step median {m['step_ms_median']:.3f} ms, p99 {m['step_ms_p99']:.3f} ms")
     counts = m["status_counts"]
     print("status: " + (", ".join(f"{k} {v}" for k, v in counts.items()) if counts else "none reported"))
@@ -73,4 +78,6 @@ def run_track(args) -> int:
                         m["plateau_ratio_max"])
     print(f"wrote {args.out}: estimates.csv, metrics.json, ess.png" + (", errors_time.png" if "rmse_mm" in m else ""))
     sys.stdout.flush()
-    return 0
+    from ..verdict import track_exit_code
+
+    return track_exit_code(read_whole=True)  # read_episode_log read every row (it raises otherwise)

@@ -1,21 +1,26 @@
 """Particle-filter 6-DoF tool pose relative to a weld seam from 2D laser seam trackers.
 
-Engine: configuration (:mod:`.config`), particle-set primitives on SE(3) (:mod:`.particles`),
-the densities of the paper's §II-C (:mod:`.densities`), l1 trend filtering of the nominal
-path (:mod:`.trend`), the laser-plane/seam intersection (:mod:`.seamline`), the particle
-filter (:mod:`.filter`), seams and robot programs (:mod:`.trajectories`) and simulated
-episodes with their metrics (:mod:`.simulate`). Front end: figures (:mod:`.plots`),
-report files (:mod:`.report`), sensor-configuration comparisons (:mod:`.compare`) and the
-Monte-Carlo tuning study (:mod:`.study`), recorded episodes (:mod:`.log`), the online tracker
-(:mod:`.tracker`: :class:`SeamTracker`, ``posekit seam track``) and the sensor-placement design
-(:mod:`.design`, ``posekit seam design``).
+Model (:mod:`.model`): the cell as the filter sees it — :class:`Cell` (robot with tool, sensors with
+their latency, compliance model) and :class:`Profile` (the fitted walk, jitter, plateau, noise, latency).
+Engine (:mod:`.engine`, imports no front end): particle-set primitives on SE(3) (``particles``), the
+densities of the paper's §II-C (``densities``), l1 trend filtering of the nominal path (``trend``), the
+laser-plane/seam intersection (``seamline``), the particle filter (``filter``), its integrity tests
+(``integrity``), the spread the data support (``spread_bound``) and the linearised filter whose
+likelihood the tuner maximises (``ekf``). Front end (:mod:`.frontend`): configuration (``config``), the
+profile file (``profile``), the tuner (``tune``, ``posekit seam tune``), seams and robot programs
+(``trajectories``), simulated episodes and their metrics (``simulate``), recorded episodes (``logs``),
+the online tracker (``tracker``: :class:`SeamTracker`, ``posekit seam track``), the sensor-placement
+design (``design``), comparisons (``compare``), the Monte-Carlo study (``study``), figures (``plots``)
+and report files (``report``).
 
 Frames and units: mm and rad inside; ``T_base_tool`` poses of the TCP in the robot base frame;
 the tool's y axis points along the travel, z along the tool axis; errors are reported in the
 nominal seam frame (translation mm, rotation deg).
 """
 
-# --- engine ------------------------------------------------------------------------------
+# figures import matplotlib lazily, inside the functions
+from posekit.report import html_figure, write_csv, write_html, write_json  # the core's, listed here as before
+
 from .engine.densities import (
     RobotMeasurement,
     angle_loglik,
@@ -27,7 +32,7 @@ from .engine.densities import (
     robot_measurement,
     transition,
 )
-from .engine.filter import SeamParticleFilter, StepEstimate, StepInputs
+from .engine.filter import SeamParticleFilter
 from .engine.particles import (
     RESAMPLERS,
     effective_sample_size,
@@ -39,101 +44,8 @@ from .engine.particles import (
     weighted_mean_se3,
 )
 from .engine.seamline import Intersection, SeamLine
+from .engine.step import FilterSettings, StepEstimate, StepInputs
 from .engine.trend import TrendResult, trend_filter
-from .frontend.config import (
-    RESAMPLER_NAMES,
-    TRAJECTORY_KINDS,
-    FilterConfig,
-    ProcessConfig,
-    RobotConfig,
-    SeamConfig,
-    SensorsConfig,
-    TrajectoryConfig,
-    apply_overrides,
-    config_from_dict,
-    dump_config,
-    load_config,
-)
-from .frontend.simulate import (
-    AXES,
-    EpisodeResult,
-    SimulatedData,
-    measurement_hypotheses,
-    metrics,
-    pose_coords,
-    run_episode,
-    seam_frame_errors,
-    seam_knots,
-    simulate_data,
-)
-from .frontend.trajectories import (
-    NominalTrajectory,
-    nominal_trajectory,
-    program_rotations_T0,
-    seam_headings_T0,
-    seam_points_T0,
-)
-
-__all__ = [
-    "AXES",
-    # particles
-    "RESAMPLERS",
-    # config
-    "RESAMPLER_NAMES",
-    "TRAJECTORY_KINDS",
-    "EpisodeResult",
-    "FilterConfig",
-    "Intersection",
-    "NominalTrajectory",
-    "ProcessConfig",
-    "RobotConfig",
-    "RobotMeasurement",
-    "SeamConfig",
-    # seam geometry, trend filter, trajectories
-    "SeamLine",
-    # filter and episodes
-    "SeamParticleFilter",
-    "SensorsConfig",
-    "SimulatedData",
-    "StepEstimate",
-    "StepInputs",
-    "TrajectoryConfig",
-    "TrendResult",
-    "angle_loglik",
-    "apply_overrides",
-    "config_from_dict",
-    "dump_config",
-    "effective_sample_size",
-    "joint_compliance",
-    "laser_loglik",
-    "load_config",
-    "metrics",
-    "measurement_hypotheses",
-    "nominal_trajectory",
-    "program_rotations_T0",
-    "seam_headings_T0",
-    "normalize_log_weights",
-    "plateau_logpdf",
-    "plateau_pdf_1d",
-    "pose_coords",
-    "seam_frame_errors",
-    "resample",
-    "residual_resample",
-    "robot_loglik",
-    "robot_measurement",
-    "run_episode",
-    "seam_knots",
-    "seam_points_T0",
-    "simulate_data",
-    "stratified_resample",
-    "systematic_resample",
-    # densities
-    "transition",
-    "trend_filter",
-    "weighted_mean_se3",
-]
-
-# --- front end (figures import matplotlib lazily, inside the functions) --------------------
 from .frontend.compare import (
     FIG8_SENSORS,
     FIG8_TRAJECTORIES,
@@ -143,6 +55,20 @@ from .frontend.compare import (
     run_episodes,
     with_sensors,
 )
+from .frontend.config import (
+    RESAMPLER_NAMES,
+    TRAJECTORY_KINDS,
+    FilterConfig,
+    LayoutNote,
+    SeamConfig,
+    SimulationConfig,
+    TrajectoryConfig,
+    apply_overrides,
+    config_from_dict,
+    dump_config,
+    load_config,
+)
+from .frontend.config_cell import CellConfig, RobotConfig, SensorsConfig, cell_from_config
 from .frontend.design import (
     RANKING_COLUMNS,
     DesignConfiguration,
@@ -152,7 +78,8 @@ from .frontend.design import (
     sensor_design,
     write_design,
 )
-from .frontend.log import EpisodeLog, LogSetup, log_columns, read_episode_log, write_episode_log
+from .frontend.logs import EpisodeLog, log_columns, read_episode_log, write_episode_log
+from .frontend.logs_setup import LogSetup
 from .frontend.plots import (
     AXIS_LABELS,
     particle_histogram,
@@ -166,18 +93,34 @@ from .frontend.plots import (
     plot_tracking_errors,
     positions_in_frame,
 )
+from .frontend.profile import (
+    DEFAULT_PROFILE,
+    ProfileModel,
+    default_profile,
+    dump_profile,
+    load_profile,
+    write_profile,
+)
 from .frontend.report import (
     ERROR_AXES,
     ERROR_COLUMNS,
     ESTIMATE_COLUMNS,
-    html_figure,
     html_table,
     read_estimates_csv,
-    write_csv,
     write_estimates_csv,
-    write_html,
-    write_json,
     write_simulation,
+)
+from .frontend.simulate import (
+    AXES,
+    EpisodeResult,
+    SimulatedData,
+    measurement_hypotheses,
+    metrics,
+    pose_coords,
+    run_episode,
+    seam_frame_errors,
+    seam_knots,
+    simulate_data,
 )
 from .frontend.study import (
     DEFAULT_FACTORS,
@@ -198,75 +141,147 @@ from .frontend.study import (
     write_study,
 )
 from .frontend.tracker import SeamTracker, SeamTrackResult, TrackEstimate, track_log, track_metrics, write_track
+from .frontend.trajectories import (
+    NominalTrajectory,
+    nominal_trajectory,
+    program_rotations_T0,
+    seam_headings_T0,
+    seam_points_T0,
+)
+from .frontend.tune import TunedValue, TuneResult, tune_profile, tune_report, tune_simulated
+from .model import Cell, Profile, Sensor
 
-__all__ += [
-    # recorded episodes and the online tracker (issue 15)
-    "EpisodeLog",
-    "LogSetup",
-    "SeamTracker",
-    "TrackEstimate",
-    "SeamTrackResult",
-    "log_columns",
-    "read_episode_log",
-    "track_log",
-    "track_metrics",
-    "write_episode_log",
-    "write_track",
-    # sensor-placement design
-    "RANKING_COLUMNS",
-    "DesignConfiguration",
-    "SensorDesign",
-    "design_configurations",
-    "distance_grid",
-    "sensor_design",
-    "write_design",
-    "plot_design_ranking",
-    "plot_ess",
-    "plot_measurement_hypotheses",
-    "factor_value",
-    # plots
+__all__ = [
+    "angle_loglik",
+    "apply_overrides",
+    "AXES",
     "AXIS_LABELS",
-    # study (Fig. 6)
+    "Cell",
+    "cell_from_config",
+    "CellConfig",
+    "compare_configurations",
+    "config_from_dict",
+    "ConfigurationSet",
     "DEFAULT_FACTORS",
-    # report
+    "DEFAULT_PROFILE",
+    "default_profile",
+    "design_configurations",
+    "DesignConfiguration",
+    "distance_grid",
+    "dump_config",
+    "dump_profile",
+    "effective_sample_size",
+    "episode_seeds",
+    "EpisodeLog",
+    "EpisodeResult",
     "ERROR_AXES",
     "ERROR_COLUMNS",
     "ERROR_NAMES",
     "ESTIMATE_COLUMNS",
-    # compare (Fig. 8)
+    "Factor",
+    "factor_value",
     "FIG8_SENSORS",
     "FIG8_TRAJECTORIES",
-    "RANKED_COLUMNS",
-    "RUN_COLUMNS",
-    "ConfigurationSet",
-    "Factor",
-    "ParameterEffects",
-    "SeamStudy",
-    "compare_configurations",
-    "episode_seeds",
+    "FilterConfig",
+    "FilterSettings",
     "fit_parameter_effects",
     "get_dotted",
     "html_figure",
     "html_table",
+    "Intersection",
+    "joint_compliance",
+    "laser_loglik",
+    "LayoutNote",
+    "load_config",
+    "load_profile",
+    "log_columns",
+    "LogSetup",
     "make_factors",
+    "measurement_hypotheses",
+    "metrics",
+    "nominal_trajectory",
+    "NominalTrajectory",
+    "normalize_log_weights",
+    "ParameterEffects",
     "particle_histogram",
+    "plateau_logpdf",
+    "plateau_pdf_1d",
+    "plot_design_ranking",
     "plot_error_distributions",
-    "plot_tracking_errors",
+    "plot_ess",
+    "plot_measurement_hypotheses",
     "plot_particle_density",
     "plot_pvalue_heatmap",
     "plot_tool_paths",
+    "plot_tracking_errors",
+    "pose_coords",
     "positions_in_frame",
+    "Profile",
+    "ProfileModel",
+    "program_rotations_T0",
     "rank_parameters",
+    "RANKED_COLUMNS",
+    "RANKING_COLUMNS",
+    "read_episode_log",
     "read_estimates_csv",
+    "resample",
+    "RESAMPLER_NAMES",
+    "RESAMPLERS",
+    "residual_resample",
+    "robot_loglik",
+    "robot_measurement",
+    "RobotConfig",
+    "RobotMeasurement",
+    "RUN_COLUMNS",
+    "run_episode",
     "run_episodes",
+    "seam_frame_errors",
+    "seam_headings_T0",
+    "seam_knots",
+    "seam_points_T0",
     "seam_study",
+    "SeamConfig",
+    "SeamLine",
+    "SeamParticleFilter",
+    "SeamStudy",
+    "SeamTracker",
+    "SeamTrackResult",
+    "Sensor",
+    "sensor_design",
+    "SensorDesign",
+    "SensorsConfig",
     "set_dotted",
+    "simulate_data",
+    "SimulatedData",
+    "SimulationConfig",
+    "StepEstimate",
+    "StepInputs",
+    "stratified_resample",
     "study_task",
+    "systematic_resample",
+    "track_log",
+    "track_metrics",
+    "TrackEstimate",
+    "TRAJECTORY_KINDS",
+    "TrajectoryConfig",
+    "transition",
+    "trend_filter",
+    "TrendResult",
+    "tune_profile",
+    "tune_report",
+    "tune_simulated",
+    "TunedValue",
+    "TuneResult",
+    "weighted_mean_se3",
     "with_sensors",
     "write_csv",
+    "write_design",
+    "write_episode_log",
     "write_estimates_csv",
     "write_html",
     "write_json",
+    "write_profile",
     "write_simulation",
     "write_study",
+    "write_track",
 ]

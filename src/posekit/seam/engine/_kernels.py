@@ -16,12 +16,12 @@ from posekit._jit import njit
 from posekit.geometry import rotvec_from_entries
 
 __all__ = [
-    "bound_kernel",
     "cloud_kernel",
     "inv_det3",
     "kernel_move",
     "laser_error_kernel",
     "laser_loglik_kernel",
+    "local_level_nll",
     "mean_spread_kernel",
     "propagate",
     "robot_consistency_kernel",
@@ -238,21 +238,27 @@ def laser_error_kernel(T, mx, mz, M, P, lo, hi, err):
 def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
     """Knot range ``(lo, hi)`` of the polyline ``P (K, 3)`` around a plane through ``p`` with
     normal ``n``: the first and last segment reaching within ``window`` of the plane and
-    within ``reach`` of ``p``; ``(-1, -1)`` when none does."""
+    within ``reach`` of ``p`` (the segment's nearest point, not its ends: a long straight segment
+    passing close counts); ``(-1, -1)`` when none does."""
     lo = -1
     hi = -1
     k_n = P.shape[0]
     s_prev = nx * (P[0, 0] - px) + ny * (P[0, 1] - py) + nz * (P[0, 2] - pz)
-    r_prev = math.sqrt((P[0, 0] - px) ** 2 + (P[0, 1] - py) ** 2 + (P[0, 2] - pz) ** 2)
     for k in range(1, k_n):
         s = nx * (P[k, 0] - px) + ny * (P[k, 1] - py) + nz * (P[k, 2] - pz)
-        r = math.sqrt((P[k, 0] - px) ** 2 + (P[k, 1] - py) ** 2 + (P[k, 2] - pz) ** 2)
-        if min(s, s_prev) <= window and max(s, s_prev) >= -window and min(r, r_prev) <= reach:
-            if lo < 0:
-                lo = k - 1
-            hi = k
+        if min(s, s_prev) <= window and max(s, s_prev) >= -window:
+            # distance of p from the segment P[k-1] .. P[k]
+            vx, vy, vz = P[k, 0] - P[k - 1, 0], P[k, 1] - P[k - 1, 1], P[k, 2] - P[k - 1, 2]
+            wx, wy, wz = px - P[k - 1, 0], py - P[k - 1, 1], pz - P[k - 1, 2]
+            vv = vx * vx + vy * vy + vz * vz
+            g = (wx * vx + wy * vy + wz * vz) / vv if vv > 0.0 else 0.0
+            g = min(max(g, 0.0), 1.0)
+            dx, dy, dz = wx - g * vx, wy - g * vy, wz - g * vz
+            if math.sqrt(dx * dx + dy * dy + dz * dz) <= reach:
+                if lo < 0:
+                    lo = k - 1
+                hi = k
         s_prev = s
-        r_prev = r
     return lo, hi
 
 
@@ -523,120 +529,24 @@ def robot_consistency_kernel(T, spread, mu, Sigma_t, Sigma_r, A, d_t, d_r):
     return m_t, _shrunk_maha_cov(ax, ay, az, d_r, S)
 
 
-
 @njit(cache=True, boundscheck=False)
-def bound_kernel(T, mxs, mzs, Ms, los, his, P_pts, P, first, Sigma_t, Sigma_r, A_inv, d_t, d_r, q2,
-                 sig2s, h_t, h_r, std_out, A, g2, Q_pf, ratio_out):
-    """One step of the spread bound (:mod:`posekit.seam.engine.spread_bound`), in place on ``P (6, 6)``
-    and the error covariance ``A (6, 6)`` of the same gain when the pose drifts by ``g2`` times the walk.
-
-    ``T (4, 4)`` the estimate (mm); readings ``mxs, mzs (S,)`` (mm) with mounts ``Ms (S, 4, 4)``
-    and knot windows ``los, his (S,)`` (``lo < 0``: skipped) on the seam knots ``P_pts (K, 3)``;
-    the robot plateau: tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t`` (mm), ``d_r``
-    (rad), ``A_inv (3, 3)`` the inverse plateau shape (identity: a ball); ``first``: start from
-    the plateau; ``q2 (6,)`` the process variances per axis (mm², rad²); ``sig2s (S,)`` each reading's
-    laser variance (mm²); ``h_t, h_r`` the central-difference steps; ``Q_pf (6, 6)`` the particle
-    approximation's own noise of the step, added to both. Writes ``std_out (6,)`` = sqrt(diag P) and
-    ``ratio_out (6,)`` = sqrt(diag A / diag P), at most 1 (1 where ``P`` is 0).
-    """
-    R = T[:3, :3].copy()
-    Rt = R.T.copy()
-    # the plateau covariance in the tool frame: d²/5 per axis of a uniform ball, plus the tails
-    Ct = (d_t * d_t / 5.0) * np.eye(3) + Sigma_t
-    Cr = (d_r * d_r / 5.0) * (A_inv @ A_inv.T.copy()) + Sigma_r
-    Ct = Rt @ Ct @ R
-    Cr = Rt @ Cr @ R
-    c = np.empty(6)
-    for j in range(3):
-        c[j] = Ct[j, j]
-        c[3 + j] = Cr[j, j]
-    if first:
-        P[:, :] = 0.0
-        P[:3, :3] = Ct
-        P[3:, 3:] = Cr
-        A[:, :] = P
-    else:
-        s = np.empty(6)
-        sa = np.empty(6)
-        for a in range(6):
-            for b in range(6):
-                P[a, b] += Q_pf[a, b]
-                A[a, b] += Q_pf[a, b]
-        for j in range(6):
-            P[j, j] += q2[j]
-            A[j, j] += g2 * q2[j]
-            s[j] = math.sqrt(c[j] / P[j, j]) if P[j, j] > c[j] else 1.0
-            sa[j] = math.sqrt(c[j] / A[j, j]) if A[j, j] > c[j] else 1.0
-        for a in range(6):
-            for b in range(6):
-                P[a, b] *= s[a] * s[b]
-                A[a, b] *= sa[a] * sa[b]
-    # the lasers' Jacobian by central differences of the in-plane error (right perturbation)
-    S_n = mxs.shape[0]
-    Tp = np.empty((12, 4, 4))
-    for k in range(12):
-        Tp[k] = T
-    for j in range(3):
-        for sgn in range(2):
-            sign = 1.0 if sgn == 0 else -1.0
-            k = 2 * j + sgn
-            for r in range(3):
-                Tp[k, r, 3] = T[r, 3] + sign * h_t * R[r, j]
-            a = sign * h_r
-            cs, sn = math.cos(a), math.sin(a)
-            G = np.eye(3)
-            k1, k2 = (j + 1) % 3, (j + 2) % 3
-            G[k1, k1] = cs
-            G[k2, k2] = cs
-            G[k2, k1] = sn
-            G[k1, k2] = -sn
-            Tp[6 + k, :3, :3] = R @ G
-    H = np.empty((2 * S_n, 6))
-    r2 = np.empty(2 * S_n)
-    E = np.empty((12, 2))
-    m = 0
-    for i in range(S_n):
-        if los[i] < 0:
-            continue
-        for k in range(12):
-            found, bx, bz = _plane_error(Tp, k, mxs[i], mzs[i], Ms[i], P_pts, los[i], his[i])
-            E[k, 0] = bx if found else math.nan
-            E[k, 1] = bz if found else math.nan
-        for row in range(2):
-            ok = True
-            for j in range(3):
-                H[m, j] = (E[2 * j, row] - E[2 * j + 1, row]) / (2.0 * h_t)
-                H[m, 3 + j] = (E[6 + 2 * j, row] - E[6 + 2 * j + 1, row]) / (2.0 * h_r)
-            for j in range(6):
-                if not math.isfinite(H[m, j]):
-                    ok = False
-            if ok:
-                r2[m] = sig2s[i]
-                m += 1
-    if m > 0:
-        Hm = H[:m]
-        PH = P @ Hm.T.copy()
-        Sm = Hm @ PH
-        for a in range(m):
-            Sm[a, a] += r2[a]
-        K = np.linalg.solve(Sm, PH.T.copy())  # (m, 6)
-        P -= PH @ K
-        # A with the same gain G = Kᵀ (Joseph form): (I - G H) A (I - G H)ᵀ + G R Gᵀ
-        G = K.T.copy()
-        IGH = np.eye(6) - G @ Hm
-        GR = G.copy()
-        for a in range(m):
-            for j in range(6):
-                GR[j, a] *= r2[a]
-        A[:, :] = IGH @ A @ IGH.T.copy() + GR @ K
-    for a in range(6):
-        for b in range(a + 1, 6):
-            v = 0.5 * (P[a, b] + P[b, a])
-            P[a, b] = v
-            P[b, a] = v
-            v = 0.5 * (A[a, b] + A[b, a])
-            A[a, b] = v
-            A[b, a] = v
-        std_out[a] = math.sqrt(P[a, a]) if P[a, a] > 0.0 else 0.0
-        ratio_out[a] = min(1.0, math.sqrt(A[a, a] / P[a, a])) if P[a, a] > 0.0 and A[a, a] > 0.0 else 1.0
-    return m
+def local_level_nll(y, ds, q2, r2):
+    """Negative log-likelihood of a scalar series ``y (T,)`` under the local-level model ``y_k = s_k + v``,
+    ``s_k = s_{k-1} + w``, ``v ~ N(0, r2)``, ``w ~ N(0, q2 ds_k)`` (``ds (T,)`` the travel per step, the first
+    ignored), by its
+    Kalman filter started at the first sample (the first term is left out: a diffuse start)."""
+    n = y.shape[0]
+    if n < 2:
+        return 0.0
+    s = y[0]
+    P = r2
+    out = 0.0
+    for k in range(1, n):
+        P += q2 * ds[k]
+        S = P + r2
+        v = y[k] - s
+        out += 0.5 * (v * v / S + math.log(2.0 * math.pi * S))
+        g = P / S
+        s += g * v
+        P *= 1.0 - g
+    return out

@@ -77,7 +77,8 @@ class SeamLine:
         window_mm : float
             Keep segments reaching within ``window_mm`` of the plane.
         reach_mm : float, optional
-            Also drop segments farther than this from ``point`` (default ``10 window_mm + 50``).
+            Also drop segments farther than this from ``point`` (their nearest point; default
+            ``10 window_mm + 50``).
 
         Returns
         -------
@@ -90,9 +91,12 @@ class SeamLine:
         s1, s2 = s[:-1], s[1:]
         near = (np.minimum(s1, s2) <= window_mm) & (np.maximum(s1, s2) >= -window_mm)
         reach = 10.0 * window_mm + 50.0 if reach_mm is None else reach_mm
-        d1 = np.linalg.norm(self.starts - point, axis=1)
-        d2 = np.linalg.norm(self.points[1:] - point, axis=1)
-        near &= np.minimum(d1, d2) <= reach
+        # the distance of the point from each segment (its nearest point: a long straight segment passing close counts)
+        w = point - self.starts
+        vv = (self.vectors * self.vectors).sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = np.clip(np.where(vv > 0.0, (w * self.vectors).sum(axis=1) / vv, 0.0), 0.0, 1.0)
+        near &= np.linalg.norm(w - g[:, None] * self.vectors, axis=1) <= reach
         return np.flatnonzero(near)
 
     def window(self, point, normal, window_mm: float, reach_mm: float | None = None) -> tuple[int, int]:

@@ -1,55 +1,26 @@
-"""A lower bound on the tool pose's spread from what the data can support (issue 15, "an honest spread").
+"""The spread the data support: a linearised covariance run beside the particle cloud (issue 15, an honest spread).
 
-The particle cloud represents the posterior only where it has particles. In directions the
-lasers barely see (along the seam, the roll about it, and combinations of them with the seen
-directions when the tool centre point is off the seam) the likelihood is flat over the robot
-density's plateau; a few hundred particles cannot fill that plateau, the cloud shrinks and the
-reported spread is far below the error (25 kN default run, 500 particles: rx/ry 2σ coverage 0.6).
+The particle cloud represents the posterior only where it has particles. In directions the lasers barely see
+(along the seam, the roll about it) the likelihood is flat over the robot density's plateau; a few hundred
+particles cannot fill that plateau, the cloud shrinks and its spread falls far below the error.
 
-:class:`InformationBound` runs a linear-Gaussian covariance alongside the filter, in the tangent
-space of the estimate (tool frame ``[x, y, z, rx, ry, rz]``, mm and rad, as the spread):
+:class:`InformationBound` runs the covariance ``P`` of a linear-Gaussian filter with the particle filter's own
+model, in the tangent space of the estimate (tool frame ``[x, y, z, rx, ry, rz]``, mm and rad):
 
-* predict: ``P ← P + Q`` with ``Q`` the step's transition variances (eq. 3) times
-  :data:`Q_SCALE` ² (the transition is a random walk; the bound runs the particles' own walk:
-  in the directions the lasers barely see, the estimate wanders as the cloud does);
-* robot plateau: the robot density is flat inside its plateau and gives no information there, but
-  the pose cannot leave it: ``P``'s diagonal is capped at the plateau's variance (a uniform ball
-  of radius ``d``: ``d²/5`` per axis; the rotation ellipsoid ``‖A_r Δr‖ <= d_r`` likewise) plus
-  its Gaussian tails, by scaling rows and columns (the correlations are kept);
-* lasers: ``P ← P - P Hᵀ (H P Hᵀ + σ² I)⁻¹ H P`` with ``H`` the Jacobian of the step's in-plane
-  laser errors with respect to the tangent offset of the estimate (central differences of the
-  laser density's own error function, eq. 9); ``σ²`` per reading (``filter.bound_inflation``: the
-  filter may pass the variance its particles weigh the reading with).
+* predict: ``P ← P + diag(walk² s) + Q_pf`` — the profile's random walk over the step's travel (eq. 3), and the particle
+  approximation's own noise ``Q_pf`` (the cloud's covariance over its effective sample size: the weighted mean
+  of a few hundred particles wanders by it where the lasers do not pull it back);
+* robot plateau: the robot density is flat inside its plateau and gives no information there, but the pose
+  cannot leave it: every axis of ``P`` is capped at the plateau's variance (a uniform ball of radius ``d``:
+  ``d²/5`` per axis; the rotation ellipsoid likewise) plus its Gaussian tails;
+* lasers: ``P ← P - P Hᵀ (H P Hᵀ + R)⁻¹ H P`` with ``H`` the Jacobian of the step's in-plane laser errors with
+  respect to the estimate's tangent offset (central differences of eq. 9's own error function) and ``R`` each
+  reading's variance (the profile's laser noise plus the pose jitter through the sensor's lever).
 
-The filter reports ``max(cloud variance, diag P)`` per axis. Where the lasers see the pose, ``P``
-is the Kalman covariance of the same data and rarely exceeds the cloud's; where they do not, it
-stays near the plateau, which is what the data support.
-
-Two more terms (issue 15, an honest spread):
-
-* the particle approximation's own noise ``Q_pf`` (the cloud's covariance over its effective sample size,
-  ``filter.bound_particle_noise``) enters the prediction with the walk: the weighted mean of a few hundred
-  particles wanders by it, and where the lasers barely see (the yz seam's yaw) nothing pulls it back
-  (one yz episode, seed 45: yaw error 100-200 mdeg against a bound of 40-80 with 500 particles, 60-80
-  with 4,000);
-* the walk is wider than the pose drifts (it must re-acquire and absorb what the models miss: the
-  simulated cell's yaw drifts ~30x slower), and a Kalman filter whose walk exceeds the drift reports
-  ``P = K R`` while its error is smaller (``K R / (2 - K)`` for a static pose). ``A`` is that error's
-  covariance: the same gain ``G`` (from ``P``), the pose drifting by ``γ²`` times the walk
-  (``filter.bound_drift_share``), ``A ← (I - G H)(A + γ² Q + Q_pf)(I - G H)ᵀ + G R Gᵀ``, capped at the
-  plateau like ``P``. Outside the steps after a loss the filter scales its report by ``sqrt(diag A / diag P)``
-  per axis (:attr:`InformationBound.ratio`); ``γ = 1`` gives ``A = P``.
-
-Measured (issue 15, 30 episodes, seeds 0-29, 500 particles, 2σ coverage x..rz with the bound at
-the particles' own walk, ``spread_bound`` 1, and the default transition per tool axis, adaptive): xy
-0.976/0.984/0.988/0.982/0.982/0.944; yz 0.982/0.973/0.967/0.979/0.978/0.967; 25 kN
-0.981/0.985/0.963/0.934/0.940/0.989 (1.5 % of the steps tracking and beyond 3σ, 0.5 % on seeds
-30-59; 13.4 % with half the walk and the raw force rate). With one isotropic walk x was 0.999 on
-both seams.
-The estimate is unchanged; one step costs ~0.03 ms (one compiled kernel: 12 poses per reading and
-the 6×6 update). Limit: the bound is the covariance of a linearised filter; the particles'
-estimate can be worse than that while the cloud converges from a wide plateau (25 kN: one of 10
-episodes stays ~3σ off in z, rx and ry together for ~100 steps after the start).
+The filter reports ``max(cloud, sqrt(diag P))`` per axis (plus the jitter). Where the lasers see the pose ``P`` is
+the Kalman covariance of the same data and rarely exceeds the cloud's; where they do not, it stays near the
+plateau, which is what the data support. The estimate is unchanged. Limit: ``P`` is the covariance of a
+linearised filter; while the cloud converges from a wide plateau the particles' estimate can be worse than it.
 """
 
 import math
@@ -57,78 +28,80 @@ import math
 import numpy as np
 
 from posekit.seam.engine import _kernels as _k
+from posekit.seam.engine import _linear as _l
 
-__all__ = ["Q_SCALE", "InformationBound", "laser_jacobian", "plateau_covariance"]
-
-#: The default process noise of the bound, fraction of the filter's transition width (``filter.spread_bound``).
-#: Measured (issue 15, 10 runs each, 500 particles, seeds 0-9): 0.5 -> 1.0 moves the 25 kN 2σ coverage of
-#: z/rx/ry from 0.76/0.72/0.73 to 0.88/0.91/0.94 and the steps beyond 3σ from 13.4 % to 0.7 %; nominal yz
-#: y/z/rx 0.94/0.91/0.92 -> 0.99/0.98/0.98; nominal xy stays 0.999-1.0 (there the cloud itself is wider
-#: than the error: not solved, issue 15); a start 8 mm / 3° off stays 0.97-0.98.
-Q_SCALE = 1.0
+__all__ = ["InformationBound", "Readings", "laser_jacobian", "plateau_covariance"]
 
 _STEP_T = 1e-3  # mm, central-difference step of the Jacobian (translation)
 _STEP_R = 1e-5  # rad (rotation)
-_ZERO6 = np.zeros((6, 6))  # no particle noise
+_ZERO6 = np.zeros((6, 6))
 
 
-def _perturbed(T: np.ndarray) -> np.ndarray:
-    """``(12, 4, 4)`` poses ``T exp(±h e_j)`` for the six tangent directions (right perturbation)."""
-    out = np.repeat(T[None], 12, axis=0)
-    R = T[:3, :3]
-    for j in range(3):
-        for s, sign in ((2 * j, 1.0), (2 * j + 1, -1.0)):
-            out[s, :3, 3] = T[:3, 3] + sign * _STEP_T * R[:, j]
-            a = sign * _STEP_R  # rotation about the tool axis j (small: first order is exact enough)
-            c, sn = math.cos(a), math.sin(a)
-            G = np.eye(3)
-            k, m = (j + 1) % 3, (j + 2) % 3
-            G[k, k] = c
-            G[m, m] = c
-            G[m, k] = sn
-            G[k, m] = -sn
-            out[6 + s, :3, :3] = R @ G
-    return out
+class Readings:
+    """The laser readings of one step as arrays for the compiled kernels.
+
+    Attributes
+    ----------
+    mx, mz : ndarray, shape (S,)
+        The readings in their sensor frames (mm; NaN: none).
+    mounts : ndarray, shape (S, 4, 4)
+        Effective mounts: the sensor in the frame of the tool pose of the step (latency included), mm.
+    lo, hi : ndarray of int64, shape (S,)
+        Knot windows of the seam search (``lo < 0``: the reading is not used).
+    r2 : ndarray, shape (S, 2)
+        Variance of each reading along the sensor's x and z axes (mm²).
+    """
+
+    __slots__ = ("hi", "lo", "mounts", "mx", "mz", "r2")
+
+    def __init__(self, mx, mz, mounts, lo, hi, r2):
+        self.mx = np.ascontiguousarray(mx, dtype=np.float64)
+        self.mz = np.ascontiguousarray(mz, dtype=np.float64)
+        self.mounts = np.ascontiguousarray(mounts, dtype=np.float64).reshape(-1, 4, 4)
+        self.lo = np.ascontiguousarray(lo, dtype=np.int64)
+        self.hi = np.ascontiguousarray(hi, dtype=np.int64)
+        self.r2 = np.ascontiguousarray(r2, dtype=np.float64).reshape(-1, 2)
+
+    @classmethod
+    def none(cls) -> "Readings":
+        """No reading."""
+        return cls(np.empty(0), np.empty(0), np.empty((0, 4, 4)), np.empty(0), np.empty(0), np.empty((0, 2)))
+
+    def __len__(self) -> int:
+        return int(self.mx.shape[0])
 
 
-def laser_jacobian(T: np.ndarray, readings: list, points: np.ndarray) -> np.ndarray:
-    """Jacobian of the in-plane laser errors with respect to the pose's tangent offset.
+def laser_jacobian(T: np.ndarray, readings: Readings, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The lasers' in-plane errors at ``T`` and their Jacobian with respect to its tangent offset.
 
     Parameters
     ----------
     T : ndarray, shape (4, 4)
         Pose ``T_base_tool`` at which to linearise (mm).
-    readings : list of tuple
-        Per used reading ``(mx, mz, M, lo, hi)``: the reading in the sensor frame (mm), the mount
-        ``T_tool_sensor`` (4, 4), the knot window searched.
+    readings : Readings
     points : ndarray, shape (K, 3)
         Seam knots (mm).
 
     Returns
     -------
-    ndarray, shape (2 S, 6)
-        Rows sensor x then z per reading (mm per mm, mm per rad); rows where a perturbed plane
-        meets no seam are dropped.
+    H : ndarray, shape (m, 6)
+        Rows sensor x then z per used reading (mm per mm, mm per rad); readings whose plane misses the seam
+        at ``T`` or a perturbed pose are dropped.
+    e : ndarray, shape (m,)
+        The errors ``m̂ - pi`` at ``T`` (mm).
     """
-    Tp = np.ascontiguousarray(_perturbed(np.asarray(T, dtype=np.float64)))
-    E = np.empty((12, 2))
-    rows = []
-    for mx, mz, M, lo, hi in readings:
-        if lo < 0:
-            continue
-        _k.laser_error_kernel(Tp, mx, mz, M, points, lo, hi, E)
-        J = np.empty((2, 6))
-        for j in range(3):
-            J[:, j] = (E[2 * j] - E[2 * j + 1]) / (2.0 * _STEP_T)
-            J[:, 3 + j] = (E[6 + 2 * j] - E[6 + 2 * j + 1]) / (2.0 * _STEP_R)
-        ok = np.isfinite(J).all(axis=1)
-        if ok.any():
-            rows.append(J[ok])
-    return np.vstack(rows) if rows else np.empty((0, 6))
+    n = len(readings)
+    H = np.empty((2 * n, 6))
+    e0 = np.empty(2 * n)
+    r2 = np.empty(2 * n)
+    m = _l.laser_rows(np.ascontiguousarray(T, dtype=np.float64), readings.mx, readings.mz, readings.mounts,
+                      readings.lo, readings.hi, np.ascontiguousarray(points, dtype=np.float64), readings.r2,
+                      _STEP_T, _STEP_R, H, e0, r2)
+    return H[:m], e0[:m]
 
 
 def plateau_covariance(meas, R_est: np.ndarray) -> np.ndarray:
-    """Covariance ``(6, 6)`` of the robot density (uniform plateau + Gaussian tails) in the tool frame.
+    """Covariance ``(6, 6)`` of the robot density (uniform plateau + Gaussian tails) in the tool frame (NumPy).
 
     Parameters
     ----------
@@ -144,63 +117,33 @@ def plateau_covariance(meas, R_est: np.ndarray) -> np.ndarray:
     """
     C = np.zeros((6, 6))
     Ct = (meas.d_t_mm ** 2 / 5.0) * np.eye(3) + meas.Sigma_t
-    if meas.A_r is None:
-        Cr = (meas.d_r_rad ** 2 / 5.0) * np.eye(3)
-    else:
-        Ai = np.linalg.inv(meas.A_r)
-        Cr = (meas.d_r_rad ** 2 / 5.0) * (Ai @ Ai.T)
-    Cr = Cr + meas.Sigma_r
+    Ai = np.eye(3) if meas.A_r is None else np.linalg.inv(meas.A_r)
+    Cr = (meas.d_r_rad ** 2 / 5.0) * (Ai @ Ai.T) + meas.Sigma_r
     C[:3, :3] = R_est.T @ Ct @ R_est
     C[3:, 3:] = R_est.T @ Cr @ R_est
     return C
 
 
-def _process_variances(q_t, q_r) -> np.ndarray:
-    """``(6,)`` variances ``[q_t², q_r²]`` per tool axis from widths given per axis (3,) or for all three."""
-    q = np.empty(6)
-    q[:3] = q_t
-    q[3:] = q_r
-    return q * q
-
-
 class InformationBound:
     """The covariance the data support, run beside the particle cloud (see the module docstring).
 
-    Parameters
+    Attributes
     ----------
-    sigma_mm : float
-        Laser noise standard deviation (mm), the laser density's ``σ``.
-    q_scale : float
-        The process noise as a fraction of the filter's transition width (``filter.spread_bound``;
-        kept for the caller, :meth:`update` takes the process noise itself).
+    P : ndarray, shape (6, 6) or None
+        The covariance after the last update (None before the first).
     """
 
-    def __init__(self, sigma_mm: float, q_scale: float = Q_SCALE):
-        self.sigma = float(sigma_mm)
-        self.q_scale = float(q_scale)
+    def __init__(self):
         self.P = None
-        self.A = None
-        self.ratio = np.ones(6)
 
     def reset(self) -> None:
-        """Forget the covariance (a new episode: the first step starts from the plateau)."""
+        """Forget the covariance (a new episode, or the track was lost: start again from the plateau)."""
         self.P = None
-        self.A = None
-        self.ratio = np.ones(6)
 
-    def _sigma2(self, readings: list, sigma2) -> np.ndarray:
-        """``(S,)`` laser variances of the readings (mm²): ``sigma2`` per reading, or ``σ²`` for all."""
-        if sigma2 is None:
-            return np.full(len(readings), self.sigma * self.sigma)
-        out = np.asarray(sigma2, dtype=np.float64).reshape(-1)
-        if out.shape[0] != len(readings):
-            raise ValueError(f"sigma2: expected one variance per reading ({len(readings)}), got {out.shape[0]}")
-        return out
-
-    def update(self, T_est: np.ndarray, meas, q_t: float, q_r: float, readings: list,
-               points: np.ndarray, sigma2=None, *, drift_share: float = 1.0, Q_pf=None) -> np.ndarray:
-        """One step: predict, cap at the robot plateau, condition on the lasers (compiled:
-        :func:`~posekit.seam.engine._kernels.bound_kernel`; :meth:`update_numpy` is the same in NumPy).
+    def update(self, T_est: np.ndarray, meas, q2: np.ndarray, readings: Readings, points: np.ndarray,
+               Q_pf: np.ndarray | None = None) -> np.ndarray:
+        """One step: predict, cap at the robot plateau, condition on the lasers (compiled; :meth:`update_numpy`
+        is the same in NumPy).
 
         Parameters
         ----------
@@ -208,87 +151,97 @@ class InformationBound:
             The filter's estimate of the step (mm).
         meas : RobotMeasurement
             The step's robot density.
-        q_t, q_r : float or array_like, shape (3,)
-            The bound's process standard deviations of the step (mm, rad), per tool axis or one
-            for all three: the filter passes ``q_scale`` times its transition width (plus
-            ``spread_bound_k_travel`` times the travel).
-        readings, points
-            As :func:`laser_jacobian` (the step's used laser readings).
-        sigma2 : array_like, shape (S,), optional
-            The variance each reading is weighed with (mm²): the filter passes its particles' (σ² plus the
-            inflation, :mod:`posekit.seam.engine.filter`); default ``σ²``.
-        drift_share : float
-            ``γ``: the pose drifts by ``γ²`` times the walk's variance (``filter.bound_drift_share``); the
-            error covariance ``A`` of the same gain under that drift gives :attr:`ratio`. 1: ``A = P``.
+        q2 : ndarray, shape (6,)
+            The walk's variance over the step per tool axis (mm², rad²).
+        readings : Readings
+            The step's laser readings.
+        points : ndarray, shape (K, 3)
+            Seam knots (mm).
         Q_pf : ndarray, shape (6, 6), optional
-            The particle approximation's own noise of the step (mm², rad², tool frame), added to ``P`` and
-            ``A`` with the walk: the filter passes its cloud's covariance over its effective sample size.
+            The particle approximation's own noise of the step (mm², rad², tool frame).
 
         Returns
         -------
         ndarray, shape (6,)
-            Standard deviations ``sqrt(diag P)`` (mm, rad), tool frame. :attr:`ratio` ``(6,)`` is then
-            ``sqrt(diag A / diag P)`` (at most 1).
+            Standard deviations ``sqrt(diag P)`` (mm, rad), tool frame.
         """
-        first = self.P is None or not np.isfinite(self.P).all() or self.A is None or not np.isfinite(self.A).all()
+        T = np.ascontiguousarray(T_est, dtype=np.float64)
+        first = self.P is None or not np.isfinite(self.P).all()
         if first:
             self.P = np.zeros((6, 6))
-            self.A = np.zeros((6, 6))
-        n = len(readings)
-        mx = np.array([r[0] for r in readings], dtype=np.float64)
-        mz = np.array([r[1] for r in readings], dtype=np.float64)
-        Ms = (np.ascontiguousarray(np.stack([r[2] for r in readings]), dtype=np.float64) if n
-              else np.zeros((0, 4, 4)))
-        lo = np.array([r[3] for r in readings], dtype=np.int64)
-        hi = np.array([r[4] for r in readings], dtype=np.int64)
         A_inv = np.eye(3) if meas.A_r is None else np.linalg.inv(meas.A_r)
-        q2 = _process_variances(q_t, q_r)
-        std = np.empty(6)
-        ratio = np.empty(6)
+        C = np.empty((6, 6))
+        _l.plateau_cov(T, np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
+                       np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A_inv, float(meas.d_t_mm),
+                       float(meas.d_r_rad), C)
         Q = _ZERO6 if Q_pf is None else np.ascontiguousarray(Q_pf, dtype=np.float64)
-        _k.bound_kernel(np.ascontiguousarray(T_est, dtype=np.float64), mx, mz, Ms, lo, hi,
-                        np.ascontiguousarray(points, dtype=np.float64), self.P, first,
-                        np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
-                        np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A_inv, float(meas.d_t_mm),
-                        float(meas.d_r_rad), q2, self._sigma2(readings, sigma2),
-                        _STEP_T, _STEP_R, std, self.A, float(drift_share) ** 2, Q, ratio)
-        self.ratio = ratio
-        return std
+        _l.predict_capped(self.P, C, first, np.ascontiguousarray(q2, dtype=np.float64), Q)
+        n = len(readings)
+        if n:
+            H = np.empty((2 * n, 6))
+            e0 = np.empty(2 * n)
+            r2 = np.empty(2 * n)
+            m = _l.laser_rows(T, readings.mx, readings.mz, readings.mounts, readings.lo, readings.hi,
+                              np.ascontiguousarray(points, dtype=np.float64), readings.r2, _STEP_T, _STEP_R,
+                              H, e0, r2)
+            _l.kalman_update(self.P, H, e0, r2, m, np.empty(6))
+        return np.sqrt(np.clip(np.diag(self.P), 0.0, None))
 
-    def update_numpy(self, T_est: np.ndarray, meas, q_t: float, q_r: float, readings: list,
-                     points: np.ndarray, sigma2=None, *, drift_share: float = 1.0, Q_pf=None) -> np.ndarray:
-        """:meth:`update` in NumPy (the reference the compiled kernel is tested against)."""
-        C = plateau_covariance(meas, np.asarray(T_est, dtype=np.float64)[:3, :3])
+    def update_numpy(self, T_est: np.ndarray, meas, q2: np.ndarray, readings: Readings, points: np.ndarray,
+                     Q_pf: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`update` in NumPy (the reference the compiled kernels are tested against)."""
+        T_est = np.asarray(T_est, dtype=np.float64)
+        C = plateau_covariance(meas, T_est[:3, :3])
         c = np.diag(C)
-
-        def predict(X, q2):
-            X = X + np.diag(q2) + (0.0 if Q_pf is None else np.asarray(Q_pf, dtype=np.float64))
-            with np.errstate(invalid="ignore", divide="ignore"):
-                s = np.sqrt(np.minimum(1.0, c / np.diag(X)))
-            s[~np.isfinite(s)] = 1.0
-            return X * s[:, None] * s[None, :]
-
-        if (self.P is None or not np.isfinite(self.P).all() or self.A is None
-                or not np.isfinite(self.A).all()):
-            P, A = C.copy(), C.copy()
+        if self.P is None or not np.isfinite(self.P).all():
+            P = C.copy()
         else:
-            q2 = _process_variances(q_t, q_r)
-            P, A = predict(self.P, q2), predict(self.A, drift_share ** 2 * q2)
-        if readings:
-            r2 = self._sigma2(readings, sigma2)
-            rows = [laser_jacobian(T_est, [rd], points) for rd in readings]
+            P = self.P + np.diag(q2) + (0.0 if Q_pf is None else np.asarray(Q_pf, dtype=np.float64))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                s = np.sqrt(np.minimum(1.0, c / np.diag(P)))
+            s[~np.isfinite(s)] = 1.0
+            P = P * s[:, None] * s[None, :]
+        rows, errs, var = [], [], []
+        for i in range(len(readings)):
+            one = Readings(readings.mx[i:i + 1], readings.mz[i:i + 1], readings.mounts[i:i + 1],
+                           readings.lo[i:i + 1], readings.hi[i:i + 1], readings.r2[i:i + 1])
+            Hi, ei = _numpy_rows(T_est, one, points)
+            if Hi.shape[0]:
+                rows.append(Hi)
+                errs.append(ei)
+                var.append(readings.r2[i])
+        if rows:
             H = np.vstack(rows)
-            if H.shape[0]:
-                R = np.diag(np.concatenate([np.full(Hi.shape[0], v) for Hi, v in zip(rows, r2)]))
-                PH = P @ H.T
-                G = np.linalg.solve(H @ PH + R, PH.T).T  # the gain (6, m)
-                P = P - G @ PH.T
-                IGH = np.eye(6) - G @ H
-                A = IGH @ A @ IGH.T + G @ R @ G.T
-        P = 0.5 * (P + P.T)
-        A = 0.5 * (A + A.T)
-        self.P, self.A = P, A
-        p, a = np.diag(P), np.diag(A)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            self.ratio = np.where((p > 0.0) & (a > 0.0), np.sqrt(np.minimum(1.0, a / p)), 1.0)
-        return np.sqrt(np.clip(p, 0.0, None))
+            R = np.diag(np.concatenate(var))
+            PH = P @ H.T
+            P = P - PH @ np.linalg.solve(H @ PH + R, PH.T)
+        self.P = 0.5 * (P + P.T)
+        return np.sqrt(np.clip(np.diag(self.P), 0.0, None))
+
+
+def _numpy_rows(T: np.ndarray, readings: Readings, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`laser_jacobian` with the perturbed poses built in NumPy (one reading; the reference)."""
+    out = np.repeat(T[None], 13, axis=0)
+    R = T[:3, :3]
+    for j in range(3):
+        for s, sign in ((2 * j, 1.0), (2 * j + 1, -1.0)):
+            out[s, :3, 3] = T[:3, 3] + sign * _STEP_T * R[:, j]
+            a = sign * _STEP_R
+            G = np.eye(3)
+            k, m = (j + 1) % 3, (j + 2) % 3
+            G[k, k] = G[m, m] = math.cos(a)
+            G[m, k], G[k, m] = math.sin(a), -math.sin(a)
+            out[6 + s, :3, :3] = R @ G
+    if len(readings) == 0 or readings.lo[0] < 0:
+        return np.empty((0, 6)), np.empty(0)
+    E = np.empty((13, 2))
+    _k.laser_error_kernel(np.ascontiguousarray(out), float(readings.mx[0]), float(readings.mz[0]),
+                          readings.mounts[0], np.ascontiguousarray(points, dtype=np.float64), int(readings.lo[0]),
+                          int(readings.hi[0]), E)
+    if not np.isfinite(E).all():
+        return np.empty((0, 6)), np.empty(0)
+    H = np.empty((2, 6))
+    for j in range(3):
+        H[:, j] = (E[2 * j] - E[2 * j + 1]) / (2.0 * _STEP_T)
+        H[:, 3 + j] = (E[6 + 2 * j] - E[6 + 2 * j + 1]) / (2.0 * _STEP_R)
+    return H, E[12]

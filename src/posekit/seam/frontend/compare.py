@@ -16,6 +16,7 @@ from posekit.errors import ConfigError
 from posekit.sweep import task_seed
 
 __all__ = [
+    "resize_sensors",
     "FIG8_SENSORS",
     "FIG8_TRAJECTORIES",
     "ConfigurationSet",
@@ -37,17 +38,32 @@ def episode_seeds(seed: int, runs: int) -> list[int]:
     return [int(task_seed(seed, r).generate_state(1)[0]) for r in range(int(runs))]
 
 
+def resize_sensors(data: dict, count: int) -> dict:
+    """A configuration mapping (``SeamConfig.model_dump``) with ``count`` sensors, in place: the first ``count``
+    distances, mounts and latencies when it lists at least that many (the defaults otherwise), and a per-sensor
+    profile cut to its first entries (its first entry for all when it has fewer)."""
+    ds = data["cell"]["sensors"]
+    ok = isinstance(count, int) and not isinstance(count, bool) and count >= 0
+    ds["count"] = count
+    for key in ("distances_mm", "mounts", "latency_s"):
+        v = ds.get(key)
+        if v is not None:
+            ds[key] = tuple(v[:count]) if ok and 0 < count <= len(v) else None
+    prof = data.get("profile")
+    if isinstance(prof, dict) and isinstance(prof.get("sensors"), (list, tuple)):
+        entries = list(prof["sensors"])
+        if ok and len(entries) > 1 and len(entries) != count:
+            prof["sensors"] = entries[:count] if 0 < count <= len(entries) else entries[:1]
+    return data
+
+
 def with_sensors(cfg, count: int, source: str = "command line"):
-    """``cfg`` with ``count`` sensors; its distances are kept when it lists at least ``count`` of them
-    (the first ``count``), the defaults (20, 40, ... mm) are used otherwise."""
+    """``cfg`` with ``count`` sensors (:func:`resize_sensors`)."""
     from posekit.seam.frontend.config import config_from_dict
 
-    dist = cfg.sensors.distances_mm
     data = cfg.model_dump(mode="python")
-    data["sensors"]["count"] = count
-    keep = dist is not None and isinstance(count, int) and 0 <= count <= len(dist)
-    data["sensors"]["distances_mm"] = tuple(dist[:count]) if keep else None
-    return config_from_dict(data, source)
+    data["profile"] = cfg.profile.model_dump(mode="python", exclude_none=True)
+    return config_from_dict(resize_sensors(data, count), source)
 
 
 def run_episodes(cfg, runs: int, *, seed: int | None = None, record_particles: int = 0,

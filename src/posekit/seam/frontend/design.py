@@ -148,9 +148,11 @@ def design_configurations(counts: Sequence[int], distances_mm: Sequence[float],
 def _config_dict(base: dict, conf: DesignConfiguration) -> dict:
     import copy
 
-    data = copy.deepcopy(base)
-    data["sensors"].update({"count": conf.sensors, "distances_mm": list(conf.distances_mm) or None,
-                            "mounts": None, "angle": bool(conf.angle)})
+    from posekit.seam.frontend.compare import resize_sensors
+
+    data = resize_sensors(copy.deepcopy(base), conf.sensors)
+    data["cell"]["sensors"].update({"distances_mm": list(conf.distances_mm) or None, "mounts": None,
+                                    "angle": bool(conf.angle)})
     return data
 
 
@@ -264,6 +266,7 @@ def sensor_design(config, *, counts: Sequence[int] = (0, 1, 2), distances_mm: Se
         raise ConfigError(f"--lever-mm: expected a positive number of mm, got {lever_mm}")
     confs = design_configurations(counts, distances_mm, angle)
     base = config.model_dump(mode="json")
+    base["profile"] = config.profile.model_dump(mode="json", exclude_none=True)
     from posekit.seam.frontend.config import config_from_dict
 
     for i, c in enumerate(confs):   # an impossible configuration is the user's error: say so before any work

@@ -4,14 +4,15 @@ One episode (:func:`run_episode`):
 
 1. the nominal program along the seam (:func:`~posekit.seam.frontend.trajectories.nominal_trajectory`)
    and its trend-filtered knot polyline (eq. 10);
-2. the true robot: the nominal DH model with kinematic errors (drawn per episode); the
+2. the true robot (``simulation``): the nominal model with kinematic errors (drawn per episode); the
    motors track the joint stream ``q̄`` exactly, the process force (tool frame, slow drift +
    noise) deflects the joints (``Δq = c J_vᵀ f``) and the tool (an unmodelled Cartesian part),
    ``T_true = Fk_true(q̄ + Δq) exp(ξ_cart)``;
-3. measurements: joints ``q̄ + noise`` (motor side, blind to deflection), a force sensor, laser
-   seam trackers on the true seam (missing without an intersection, beyond the range or by
-   dropout) and optionally angles;
-4. the particle filter, timed per step.
+3. measurements: joints ``q̄ + noise + offset`` (motor side, blind to deflection), a force sensor
+   (noise and bias), laser seam trackers on the true seam at the time they read it, ``laser_latency_s``
+   before the sample (the true robot between samples interpolated linearly; missing without an
+   intersection, beyond the range or by dropout) and optionally angles;
+4. the particle filter (``cell``, ``filter``, ``profile``), timed per step.
 
 Errors are in the nominal seam frame (DESIGN/SEAM contract): translation
 ``R_nomᵀ (p_est - p_true)`` in mm, rotation vector of ``R_trueᵀ R_est`` in radians (the library's
@@ -33,12 +34,15 @@ from posekit.geometry import (
 )
 from posekit.robots import KinematicChain
 from posekit.seam.engine.densities import bending_stretch
-from posekit.seam.engine.filter import SeamParticleFilter, StepInputs
+from posekit.seam.engine.filter import SeamParticleFilter
+from posekit.seam.engine.integrity import STATUSES
 from posekit.seam.engine.particles import systematic_resample
 from posekit.seam.engine.seamline import SeamLine
+from posekit.seam.engine.step import StepInputs
 from posekit.seam.engine.trend import TrendResult, trend_filter
-from posekit.seam.frontend.config import RobotConfig, SeamConfig, TrajectoryConfig
+from posekit.seam.frontend.config import RobotConfig, SeamConfig, TrajectoryConfig, cell_from_config
 from posekit.seam.frontend.trajectories import NominalTrajectory, nominal_trajectory
+from posekit.verdict import status_counts
 
 __all__ = [
     "AXES",
@@ -61,6 +65,8 @@ __all__ = [
 ]
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
+#: Fig. 5's seam search beyond the plateau radius (mm): the figure shows hypotheses, it weighs nothing.
+_SNAPSHOT_REACH_MM = 5.0
 
 
 @dataclass
@@ -79,11 +85,14 @@ class SimulatedData:
     force_meas_n : ndarray, shape (T, 3)
         Force-sensor reading, base frame, N.
     laser_mm : ndarray, shape (T, S, 2)
-        Laser measurements (across, along the tool axis) in mm; NaN where missing.
+        Laser measurements (across, along the tool axis) in mm; NaN where missing; each taken
+        ``latency_s`` before its sample's time.
     angle_rad : ndarray, shape (T, S)
         Angle measurements (rad); NaN where missing or not measured.
     true_chain : KinematicChain
         The robot with kinematic errors.
+    latency_s : ndarray, shape (S,)
+        The true latency of each sensor (s).
     """
 
     nominal: NominalTrajectory
@@ -94,6 +103,7 @@ class SimulatedData:
     laser_mm: np.ndarray
     angle_rad: np.ndarray
     true_chain: KinematicChain
+    latency_s: np.ndarray
 
 
 @dataclass
@@ -233,17 +243,18 @@ def _snapshot(pf, inc: np.ndarray, k: int, data, Tn: np.ndarray) -> dict | None:
     update), the first available reading's hypotheses and their laser log-likelihoods."""
     from posekit.seam.engine.densities import laser_loglik
 
-    mounts = pf.cfg.sensors.resolved_mounts()
+    mounts = pf.mounts
+    sigma = pf.profile.sensor_sigma_mm(mounts.shape[0])
     for i in range(mounts.shape[0]):
         m = data.laser_mm[k, i]
         if not np.all(np.isfinite(m)):
             continue
         Ts = np.matmul(inc, pf.T)
         S = Tn[k] @ mounts[i]
-        f = pf.cfg.filter
         centre = S[:3, :3] @ np.array([m[0], 0.0, m[1]]) + S[:3, 3]
-        window = pf.seam.window(centre, S[:3, 1], f.search_window_mm)
-        ll = laser_loglik(np.matmul(Ts, mounts[i]), m, 0.0, pf.seam, window, f.laser_sigma_mm, f.search_window_mm)
+        radius = pf.profile.d0_mm + _SNAPSHOT_REACH_MM
+        window = pf.seam.window(centre, S[:3, 1], radius)
+        ll = laser_loglik(np.matmul(Ts, mounts[i]), m, 0.0, pf.seam, window, float(sigma[i]), radius)
         return {"step": k, "sensor": i, "hypotheses": measurement_hypotheses(Ts, mounts[i], m),
                 "loglik": ll, "prior_w": pf.weights.copy(), "T_nominal": Tn[k].copy(),
                 "truth_point": measurement_hypotheses(data.truth[k][None], mounts[i], m)[0],
@@ -280,7 +291,7 @@ def _knots_cached(traj: TrajectoryConfig, robot: RobotConfig, lam: float, eps: f
 
 def seam_knots(cfg: SeamConfig) -> TrendResult:
     """The trend-filtered nominal seam of ``cfg`` (cached; arrays read-only)."""
-    return _knots_cached(cfg.trajectory, cfg.robot, cfg.filter.trend_lambda, cfg.filter.trend_eps_mm,
+    return _knots_cached(cfg.trajectory, cfg.cell.robot, cfg.filter.trend_lambda, cfg.filter.trend_eps_mm,
                          cfg.trajectory.seam_extension_mm)
 
 
@@ -290,6 +301,7 @@ def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
     Parameters
     ----------
     cfg : SeamConfig
+        ``trajectory``, ``cell`` (robot, sensor mounts) and ``simulation`` (the world) are used.
     seed : int
         Episode seed; the same seed gives the same numbers.
 
@@ -297,52 +309,75 @@ def simulate_data(cfg: SeamConfig, seed: int) -> SimulatedData:
     -------
     SimulatedData
     """
-    nt = nominal_trajectory(cfg.trajectory, cfg.robot)
+    nt = nominal_trajectory(cfg.trajectory, cfg.cell.robot)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
     n = nt.q.shape[0]
     chain = nt.chain
-    true_chain = chain.perturbed(cfg.robot.kinematic_error_mm, math.radians(cfg.robot.kinematic_error_deg), rng)
-    pr = cfg.process
+    sim = cfg.simulation
+    true_chain = chain.perturbed(sim.kinematic_error_mm, math.radians(sim.kinematic_error_deg), rng)
     # process force in the tool frame: mean, slow drift, white noise; then base frame
     phase = rng.uniform(0.0, 2.0 * np.pi)
-    drift = 1.0 + pr.force_drift * np.sin(2.0 * np.pi * np.arange(n) / n + phase)
-    f_T = np.asarray(pr.force_n)[None, :] * drift[:, None] + pr.force_noise_n * rng.standard_normal((n, 3))
+    drift = 1.0 + sim.force_drift * np.sin(2.0 * np.pi * np.arange(n) / n + phase)
+    f_T = np.asarray(sim.force_n)[None, :] * drift[:, None] + sim.force_noise_n * rng.standard_normal((n, 3))
     R_nom = nt.T_nominal[:, :3, :3]
     f_W = np.matmul(R_nom, f_T[..., None])[..., 0]
     # joint deflection through the true robot's Jacobian, Cartesian (unmodelled) deflection
     J = true_chain.geometric_jacobian(nt.q)  # (T, 6, 6)
     tau = np.matmul(np.swapaxes(J[:, :3, :], 1, 2), f_W[..., None])[..., 0]  # N·mm
-    q_arm = nt.q + pr.joint_compliance_rad_per_nm * 1e-3 * tau
-    xi = np.zeros((n, 6))
-    xi[:, :3] = pr.cartesian_compliance_mm_per_n * f_T
-    xi[:, 3:] = math.radians(pr.cartesian_compliance_deg_per_n) * np.cross([0.0, 0.0, 1.0], f_T)
-    cartesian = transform_from(matrix_from_rotation_vector(xi[:, 3:]), xi[:, :3], check=False)
-    truth = np.matmul(true_chain.forward_kinematics(q_arm), cartesian)
-    q_meas = nt.q + math.radians(cfg.robot.joint_noise_deg) * rng.standard_normal(nt.q.shape)
-    force_meas = f_W + pr.force_sensor_noise_n * rng.standard_normal((n, 3))
-    # laser sensors on the true seam
-    sc = cfg.sensors
+    q_arm = nt.q + sim.joint_compliance_rad_per_nm * 1e-3 * tau
+
+    def truth_at(q, f_tool):
+        xi = np.zeros((q.shape[0], 6))
+        xi[:, :3] = sim.cartesian_compliance_mm_per_n * f_tool
+        xi[:, 3:] = math.radians(sim.cartesian_compliance_deg_per_n) * np.cross([0.0, 0.0, 1.0], f_tool)
+        cartesian = transform_from(matrix_from_rotation_vector(xi[:, 3:]), xi[:, :3], check=False)
+        return np.matmul(true_chain.forward_kinematics(q), cartesian)
+
+    truth = truth_at(q_arm, f_T)
+    q_meas = nt.q + math.radians(sim.joint_noise_deg) * rng.standard_normal(nt.q.shape)
+    offset = np.zeros(nt.q.shape[1])
+    k = min(len(sim.encoder_offset_deg), offset.size)
+    offset[:k] = np.radians(sim.encoder_offset_deg[:k])
+    q_meas = q_meas + offset
+    force_meas = f_W + sim.force_sensor_noise_n * rng.standard_normal((n, 3))
+    force_meas += np.matmul(R_nom, np.asarray(sim.force_sensor_bias_n, dtype=np.float64))
+    # laser sensors on the true seam, each at the time it reads (the true robot interpolated between samples)
+    sc = cfg.cell.sensors
     mounts = sc.resolved_mounts()  # T_tool_sensor (S, 4, 4)
+    latency = sim.latencies_s(mounts.shape[0]) if mounts.shape[0] else np.zeros(0)
     laser = np.full((n, mounts.shape[0], 2), np.nan)
     angle = np.full((n, mounts.shape[0]), np.nan)
     seam = SeamLine(nt.seam)
-    R_true = truth[:, :3, :3]
     for i, M in enumerate(mounts):  # over the sensors (<= 4): the true sensor frames T_true M
-        S = np.matmul(truth, M)
+        if latency[i] > 0.0:
+            t_read = nt.t_s - latency[i]
+            interp = lambda a: np.stack([np.interp(t_read, nt.t_s, a[:, j]) for j in range(a.shape[1])], -1)  # noqa: E731
+            T_read = truth_at(interp(q_arm), interp(f_T))
+        else:
+            T_read = truth
+        S = np.matmul(T_read, M)
         origin, R_S = S[:, :3, 3], S[:, :3, :3]
         hit = seam.intersect(origin, R_S[:, :, 1])
         e = hit.point - origin
         m = np.stack([(e * R_S[:, :, 0]).sum(1), (e * R_S[:, :, 2]).sum(1)], axis=1)
-        m += sc.noise_mm * rng.standard_normal((n, 2))
-        ok = hit.found & (np.abs(m).max(axis=1) <= sc.range_mm)
-        ok &= rng.random(n) >= sc.dropout
+        m += sim.laser_noise_mm * rng.standard_normal((n, 2))
+        ok = hit.found & (np.abs(m).max(axis=1) <= sim.laser_range_mm)
+        ok &= rng.random(n) >= sim.laser_dropout
         laser[ok, i] = m[ok]
         if sc.angle:
             nu = nt.seam_normal
+            R_true = T_read[:, :3, :3]
             a = np.arctan2(R_true[:, :, 0] @ nu, R_true[:, :, 2] @ nu)
-            a += math.radians(sc.angle_noise_deg) * rng.standard_normal(n)
+            a += math.radians(sim.angle_noise_deg) * rng.standard_normal(n)
             angle[ok, i] = a[ok]
-    return SimulatedData(nt, truth, q_meas, f_W, force_meas, laser, angle, true_chain)
+    return SimulatedData(nt, truth, q_meas, f_W, force_meas, laser, angle, true_chain, latency)
+
+
+def start_offset(cfg: SeamConfig) -> np.ndarray:
+    """``simulation.start_offset_*`` as a tool-frame transform (4, 4): where the first cloud is drawn about."""
+    sim = cfg.simulation
+    return transform_from(matrix_from_rotation_vector(np.radians(sim.start_offset_deg)),
+                          np.asarray(sim.start_offset_mm, dtype=np.float64), check=False)
 
 
 def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: int = 0,
@@ -370,7 +405,8 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
     Tn = nt.T_nominal
     n = Tn.shape[0]
-    pf = SeamParticleFilter(cfg, knots.polyline, rng, T_init=Tn[0], seam_normal=nt.seam_normal)
+    pf = SeamParticleFilter(cell_from_config(cfg.cell), cfg.filter.settings(), cfg.profile_model(), knots.polyline,
+                            rng, T_init=Tn[0], T_offset=start_offset(cfg), seam_normal=nt.seam_normal)
     estimate = np.empty((n, 4, 4))
     kinematic = np.empty((n, 4, 4))
     spread = np.empty((n, 6))
@@ -390,9 +426,9 @@ def run_episode(cfg: SeamConfig, seed: int | None = None, *, record_particles: i
     has_lasers = data.laser_mm.shape[1] > 0
     for k in range(n):
         inc = eye if k == 0 else Tn[k] @ invert_transform(Tn[k - 1], check=False)
-        inputs = StepInputs(inc, Tn[k], data.q_meas[k], data.force_meas_n[k],
+        inputs = StepInputs(inc, Tn[k], data.q_meas[k], data.force_meas_n[k], float(nt.t_s[k]), nt.q[k],
                             data.laser_mm[k] if has_lasers else None,
-                            data.angle_rad[k] if cfg.sensors.angle and has_lasers else None)
+                            data.angle_rad[k] if cfg.cell.sensors.angle and has_lasers else None)
         if rec and snapshot is None and k >= snap_at:
             snapshot = _snapshot(pf, inc, k, data, Tn)
         t0 = time.perf_counter()
@@ -440,8 +476,8 @@ def plateau_ratio(cfg: SeamConfig, truth: np.ndarray, kinematic: np.ndarray, for
     error (eq. 7); a simulated cell whose truth leaves it is one the filter's model does not
     describe (a user's robot with the PUMA 560 defaults: the reported spread then misses the
     error). The plateau is the filter's: a ball of radius ``d_t`` in translation, in rotation
-    ``‖A_r Δr‖ <= d_r`` with ``Δr = log(R_true R_kinᵀ)`` (base frame; with ``bending_plateau`` the
-    radius along the force is ``d0_deg``, :func:`~posekit.seam.engine.densities.robot_measurement`).
+    ``‖A_r Δr‖ <= d_r`` with ``Δr = log(R_true R_kinᵀ)`` (base frame; the radius along the force is the
+    profile's ``d0_deg``, :func:`~posekit.seam.engine.densities.robot_measurement`).
 
     Parameters
     ----------
@@ -456,19 +492,18 @@ def plateau_ratio(cfg: SeamConfig, truth: np.ndarray, kinematic: np.ndarray, for
     ndarray, shape (T,)
         ``max(‖Δt‖ / d_t, ‖A_r Δr‖ / d_r)`` per step (inf where a radius is 0 and the offset is not).
     """
-    f = cfg.filter
+    p = cfg.profile_model()
     force = np.asarray(force_n, dtype=np.float64)
     fn = np.linalg.norm(force, axis=1)
-    d_t = f.d0_mm + f.kd_mm_per_n * fn
-    d0_r = math.radians(f.d0_deg)
-    d_r = d0_r + math.radians(f.kd_deg_per_n) * fn
+    d_t = p.d0_mm + p.kd_mm_per_n * fn
+    d0_r = p.d0_rad
+    d_r = d0_r + p.kd_rad_per_n * fn
     dt = np.linalg.norm(truth[:, :3, 3] - kinematic[:, :3, 3], axis=1)
     dr = rotation_vector_from_matrix(truth[:, :3, :3] @ np.swapaxes(kinematic[:, :3, :3], 1, 2), check=False)
-    if f.bending_plateau:
-        # A_r dr = dr + s (u . dr) u, u the force direction (the filter's plateau: along u the radius is d0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            u = np.where(fn[:, None] > 0.0, force / fn[:, None], 0.0)
-        dr = dr + (bending_stretch(d_r, d0_r) * np.einsum("ij,ij->i", u, dr))[:, None] * u
+    # A_r dr = dr + s (u . dr) u, u the force direction (the filter's plateau: along u the radius is d0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(fn[:, None] > 0.0, force / fn[:, None], 0.0)
+    dr = dr + (bending_stretch(d_r, d0_r) * np.einsum("ij,ij->i", u, dr))[:, None] * u
     with np.errstate(invalid="ignore", divide="ignore"):
         r_t = np.where(dt > 0.0, dt / d_t, 0.0)
         nr = np.linalg.norm(dr, axis=1)
@@ -526,8 +561,8 @@ def metrics(results: list[EpisodeResult]) -> dict:
         "runs": len(results),
         "steps": int(results[0].t_s.shape[0]),
         "particles": cfg.filter.particles,
-        "sensors": cfg.sensors.count,
-        "sensor_distances_mm": list(cfg.sensors.resolved_distances_mm()),
+        "sensors": cfg.cell.sensors.count,
+        "sensor_distances_mm": list(cfg.cell.sensors.resolved_distances_mm()),
         "trajectory": cfg.trajectory.kind,
         "resampler": cfg.filter.resampler,
         "knots_kept": results[0].knots_kept,
@@ -582,7 +617,7 @@ def integrity_summary(results: list[EpisodeResult]) -> tuple[np.ndarray, dict, f
     err, spr, status, beyond = _pooled_steps(results)
     with np.errstate(invalid="ignore"):
         coverage = np.mean(err <= 2.0 * spr, axis=0)
-    counts = {k: int(np.sum(status == k)) for k in ("tracking", "degraded", "lost")}
+    counts = status_counts(np.asarray(status).tolist(), STATUSES)
     frac = float(np.mean(status[beyond] == "tracking")) if beyond.any() else None
     return coverage, counts, frac
 

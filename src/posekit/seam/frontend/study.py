@@ -8,10 +8,11 @@ with an intercept) of each RMSE on the factor values then gives one p-value per 
 error; :func:`rank_parameters` orders the factors by their smallest p-value. An integer
 parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
 
-A factor is a dotted key of the configuration: a number (drawn in ``[low, high]``), an item of a
-tuple key (``process.force_n[2]``, ``sensors.distances_mm[1]``) or a whole tuple key
-(``sensors.distances_mm``, ``process.force_n``), whose draw is a scale applied to every item
-(``[low, high]`` default ``1 ± spread``): the sensors move out together, the force grows.
+A factor is a dotted key of the configuration (:func:`study_base`: the profile's values as bare numbers): a
+number (drawn in ``[low, high]``), an item of a tuple key (``simulation.force_n[2]``,
+``cell.sensors.distances_mm[1]``) or a whole tuple key (``cell.sensors.distances_mm``,
+``simulation.force_n``), whose draw is a scale applied to every item (``[low, high]`` default
+``1 ± spread``): the sensors move out together, the force grows.
 
 Reproducibility: run ``i`` draws its factor values from ``task_seed(seed, i, 0)`` and the
 seed of its episode ``j`` from ``task_seed(seed, i, 1, j)``; the draws are made before the
@@ -49,15 +50,16 @@ __all__ = [
     "rank_parameters",
     "seam_study",
     "set_dotted",
+    "study_base",
     "study_task",
     "write_study",
 ]
 
 #: The filter parameters perturbed by default (dotted keys of :class:`~posekit.seam.frontend.config.SeamConfig`).
-DEFAULT_FACTORS = ("filter.sigma_t_mm", "filter.sigma_r_deg", "filter.k_force_t", "filter.k_force_r",
-                   "filter.d0_mm", "filter.kd_mm_per_n", "filter.d0_deg", "filter.kd_deg_per_n",
-                   "filter.laser_sigma_mm", "filter.init_sigma_t_mm", "filter.init_sigma_r_deg",
-                   "filter.ess_threshold")
+DEFAULT_FACTORS = ("profile.walk.x_mm", "profile.walk.y_mm", "profile.walk.z_mm", "profile.walk.rx_deg",
+                   "profile.walk.ry_deg", "profile.walk.rz_deg", "profile.plateau.d0_mm",
+                   "profile.plateau.kd_mm_per_n", "profile.plateau.d0_deg", "profile.plateau.kd_deg_per_n",
+                   "filter.regularize_h", "filter.ess_threshold")
 #: Names of the six responses (RMSE over all steps of a run's episodes).
 ERROR_NAMES = tuple(f"rmse_{a}_{'mm' if i < 3 else 'deg'}" for i, a in enumerate(ERROR_AXES))
 #: Significance level of the ``significant`` column (before the Bonferroni correction over errors).
@@ -79,7 +81,7 @@ class Factor:
 
 
 def _split_index(key: str) -> tuple[str, int | None]:
-    """``'process.force_n[2]'`` → ``('process.force_n', 2)``; ``'a.b'`` → ``('a.b', None)``."""
+    """``'simulation.force_n[2]'`` → ``('simulation.force_n', 2)``; ``'a.b'`` → ``('a.b', None)``."""
     if key.endswith("]") and "[" in key:
         name, _, idx = key[:-1].rpartition("[")
         try:
@@ -124,7 +126,7 @@ def set_dotted(data: dict, key: str, value) -> None:
 
 
 def is_tuple_factor(base: Mapping, name: str) -> bool:
-    """Whether ``name`` is a whole tuple key (``sensors.distances_mm``, ``process.force_n``): its
+    """Whether ``name`` is a whole tuple key (``cell.sensors.distances_mm``, ``simulation.force_n``): its
     factor value is a scale applied to every item."""
     value = get_dotted(base, name)
     return isinstance(value, (list, tuple))
@@ -146,7 +148,7 @@ def make_factors(base: Mapping, names: Sequence[str] | None = None, *, spread: f
     Parameters
     ----------
     base : mapping
-        The base configuration as a dict (``SeamConfig.model_dump()``).
+        The base configuration as a dict (:func:`study_base`).
     names : sequence of str, optional
         Dotted keys to perturb (default :data:`DEFAULT_FACTORS`, less those whose base value
         is 0 and that have no explicit range).
@@ -367,6 +369,14 @@ def _rmse_deg(rmse: np.ndarray) -> np.ndarray:
     return out
 
 
+def study_base(config) -> dict:
+    """The configuration as the mapping a study perturbs: ``SeamConfig.model_dump`` with the profile's values as
+    bare numbers (``profile.walk.z_mm``, ``profile.plateau.d0_mm`` are factors like any other key)."""
+    base = config.model_dump(mode="json")
+    base["profile"] = config.profile.plain()
+    return base
+
+
 def _episode_seed(seed: int, run: int, episode: int) -> int:
     return int(task_seed(seed, run, 1, episode).generate_state(1)[0])
 
@@ -431,12 +441,12 @@ def seam_study(config, *, runs: int = 100, factors: Sequence[Factor] | None = No
     if int(seed) < 0:
         raise ConfigError(f"study seed: expected an integer >= 0, got {seed}")
     require("statsmodels.api", "studies", "posekit seam study")      # for the OLS at the end: say so now
-    base = config.model_dump(mode="json")
+    base = study_base(config)
     factors = tuple(factors) if factors is not None else make_factors(base)
     lows = np.array([f.low for f in factors])
     highs = np.array([f.high for f in factors])
     # integer parameters (particle count, stages, steps) take the drawn value rounded; a tuple key
-    # (sensors.distances_mm, process.force_n) is scaled as a whole by its draw
+    # (cell.sensors.distances_mm, simulation.force_n) is scaled as a whole by its draw
     integer = np.array([type(get_dotted(base, f.name)) is int for f in factors], dtype=bool)
     X = np.empty((int(runs), len(factors)))
     tasks = []

@@ -2,21 +2,24 @@
 
 Online use, one call per sample as the cell produces it::
 
-    from posekit.seam.frontend.log import LogSetup
+    from posekit.seam.frontend.logs_setup import LogSetup
     from posekit.seam.frontend.tracker import SeamTracker
 
-    tracker = SeamTracker(setup.seam_config(), seam_mm, seed=0)   # seam_mm (K, 3), base frame
+    cfg = setup.seam_config(profile="my-cell-profile.yaml")    # the cell + its fitted profile (seam tune)
+    tracker = SeamTracker(cfg, seam_mm, seed=0)                  # seam_mm (K, 3), base frame
     for sample in stream:                                        # your robot + sensor interface
         est = tracker.step(sample.time_s, sample.qref, sample.q, sample.force_tool_n,
                            laser_mm=sample.laser_mm)            # (S, 2), NaN rows = no reading
         send(est.T_base_tool, est.status, est.spread)            # within the sensor period
 
-The first call centres the particle cloud on ``Fk(qref)``. Every call does one filter step
-(propagate with the program's increment ``Fk(qref_k) Fk(qref_{k-1})⁻¹``, weight with the joints,
-the force and each laser reading, estimate, resample); nothing is kept beyond the particles,
-so memory and time per step are constant. A laser sample that arrives between two joint
-samples is a step of its own: give the joints at its time (interpolated or the latest);
-:func:`track_log` interpolates them on a recorded log.
+The first call draws the particle cloud from the robot density about ``Fk(q)``. Every call does one
+filter step (propagate with the program's increment ``Fk(qref_k) Fk(qref_{k-1})⁻¹``, weight with the
+joints, the force and each laser reading at the time it was taken, estimate, resample); nothing is kept
+beyond the particles and the last 64 samples' program joints (for the readings' times), so memory and
+time per step are constant. A reading ``latency_s`` old (the cell's declared latency, else the profile's)
+is compared with the tool where the program had it then; ``reading_time_s`` (a sensor's own stamps)
+overrides that. A laser sample that arrives between two joint samples is a step of its own: give the
+joints at its time (interpolated or the latest); :func:`track_log` interpolates them on a recorded log.
 
 Timing (``posekit bench seam``, row ``seam.tracker.N1000``): median and p99 of
 :meth:`SeamTracker.step` at 1,000 particles with tempering on.
@@ -31,10 +34,12 @@ import numpy as np
 from posekit.errors import ConfigError
 from posekit.geometry import invert_transform
 from posekit.seam.engine.densities import joint_compliance
-from posekit.seam.engine.filter import SeamParticleFilter, StepEstimate, StepInputs
+from posekit.seam.engine.filter import SeamParticleFilter
+from posekit.seam.engine.integrity import STATUSES
+from posekit.seam.engine.step import StepEstimate, StepInputs
 from posekit.seam.engine.trend import trend_filter
-from posekit.seam.frontend.config import SeamConfig
-from posekit.seam.frontend.trajectories import tool_chain
+from posekit.seam.frontend.config import SeamConfig, cell_from_config
+from posekit.verdict import Verdict, status_counts
 
 __all__ = ["SPREAD_COLUMNS", "SeamTrackResult", "SeamTracker", "TrackEstimate", "step_record", "track_columns",
            "track_log", "track_metrics", "write_track"]
@@ -56,8 +61,7 @@ class TrackEstimate:
         Reported standard deviation ``[x, y, z (mm), rx, ry, rz (rad)]`` about the estimate, in
         its frame.
     status : str
-        ``tracking``, ``degraded`` or ``lost`` (the engine's integrity verdict), or ``""`` when
-        the engine gives none.
+        ``tracking``, ``degraded`` or ``lost`` (the engine's integrity verdict).
     ess : float
         Effective sample size after the update.
     lasers_used : int
@@ -82,6 +86,14 @@ class TrackEstimate:
     step_ms: float
     raw: StepEstimate
 
+    @property
+    def verdict(self) -> Verdict:
+        """The step's :class:`posekit.verdict.Verdict`: its status, the failing test as the reason, and the
+        spread as ``std`` (``x_mm``, ``y_mm``, ``z_mm``, ``rx_deg``, ``ry_deg``, ``rz_deg``; tool frame)."""
+        names = ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
+        std = [float(v) for v in self.spread[:3]] + [math.degrees(float(v)) for v in self.spread[3:]]
+        return Verdict(self.status, (self.raw.reason,) if self.raw.reason else (), dict(zip(names, std)))
+
 
 class SeamTracker:
     """The seam-tracking particle filter fed one sample at a time.
@@ -89,9 +101,9 @@ class SeamTracker:
     Parameters
     ----------
     cfg : SeamConfig
-        ``robot`` (model or URDF, ``tool``), ``sensors`` (``mounts`` or distances, ``angle``)
-        and ``filter`` are used (:meth:`posekit.seam.frontend.log.LogSetup.seam_config` builds
-        one from a recorded episode's setup).
+        ``cell`` (robot with tool, sensor mounts and latencies, compliance), ``filter`` and ``profile``
+        are used (:meth:`posekit.seam.frontend.logs.LogSetup.seam_config` builds one from a recorded
+        episode's setup).
     seam_mm : array_like, shape (K, 3)
         The nominal seam in the robot base frame, in travel order, mm. It is trend-filtered
         once here (eq. 10: ``filter.trend_lambda``, ``filter.trend_eps_mm``).
@@ -106,7 +118,10 @@ class SeamTracker:
 
     def __init__(self, cfg: SeamConfig, seam_mm, *, seed: int = 0, seam_normal=None, knots_mm=None):
         self.cfg = cfg
-        self.chain = tool_chain(cfg.robot)
+        self.cell = cell_from_config(cfg.cell)
+        self.settings = cfg.filter.settings()
+        self.profile = cfg.profile_model()
+        self.chain = self.cell.chain
         seam = np.asarray(seam_mm, dtype=np.float64)
         if knots_mm is None:
             knots_mm = trend_filter(seam, lam=cfg.filter.trend_lambda, eps_mm=cfg.filter.trend_eps_mm).polyline
@@ -114,10 +129,10 @@ class SeamTracker:
         self.seam_normal = None if seam_normal is None else np.asarray(seam_normal, dtype=np.float64)
         self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2]))
         self.filter: SeamParticleFilter | None = None
-        self.n_sensors = cfg.sensors.count
+        self.n_sensors = self.cell.n_sensors
         self._T_prev = None
-        self._base_cj = (joint_compliance(cfg.filter.compliance_rad_per_nm)
-                         if cfg.filter.compliance_rad_per_nm > 0.0 else None)
+        c = self.cell.compliance_rad_per_nm
+        self._base_cj = joint_compliance(c) if c > 0.0 else None
         self.steps = 0
         #: The last step's measured force in the base frame (``R(Fk(q)) f_tool``, N), as the filter used it.
         self.force_base_n: np.ndarray | None = None
@@ -129,7 +144,7 @@ class SeamTracker:
         return a
 
     def step(self, time_s: float, qref, q, force_tool_n, *, laser_mm=None, angle_rad=None,
-             torque_tool_nm=None) -> TrackEstimate:
+             torque_tool_nm=None, reading_time_s=None) -> TrackEstimate:
         """One filter step on one sample.
 
         Parameters
@@ -149,7 +164,9 @@ class SeamTracker:
             Angle readings (``sensors.angle``), rad, NaN = none.
         torque_tool_nm : array_like, shape (3,), optional
             Torque on the tool, tool frame, N·m: it enters the joint torques ``τ = J_vᵀ f +
-            J_ωᵀ m`` of the filter's compliance model (``filter.compliance_rad_per_nm``).
+            J_ωᵀ m`` of the filter's compliance model (``cell.compliance_rad_per_nm``).
+        reading_time_s : array_like, shape (S,), optional
+            Each reading's own time stamp (s, same clock as ``time_s``; NaN: the sensor's latency).
 
         Returns
         -------
@@ -167,8 +184,8 @@ class SeamTracker:
         force_base = R_meas @ w
         self.force_base_n = force_base
         if self.filter is None:
-            self.filter = SeamParticleFilter(self.cfg, self.knots_mm, self.rng, T_init=T_nom,
-                                             seam_normal=self.seam_normal)
+            self.filter = SeamParticleFilter(self.cell, self.settings, self.profile, self.knots_mm, self.rng,
+                                             T_init=T_nom, seam_normal=self.seam_normal)
             inc = np.eye(4)
         else:
             inc = T_nom @ invert_transform(self._T_prev, check=False)
@@ -187,16 +204,18 @@ class SeamTracker:
             laser = (np.full((self.n_sensors, 2), np.nan) if laser_mm is None
                      else self._check("laser_mm", laser_mm, (self.n_sensors, 2)))
         angle = None
-        if self.cfg.sensors.angle and self.n_sensors and angle_rad is not None:
+        if self.cell.angle and self.n_sensors and angle_rad is not None:
             angle = self._check("angle_rad", angle_rad, (self.n_sensors,))
-        inputs = StepInputs(inc, T_nom, q, force_base, laser, angle)
+        lag = None
+        if reading_time_s is not None and self.n_sensors:
+            lag = float(time_s) - self._check("reading_time_s", reading_time_s, (self.n_sensors,))
+        inputs = StepInputs(inc, T_nom, q, force_base, float(time_s), qref, laser, angle, lag)
         t0 = time.perf_counter()
         est = self.filter.step(inputs)
         ms = (time.perf_counter() - t0) * 1e3
         self._T_prev = T_nom
         self.steps += 1
-        status = getattr(est, "status", "") or ""
-        return TrackEstimate(float(time_s), est.T, np.asarray(est.spread, dtype=np.float64), str(status),
+        return TrackEstimate(float(time_s), est.T, np.asarray(est.spread, dtype=np.float64), est.status,
                              float(est.ess), int(est.lasers_used), est.T_kinematic, T_nom, ms, est)
 
 
@@ -241,7 +260,7 @@ class SeamTrackResult:
 
 
 def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
-    """Run the filter over a recorded episode (:func:`posekit.seam.frontend.log.read_episode_log`).
+    """Run the filter over a recorded episode (:func:`posekit.seam.frontend.logs.read_episode_log`).
 
     Each row of ``log.csv`` is one step; joints on laser-only rows are the interpolated ones.
     The filter's seed is ``setup.yaml``'s ``seed``; a log written by ``posekit seam simulate
@@ -265,7 +284,8 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
         r = tracker.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
                          laser_mm=log.laser_mm[k] if log.laser_mm.shape[1] else None,
                          angle_rad=None if log.angle_rad is None else log.angle_rad[k],
-                         torque_tool_nm=None if log.torque_tool_nm is None else log.torque_tool_nm[k])
+                         torque_tool_nm=None if log.torque_tool_nm is None else log.torque_tool_nm[k],
+                         reading_time_s=None if log.reading_time_s is None else log.reading_time_s[k])
         est[k], kin[k], nom[k], spread[k] = r.T_base_tool, r.T_kinematic, r.T_nominal, r.spread
         ess[k], ms[k], used[k] = r.ess, r.step_ms, r.lasers_used
         status.append(r.status)
@@ -287,17 +307,15 @@ def track_metrics(result: SeamTrackResult) -> dict:
     kinematic pose in radii of the filter's robot plateau, and the fraction of steps outside it:
     :func:`posekit.seam.frontend.simulate.plateau_ratio`; outside, the filter's ``d0``/``kd`` do not
     describe the robot, paper eq. 7))."""
-    from collections import Counter
-
     from posekit.seam.frontend.simulate import AXES, confident_wrong_share, plateau_ratio, seam_frame_errors
 
     def fl(v):
         return float(round(float(v), 6))
 
-    counts = Counter(result.status)
+    counts = status_counts((s for s in result.status if s), STATUSES)
     out = {
         "steps": len(result.time_s),
-        "status_counts": {k: int(v) for k, v in sorted(counts.items()) if k},
+        "status_counts": {k: v for k, v in counts.items() if v},
         "step_ms_median": fl(np.median(result.step_ms)),
         "step_ms_p99": fl(np.percentile(result.step_ms, 99)),
         "interpolated_steps": int(result.interpolated.sum()),

@@ -21,8 +21,11 @@ The seam polyline extends ``seam_extension_mm`` beyond the program's end, so sen
 ahead of the tool keep seeing it.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,7 +37,10 @@ from posekit.robots import (
     resolved_rate_step,
     robot_model,
 )
-from posekit.seam.frontend.config import RobotConfig, TrajectoryConfig
+
+if TYPE_CHECKING:  # annotations only: the configuration validates programs with this module (no import circle)
+    from posekit.seam.frontend.config import TrajectoryConfig
+    from posekit.seam.frontend.config_cell import RobotConfig
 
 __all__ = [
     "IK_SEED_DEG",
@@ -219,7 +225,7 @@ def ik_seed(robot: RobotConfig, chain: KinematicChain) -> np.ndarray:
     model's seed, or the middle of the joint ranges clipped to ±90°."""
     if robot.ik_seed_deg is not None:
         if len(robot.ik_seed_deg) != chain.n_joints:
-            raise ConfigError(f"robot.ik_seed_deg: expected {chain.n_joints} values for {robot.label}, "
+            raise ConfigError(f"cell.robot.ik_seed_deg: expected {chain.n_joints} values for {robot.label}, "
                               f"got {len(robot.ik_seed_deg)}")
         return np.deg2rad(robot.ik_seed_deg)
     if robot.urdf is None and robot.model in _BUNDLED_SEEDS_DEG:
@@ -264,7 +270,7 @@ def _nominal_cached(traj: TrajectoryConfig, robot: RobotConfig, extra_mm: float)
         raise TrajectoryError(
             f"trajectory '{traj.kind}' from start_mm {list(traj.start_mm)}: the inverse kinematics "
             f"misses the program by {ik_err:.3g} mm (expected < 0.001 mm); the path leaves the "
-            f"{robot.label} workspace or passes a singularity (set trajectory.start_mm or robot.ik_seed_deg)"
+            f"{robot.label} workspace or passes a singularity (set trajectory.start_mm or cell.robot.ik_seed_deg)"
         )
     n_seam = int(np.ceil((traj.length_mm + extra_mm) / SEAM_SPACING_MM)) + 1
     u_seam = np.linspace(0.0, traj.length_mm + extra_mm, n_seam)

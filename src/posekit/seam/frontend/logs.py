@@ -2,14 +2,18 @@
 
 A recorded episode is a folder:
 
-``setup.yaml``
+``setup.yaml`` (the cell)
     ``robot`` (a bundled name, or ``{urdf: PATH, base_link: NAME, tip_link: NAME}`` with PATH
-    relative to the folder), ``tool`` (4×4 ``T_flange_tool``, mm), ``sensors`` (a list of 4×4
-    ``T_tool_sensor``, mm; the sensor's x–z plane is its laser plane), ``angle`` (the log
-    carries angle readings), ``seam_normal`` (the workpiece normal in the base frame, for the
-    angle), ``seed`` (the filter's seed), ``noise`` (the cell's sensor noise, informational:
-    ``joint_deg``, ``laser_mm``, ``force_n``) and ``filter`` (the filter parameters, as in the
-    ``filter`` section of a seam configuration; missing keys take their defaults).
+    relative to the folder), ``tool`` (4×4 ``T_flange_tool``, mm), ``sensors`` (one entry per
+    sensor: a 4×4 ``T_tool_sensor``, mm, the sensor's x–z plane being its laser plane, or
+    ``{T_tool_sensor: 4x4, latency_s: s}``: a reading in the row at ``time_s`` was taken at
+    ``time_s - latency_s``), ``compliance_rad_per_nm`` (the joint compliance model, 0: none),
+    ``angle`` (the log carries angle readings), ``seam_normal`` (the workpiece normal in the base
+    frame, for the angle), ``seed`` (the filter's seed), ``noise`` (the cell's sensor noise,
+    informational: ``joint_deg``, ``laser_mm``, ``force_n``), optionally ``filter`` (the algorithm's
+    keys, as in a seam configuration) and ``profile`` (a profile file relative to the folder, or
+    values replacing the default profile's; ``seam track --profile`` overrides it). A setup in the
+    layout before issue 26 (a ``filter`` of the old keys) is mapped with a one-line note.
 ``seam.csv``
     ``x_mm,y_mm,z_mm``: the nominal seam in the robot base frame, in travel order.
 ``log.csv``
@@ -17,9 +21,10 @@ A recorded episode is a folder:
     ``q_1..q_n`` (rad, measured), ``fx_n,fy_n,fz_n`` (force on the tool, tool frame of the
     measured pose), optionally ``mx_nm,my_nm,mz_nm`` (the torque of a 6-D wrench, N·m, same
     frame), and for each sensor k ``m{k}_x_mm,m{k}_z_mm`` (the seam's crossing of its laser
-    plane in the sensor frame; empty = no reading), optionally ``m{k}_angle_rad``. A row with
-    empty joints is a laser sample at its own time: its joints (and an empty force) are
-    interpolated linearly in time from the neighbouring rows.
+    plane in the sensor frame; empty = no reading), optionally ``m{k}_angle_rad`` and ``m{k}_t_s``
+    (the reading's own time stamp, same clock as ``time_s``, at most ``time_s``: it overrides the
+    sensor's latency). A row with empty joints is a laser sample at its own time: its joints (and
+    an empty force) are interpolated linearly in time from the neighbouring rows.
 ``truth.csv`` (optional; simulated episodes)
     ``time_s`` and ``T_seam_tool`` as ``tx_mm,ty_mm,tz_mm,qw,qx,qy,qz``, one row per log row.
     The seam frame of a step is the nominal tool pose ``Fk(qref)`` there (x across, y along
@@ -37,26 +42,20 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from posekit.errors import InputFileError
 from posekit.geometry import invert_transform, quaternion_from_matrix, transform_from_quaternion
 from posekit.io import parse_number
 from posekit.seam.frontend.config import (
     MAX_STEPS,
-    FilterConfig,
-    Matrix4,
-    RobotConfig,
     SeamConfig,
-    _check_rigid,
-    config_from_dict,
 )
+from posekit.seam.frontend.logs_setup import LogSetup, read_setup, setup_profile
 
 __all__ = [
     "LOG_FILES",
     "MAX_SEAM_POINTS",
     "EpisodeLog",
-    "LogSetup",
     "log_columns",
     "read_episode_log",
     "write_episode_log",
@@ -67,47 +66,6 @@ LOG_FILES = ("setup.yaml", "seam.csv", "log.csv", "truth.csv")
 #: Most points of ``seam.csv`` (10 m at 0.01 mm).
 MAX_SEAM_POINTS = 1_000_000
 TRUTH_COLUMNS = ("time_s", "tx_mm", "ty_mm", "tz_mm", "qw", "qx", "qy", "qz")
-
-
-class _Noise(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-    joint_deg: float | None = Field(None, ge=0.0, le=180.0)
-    laser_mm: float | None = Field(None, ge=0.0, le=1e3)
-    force_n: float | None = Field(None, ge=0.0, le=1e5)
-
-
-class LogSetup(BaseModel):
-    """The contents of ``setup.yaml`` (see the module docstring)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-    robot: RobotConfig = RobotConfig()
-    tool: Matrix4 | None = None
-    sensors: tuple[Matrix4, ...] = Field((), max_length=4)
-    angle: bool = False
-    seam_normal: tuple[float, float, float] = (0.0, 0.0, -1.0)
-    seed: int = Field(0, ge=0, le=2**63 - 1)
-    noise: _Noise = _Noise()
-    filter: FilterConfig = FilterConfig()
-
-    @field_validator("tool")
-    @classmethod
-    def _rigid_tool(cls, v):
-        return None if v is None else _check_rigid(v, "T_flange_tool")
-
-    @field_validator("sensors")
-    @classmethod
-    def _rigid_sensors(cls, v):
-        return tuple(_check_rigid(m, f"sensor {i + 1} (T_tool_sensor)") for i, m in enumerate(v))
-
-    def seam_config(self, source: str = "setup.yaml") -> SeamConfig:
-        """The :class:`SeamConfig` the filter runs with (robot with this tool, these sensor mounts)."""
-        robot = self.robot.model_dump(mode="python")
-        if self.tool is not None:
-            robot["tool"] = self.tool
-        data = {"seed": self.seed, "robot": robot, "filter": self.filter.model_dump(mode="python"),
-                "trajectory": {"steps": 2},
-                "sensors": {"count": len(self.sensors), "mounts": self.sensors or None, "angle": self.angle}}
-        return config_from_dict(data, source)
 
 
 @dataclass
@@ -132,6 +90,8 @@ class EpisodeLog:
     laser_mm : ndarray, shape (T, S, 2)
         Laser readings ``(x, z)`` in each sensor frame, mm; NaN = no reading.
     angle_rad : ndarray, shape (T, S) or None
+    reading_time_s : ndarray, shape (T, S) or None
+        The readings' own stamps (``m{k}_t_s``, s; NaN: none, the sensor's latency applies).
     interpolated : ndarray of bool, shape (T,)
         Rows whose joints were interpolated (laser samples at their own time).
     truth_seam_tool : ndarray, shape (T, 4, 4) or None
@@ -149,18 +109,21 @@ class EpisodeLog:
     torque_tool_nm: np.ndarray | None
     laser_mm: np.ndarray
     angle_rad: np.ndarray | None
+    reading_time_s: np.ndarray | None
     interpolated: np.ndarray
     truth_seam_tool: np.ndarray | None
 
 
-def log_columns(n_joints: int, n_sensors: int, *, torque: bool = False, angle: bool = False) -> list[str]:
+def log_columns(n_joints: int, n_sensors: int, *, torque: bool = False, angle: bool = False,
+                stamps: bool = False) -> list[str]:
     """The columns of ``log.csv`` for ``n_joints`` joints and ``n_sensors`` sensors, in order."""
     cols = ["time_s", *(f"qref_{j + 1}" for j in range(n_joints)), *(f"q_{j + 1}" for j in range(n_joints)),
             "fx_n", "fy_n", "fz_n"]
     if torque:
         cols += ["mx_nm", "my_nm", "mz_nm"]
     for k in range(1, n_sensors + 1):
-        cols += [f"m{k}_x_mm", f"m{k}_z_mm"] + ([f"m{k}_angle_rad"] if angle else [])
+        cols += ([f"m{k}_x_mm", f"m{k}_z_mm"] + ([f"m{k}_angle_rad"] if angle else [])
+                 + ([f"m{k}_t_s"] if stamps else []))
     return cols
 
 
@@ -201,17 +164,22 @@ def write_episode_log(folder, cfg: SeamConfig, data, seed: int) -> Path:
     """
     folder = Path(folder)
     nt = data.nominal
-    robot = {k: v for k, v in cfg.robot.model_dump(mode="python").items()
+    robot = {k: v for k, v in cfg.cell.robot.model_dump(mode="python").items()
              if k in ("model", "urdf", "base_link", "tip_link") and v is not None}
+    lat = cfg.cell.sensors.latency_s
+    sensors = [_matrix(M) if lat is None or lat[i] is None else {"T_tool_sensor": _matrix(M), "latency_s": lat[i]}
+               for i, M in enumerate(cfg.cell.sensors.resolved_mounts())]
+    sim = cfg.simulation
     setup = {
         "robot": robot,
-        "tool": _matrix(cfg.robot.tool_matrix()),
-        "sensors": [_matrix(M) for M in cfg.sensors.resolved_mounts()],
-        "angle": bool(cfg.sensors.angle),
+        "tool": _matrix(cfg.cell.robot.tool_matrix()),
+        "sensors": sensors,
+        "compliance_rad_per_nm": float(cfg.cell.compliance_rad_per_nm),
+        "angle": bool(cfg.cell.sensors.angle),
         "seam_normal": [float(v) for v in nt.seam_normal],
         "seed": int(seed),
-        "noise": {"joint_deg": float(cfg.robot.joint_noise_deg), "laser_mm": float(cfg.sensors.noise_mm),
-                  "force_n": float(cfg.process.force_sensor_noise_n)},
+        "noise": {"joint_deg": float(sim.joint_noise_deg), "laser_mm": float(sim.laser_noise_mm),
+                  "force_n": float(sim.force_sensor_noise_n)},
         "filter": cfg.filter.model_dump(mode="json"),
     }
     (folder / "setup.yaml").write_text("# posekit seam recorded episode (simulated)\n"
@@ -221,7 +189,7 @@ def write_episode_log(folder, cfg: SeamConfig, data, seed: int) -> Path:
     R_meas = nt.chain.forward_kinematics(data.q_meas)[:, :3, :3]
     f_tool = np.matmul(np.swapaxes(R_meas, 1, 2), data.force_meas_n[..., None])[..., 0]
     S = data.laser_mm.shape[1]
-    angle = bool(cfg.sensors.angle)
+    angle = bool(cfg.cell.sensors.angle)
     cols = log_columns(nt.q.shape[1], S, angle=angle)
     parts = [nt.t_s[:, None], nt.q, data.q_meas, f_tool]
     for k in range(S):
@@ -307,30 +275,6 @@ def _table(path: Path, header, rows, *, empty_ok=()) -> np.ndarray:
     return out
 
 
-def _read_setup(folder: Path) -> LogSetup:
-    from posekit.io import load_yaml
-
-    path = folder / "setup.yaml"
-    data = load_yaml(path, expected="the setup of a recorded seam episode (robot, tool, sensors, filter)",
-                     error=InputFileError)
-    if not isinstance(data, dict):
-        raise InputFileError(f"{path}: expected a mapping (robot, tool, sensors, filter), got {type(data).__name__}")
-    robot = data.get("robot")
-    if isinstance(robot, str):
-        robot = {"model": robot}
-    if isinstance(robot, dict) and isinstance(robot.get("urdf"), str):
-        urdf = Path(robot["urdf"]).expanduser()
-        robot = {**robot, "urdf": str(urdf if urdf.is_absolute() else (folder / urdf).resolve())}
-    if robot is not None:
-        data = {**data, "robot": robot}
-    try:
-        return LogSetup.model_validate(data)
-    except ValidationError as exc:
-        from posekit.seam.frontend.config import _describe
-
-        raise InputFileError(f"{path}: {_describe(exc.errors()[0])}") from None
-
-
 def _interpolate(path: Path, lines, t: np.ndarray, cols: np.ndarray, what: str) -> np.ndarray:
     """Fill the NaN rows of ``cols (T, m)`` linearly in time from the rows that have values."""
     have = np.all(np.isfinite(cols), axis=1)
@@ -349,8 +293,11 @@ def _interpolate(path: Path, lines, t: np.ndarray, cols: np.ndarray, what: str) 
     return out
 
 
-def read_episode_log(folder) -> EpisodeLog:
+def read_episode_log(folder, profile=None) -> EpisodeLog:
     """Read and check a recorded episode folder (see the module docstring).
+
+    ``profile``: a profile file or :class:`~posekit.seam.frontend.profile.ProfileModel` the filter runs with
+    (default: the setup's ``profile``, else the shipped default).
 
     Raises
     ------
@@ -363,11 +310,15 @@ def read_episode_log(folder) -> EpisodeLog:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputFileError(f"{folder}: not a folder; expected a recorded episode (setup.yaml, seam.csv, log.csv)")
-    setup = _read_setup(folder)
-    cfg = setup.seam_config(str(folder / "setup.yaml"))
+    setup = read_setup(folder)
+    if profile is not None:
+        from posekit.seam.frontend.profile import resolve_profile
+
+        profile = resolve_profile(profile, None, "--profile")
+    cfg = setup.seam_config(str(folder / "setup.yaml"), profile=profile or setup_profile(setup, folder))
     from posekit.seam.frontend.trajectories import tool_chain
 
-    n = tool_chain(cfg.robot).n_joints
+    n = tool_chain(cfg.cell.robot).n_joints
     S = len(setup.sensors)
     # seam.csv
     path = folder / "seam.csv"
@@ -382,14 +333,15 @@ def read_episode_log(folder) -> EpisodeLog:
     header, rows = _csv_rows(path, "one sample per line: time_s, qref_*, q_*, fx_n.., m{k}_x_mm..", MAX_STEPS)
     torque = "mx_nm" in header
     angle = any(h.endswith("_angle_rad") for h in header)
-    expected = log_columns(n, S, torque=torque, angle=angle)
+    stamps = any(h.endswith("_t_s") for h in header)
+    expected = log_columns(n, S, torque=torque, angle=angle, stamps=stamps)
     if header != expected:
         missing = [c for c in expected if c not in header]
         extra = [c for c in header if c not in expected]
         what = (f"missing {','.join(missing[:4])}" if missing else
                 f"unexpected {','.join(extra[:4])}" if extra else "columns out of order")
         raise InputFileError(f"{path} line 1: {what}; expected the columns {','.join(expected)[:200]} "
-                             f"({n} joints of {cfg.robot.label}, {S} sensor(s) in setup.yaml)")
+                             f"({n} joints of {cfg.cell.robot.label}, {S} sensor(s) in setup.yaml)")
     if not rows:
         raise InputFileError(f"{path}: no samples; expected one row per sample after the header")
     empty = set(expected) - {"time_s"}
@@ -425,6 +377,15 @@ def read_episode_log(folder) -> EpisodeLog:
     for k in range(S):
         laser[:, k] = check_whole([f"m{k + 1}_x_mm", f"m{k + 1}_z_mm"], f"sensor {k + 1}'s reading")
     angles = block([f"m{k + 1}_angle_rad" for k in range(S)]) if angle else None
+    stamp = None
+    if stamps:
+        stamp = block([f"m{k + 1}_t_s" for k in range(S)])
+        late = np.flatnonzero(np.any(stamp > t[:, None] + 1e-9 * np.maximum(1.0, np.abs(t[:, None])), axis=1))
+        if late.size:
+            i = late[0]
+            k = int(np.flatnonzero(stamp[i] > t[i])[0])
+            raise InputFileError(f"{path} line {lines[i]}: m{k + 1}_t_s {stamp[i, k]:g} after time_s {t[i]:g}; "
+                                 "expected the reading's own time, at most the row's")
     # truth.csv
     truth = None
     path = folder / "truth.csv"
@@ -447,4 +408,4 @@ def read_episode_log(folder) -> EpisodeLog:
             raise InputFileError(f"{path} line {rows[i][0]}: quaternion norm {qn[i]:.6g}; expected a unit quaternion")
         truth = transform_from_quaternion(tr[:, 4:] / qn[:, None], tr[:, 1:4])
     return EpisodeLog(folder, setup, cfg, seam, t, joints[:, :n], joints[:, n:], force, torque_nm, laser, angles,
-                      interpolated, truth)
+                      stamp, interpolated, truth)

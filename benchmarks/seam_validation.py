@@ -1,0 +1,160 @@
+"""The seam filter's validation study (issue 26): the Monte-Carlo the test suite no longer runs.
+
+Run from a source checkout::
+
+    python benchmarks/seam_validation.py --out benchmarks/data/seam_validation.json [--episodes N]
+
+It writes one JSON file (checked in: ``benchmarks/data/seam_validation.json``) with, per scenario, the 2σ coverage
+per axis (share of steps whose |error| <= 2 x the reported spread), the status counts, the confident-wrong share
+(steps ``tracking`` while beyond 3σ on some axis) over all steps and the worst single episode's:
+
+- **posekit's own simulator** (``posekit seam simulate``'s episodes, the shipped default profile, 500 particles,
+  500 steps): the paper's xy and yz seams and the bundled stress configurations (wrong start, 25 kN);
+- **a cell posekit did not simulate** (tests/seam/independent_cell.py: its own UR10-like arm, seam, deflection,
+  drift and two lasers 13 / 17 ms late): ``seam tune --with-truth`` and ``seam tune`` (innovations only) on 3
+  training episodes (the latency each recovers, with its 1σ), then held-out episodes tracked with the fitted
+  profile (nominal; an encoder offset of 0.05 deg on joint 1 or 2; a force-sensor bias of 300 N along x or z) and
+  with the same profile claiming no latency (an undeclared latency); and the same on the cell with its lasers on
+  time (a profile fitted there).
+
+The numbers depend on the machine only through floating point; ``--episodes`` sets the episodes per scenario
+(default 20 on the own simulator, 10 held-out on the independent cell).
+"""
+
+import argparse
+import json
+import math
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def _summary(errors, spreads, statuses) -> dict:
+    """Coverage, statuses and confident-wrong shares of a list of episodes (errors mm/rad, spreads alike)."""
+    E = np.abs(np.concatenate(errors))
+    S = np.concatenate(spreads)
+    st = np.concatenate([np.asarray(s) for s in statuses])
+    cw = [float(np.mean((np.asarray(s) == "tracking") & np.any(np.abs(e) > 3.0 * sp, axis=1)))
+          for e, sp, s in zip(errors, spreads, statuses)]
+    return {"episodes": len(errors), "steps": int(len(st)),
+            "coverage_2sigma": {a: round(float(v), 4) for a, v in zip(AXES, np.mean(E <= 2.0 * S, axis=0))},
+            "status_counts": {k: int(np.sum(st == k)) for k in ("tracking", "degraded", "lost")},
+            "tracking": round(float(np.mean(st == "tracking")), 4),
+            "confident_wrong": round(float(np.mean((st == "tracking") & np.any(E > 3.0 * S, axis=1))), 4),
+            "confident_wrong_worst_episode": round(max(cw), 4),
+            "episodes_confident_wrong_over_5_percent": int(sum(c > 0.05 for c in cw)),
+            "rmse_mm": {a: round(float(v), 4) for a, v in zip(AXES[:3], np.sqrt(np.mean(E[:, :3] ** 2, axis=0)))},
+            "rmse_deg": {a: round(math.degrees(float(v)), 4)
+                         for a, v in zip(AXES[3:], np.sqrt(np.mean(E[:, 3:] ** 2, axis=0)))}}
+
+
+def own_simulator(episodes: int) -> dict:
+    """The default profile on posekit's own simulated episodes."""
+    from posekit.seam.frontend.config import apply_overrides, config_from_dict, load_config
+    from posekit.seam.frontend.simulate import run_episode
+
+    ex = ROOT / "examples" / "seam"
+    scen = {"xy": apply_overrides(config_from_dict({}), {"trajectory.kind": "xy"}),
+            "yz": apply_overrides(config_from_dict({}), {"trajectory.kind": "yz"}),
+            "stress-wrong-start": load_config(ex / "stress-wrong-start.yaml"),
+            "stress-25kN": load_config(ex / "stress-25kN.yaml")}
+    out = {}
+    for name, cfg in scen.items():
+        res = [run_episode(cfg, seed) for seed in range(episodes)]
+        out[name] = {"command": f"posekit seam simulate --runs {episodes} --seed 0"
+                                + ("" if name in ("xy", "yz") else f" --config examples/seam/{name}.yaml")
+                                + (f" --trajectory {name}" if name in ("xy", "yz") else ""),
+                     **_summary([r.error for r in res], [r.spread for r in res], [r.status for r in res])}
+        print(f"  own {name}: {out[name]['coverage_2sigma']} tracking {out[name]['tracking']} "
+              f"confident-wrong {out[name]['confident_wrong']}", flush=True)
+    return out
+
+
+def independent_cell(episodes: int, folder: Path) -> dict:
+    """Tune on 3 training episodes of the independent cell, then score held-out ones."""
+    sys.path.insert(0, str(ROOT))
+    from posekit.seam.frontend.logs import read_episode_log
+    from posekit.seam.frontend.profile import merge_profile, write_profile
+    from posekit.seam.frontend.tracker import track_log
+    from posekit.seam.frontend.tune import tune_profile
+    from tests.seam import independent_cell as ic
+
+    out = {}
+    held = range(100, 100 + episodes)
+    for label, cell in (("latency 13/17 ms", ic.Cell()), ("on time", ic.Cell(latency_s=(0.0, 0.0)))):
+        root = folder / label.replace(" ", "_").replace("/", "-")
+        train = [ic.write_episode(root / f"train{s}", cell, ic.episode(cell, s), declare_latency=False)
+                 for s in (0, 1, 2)]
+        fits = {}
+        for method in ("truth", "innovations"):
+            res = tune_profile(train, with_truth=method == "truth")
+            fits[method] = res
+            write_profile(root / f"{method}.yaml", res.profile)
+        lat = {m: [{"value_ms": round(v.value * 1e3, 3), "std_ms": None if v.std is None else round(v.std * 1e3, 3)}
+                   for v in r.values if v.key.endswith("latency_s")] for m, r in fits.items()}
+        block = {"true_latency_ms": [1e3 * x for x in cell.latency_s], "tuned_latency_ms": lat,
+                 "command": "posekit seam tune train0 train1 train2 --with-truth --out truth.yaml (and without "
+                            "--with-truth: innovations.yaml)"}
+        zero = merge_profile(fits["truth"].profile, {"sensors": [{"latency_s": 0.0}] * len(cell.mounts)})
+        write_profile(root / "zero-latency.yaml", zero)
+        scen = {"nominal": ({}, "truth.yaml"),
+                "nominal, innovations-fitted profile": ({}, "innovations.yaml"),
+                "encoder offset 0.05 deg joint 1": ({"encoder_offset_deg": (0.05, 0, 0, 0, 0, 0)}, "truth.yaml"),
+                "encoder offset 0.05 deg joint 2": ({"encoder_offset_deg": (0, 0.05, 0, 0, 0, 0)}, "truth.yaml"),
+                "force-sensor bias 300 N along x": ({"force_bias_n": (300.0, 0, 0)}, "truth.yaml"),
+                "force-sensor bias 300 N along z": ({"force_bias_n": (0, 0, 300.0)}, "truth.yaml")}
+        if cell.latency_s[0] > 0:
+            scen["latency undeclared (profile says 0)"] = ({}, "zero-latency.yaml")
+        for name, (kw, prof) in scen.items():
+            errs, spr, sts = [], [], []
+            for s in held:
+                ep = ic.episode(cell, s, **kw)
+                d = ic.write_episode(root / f"{name}-{s}".replace(" ", "_"), cell, ep, declare_latency=False)
+                r = track_log(read_episode_log(d, profile=root / prof))
+                errs.append(ic.seam_frame_errors(r.estimate, ep))
+                spr.append(r.spread)
+                sts.append(r.status)
+            block[name] = {"command": f"posekit seam track EPISODE --profile {prof} --out DIR (held-out seeds "
+                                      f"{held.start}-{held.stop - 1})", **_summary(errs, spr, sts)}
+            print(f"  independent {label} {name}: {block[name]['coverage_2sigma']} tracking "
+                  f"{block[name]['tracking']} confident-wrong {block[name]['confident_wrong']} (worst episode "
+                  f"{block[name]['confident_wrong_worst_episode']})", flush=True)
+        out[label] = block
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, help="the JSON file to write")
+    ap.add_argument("--episodes", type=int, default=None, help="episodes per scenario (default 20 / 10)")
+    args = ap.parse_args(argv)
+    sys.path.insert(0, str(ROOT / "src"))
+    t0 = time.time()
+    n_own = args.episodes or 20
+    n_ind = args.episodes or 10
+    print("own simulator:", flush=True)
+    own = own_simulator(n_own)
+    print("independent cell:", flush=True)
+    with tempfile.TemporaryDirectory(prefix="posekit-validation-") as tmp:
+        ind = independent_cell(n_ind, Path(tmp))
+    data = {"command": "python benchmarks/seam_validation.py --out benchmarks/data/seam_validation.json"
+                       + (f" --episodes {args.episodes}" if args.episodes else ""),
+            "python": platform.python_version(), "seconds": round(time.time() - t0, 1),
+            "own_simulator": own, "independent_cell": ind}
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    print(f"wrote {out} ({data['seconds']} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

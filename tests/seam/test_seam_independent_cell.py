@@ -1,0 +1,86 @@
+"""The seam filter judged on a cell posekit's simulator did not make (tests/seam/independent_cell.py: its own
+UR10-like arm, seam, deflection, drift and two lasers 13 / 17 ms late).
+
+``seam tune --with-truth`` recovers the lasers' latencies from two short training episodes (2 x 120 steps, run here). The held-out
+episodes are tracked with the profile the same command fitted on three full training episodes, checked in as
+tests/seam/data/independent_cell_profile.yaml (a ~60 s fit; made by ``python -m tests.seam.independent_cell DIR``,
+then in DIR ``posekit seam tune train0 train1 train2 --with-truth --out independent_cell_profile.yaml``; a test
+here checks that the generator still writes the episodes the file names). Their 2-sigma coverage, tracking share
+and confident-wrong share (tracking while beyond 3 sigma on some axis) are scored against the generator's own
+truth, with bounds derived from the number of independent samples the autocorrelated steps are worth. The larger
+Monte-Carlo (more episodes, encoder offsets, force biases) is benchmarks/seam_validation.py, written to
+benchmarks/data/seam_validation.json.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from posekit.seam.frontend.logs import read_episode_log
+from posekit.seam.frontend.profile import episode_record, load_profile, merge_profile, write_profile
+from posekit.seam.frontend.tracker import track_log
+from posekit.seam.frontend.tune import tune_profile
+from tests.seam import independent_cell as ic
+from tests.seam.helpers import coverage_band, effective_samples
+
+PROFILE = Path(__file__).parent / "data" / "independent_cell_profile.yaml"
+HELD_OUT = (100, 101, 102, 103, 104, 105)
+
+
+def _track(cell, root, seed, profile, name, **kw):
+    ep = ic.episode(cell, seed, **kw)
+    folder = ic.write_episode(root / f"{name}{seed}", cell, ep, declare_latency=False)
+    r = track_log(read_episode_log(folder, profile=profile))
+    return ic.scores(r.estimate, r.spread, r.status, ep)
+
+
+def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
+    cell = ic.Cell()
+    train = [ic.write_episode(tmp_path / f"train{s}", cell, ic.episode(cell, s, steps=120), declare_latency=False)
+             for s in (0, 1)]
+    got = {v.key: v for v in tune_profile(train, with_truth=True).values}
+    for i, true in enumerate(cell.latency_s):
+        v = got[f"sensors[{i}].latency_s"]
+        # measured (2 x 250 steps): 12.78 +- 0.48 ms and 16.91 +- 0.20 ms for the true 13 and 17 ms
+        assert v.pinned and abs(v.value - true) < 0.003, (i, v)
+        assert v.std is not None and 0.0 < v.std < 0.0015
+        assert abs(v.value - true) < 4.0 * v.std + 0.001     # the 1σ is honest (1 ms: the servo lag, unmodelled)
+    # and the laser noise to within a half of the generator's (0.03 / 0.04 mm plus the jitter the sensors see)
+    for i, noise in enumerate(cell.laser_sigma_mm):
+        assert noise < got[f"sensors[{i}].sigma_mm"].value < 1.5 * noise
+
+
+def test_the_checked_in_profile_was_fitted_on_this_generator_s_episodes(tmp_path):
+    p = load_profile(PROFILE)
+    assert p.fitted.method == "truth"
+    assert [episode_record(d) for d in ic.write_training(tmp_path)] == [e.model_dump() for e in p.fitted.episodes]
+
+
+def test_held_out_episodes_are_tracked_with_an_honest_spread(tmp_path):
+    cell = ic.Cell()
+    runs = [_track(cell, tmp_path, s, PROFILE, "held") for s in HELD_OUT]
+    covered = np.concatenate([r["covered"] for r in runs])
+    cov = covered.mean(axis=0)
+    n_eff = effective_samples(covered)          # 2400 steps, errors correlated over tens of steps: 10-900 per axis
+    lo, _ = coverage_band(n_eff, 0.85)           # the issue's lower target, 3 binomial sigmas at n_eff
+    assert np.all(cov >= lo), (cov, n_eff)
+    # not too wide in translation: below the band of 0.99 (the rotations' spreads are conservative, measured up to
+    # 1.0: the roll about the travel is the robot plateau's; see docs/notes/issue-26.md)
+    _, hi = coverage_band(n_eff, 0.99)
+    assert np.all(cov[:3] <= np.minimum(hi[:3], 0.999)), (cov, n_eff)
+    # over the held-out steps (measured: coverage 0.994 0.960 0.966 0.948 1.0 0.888, tracking 0.989, confident-wrong
+    # 0.004, the worst episode 1.8 %)
+    assert np.mean([r["tracking"] for r in runs]) >= 0.9
+    assert np.mean([r["confident_wrong"] for r in runs]) <= 0.05
+
+
+@pytest.mark.xfail(strict=True, reason="not met (issue 26): with two sensors the lateral error of an undeclared "
+                                       "13/17 ms latency is absorbed by the estimate's x and yaw; the laser NIS tests "
+                                       "flag it only after 100-300 steps (see docs/notes/issue-26.md)")
+def test_a_latency_nobody_declared_is_not_reported_tracking(tmp_path):
+    cell = ic.Cell()
+    zero = merge_profile(load_profile(PROFILE), {"sensors": [{"latency_s": 0.0}] * len(cell.mounts)})
+    write_profile(tmp_path / "zero-latency.yaml", zero)
+    r = _track(cell, tmp_path, HELD_OUT[0], tmp_path / "zero-latency.yaml", "undeclared")
+    assert r["tracking"] <= 0.2 and r["confident_wrong"] <= 0.05, r

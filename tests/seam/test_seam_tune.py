@@ -1,0 +1,91 @@
+"""``posekit seam tune`` (src/posekit/seam/frontend/tune.py): the local-level fit against statsmodels, the latency
+and noise it recovers on simulated episodes, its report and its one-line errors."""
+
+import math
+
+import numpy as np
+import pytest
+
+from posekit.errors import ConfigError
+from posekit.seam.frontend.config import apply_overrides, config_from_dict
+from posekit.seam.frontend.profile import load_profile
+from posekit.seam.frontend.tune import local_level_fit, simulate_episodes, tune_profile, tune_report
+from tests.cli_helpers import assert_one_line_error, run_cli
+
+
+def test_local_level_fit_agrees_with_statsmodels():
+    """A random walk of 0.02 per step seen through white noise of 0.05: our fit and statsmodels' local-level
+    model (UnobservedComponents, exact likelihood) give the same variances; both near the truth."""
+    sm = pytest.importorskip("statsmodels.api")
+    rng = np.random.default_rng(3)
+    n = 3000
+    y = np.cumsum(0.02 * rng.standard_normal(n)) + 0.05 * rng.standard_normal(n)
+    q, q_std, r, r_std = local_level_fit([y], [np.ones(n)])
+    res = sm.tsa.UnobservedComponents(y, "local level").fit(disp=False)
+    r2_sm, q2_sm = res.params  # sigma2.irregular, sigma2.level
+    assert q == pytest.approx(math.sqrt(q2_sm), rel=0.03)
+    assert r == pytest.approx(math.sqrt(r2_sm), rel=0.03)
+    assert abs(q - 0.02) < 3 * q_std and abs(r - 0.05) < 3 * r_std
+    assert 0 < q_std < 0.2 * q and 0 < r_std < 0.1 * r
+
+
+STEPS = 160
+
+
+@pytest.fixture(scope="module")
+def episodes(tmp_path_factory):
+    """Two short simulated episodes whose lasers read 15 ms late (declared nowhere), with truth.csv."""
+    cfg = apply_overrides(config_from_dict({}), {"trajectory.steps": STEPS, "trajectory.length_mm": 100.0,
+                                                  "filter.particles": 300, "simulation.laser_latency_s": [0.015]})
+    return simulate_episodes(cfg, 2, 7, tmp_path_factory.mktemp("tune"))
+
+
+def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(episodes, tmp_path, capsys):
+    """``posekit seam tune --with-truth --share-sensors`` on the two episodes (one test: under pytest-xdist a
+    module fixture would run the ~10 s fit once per worker)."""
+    out = tmp_path / "p.yaml"
+    rc, stdout, err = run_cli(capsys, "seam", "tune", *map(str, episodes), "--with-truth", "--share-sensors",
+                              "--out", out)
+    assert rc == 0, err
+    p = load_profile(out)
+    lat, sig = p.sensors[0].latency_s, p.sensors[0].sigma_mm
+    assert not lat.note and abs(float(lat) - 0.015) < 0.003 and 0 < lat.std < 0.003
+    # the residual at the true pose: the simulator's 0.05 mm of noise plus what the tool moves, off its program,
+    # between the reading's time and the row's (measured 0.060 mm)
+    assert not sig.note and 0.05 <= float(sig) <= 0.065 and 0 < sig.std < 0.002
+    assert p.fitted.method == "truth" and sum(e.steps for e in p.fitted.episodes) == 2 * STEPS
+    assert [e.name for e in p.fitted.episodes] == [d.name for d in episodes]
+    assert f"wrote {out}" in stdout and "walk.x_mm" in stdout and "sensors[0].latency_s" in stdout
+    assert " ms ± " in stdout
+    assert out.read_text().startswith("# posekit seam profile, fitted by: posekit seam tune ")
+    # the profile feeds seam track
+    rc, stdout, err = run_cli(capsys, "seam", "track", episodes[0], "--profile", out, "--out", tmp_path / "tr")
+    assert rc in (0, 1), err
+    assert "status:" in stdout
+
+
+def test_tune_from_innovations_alone_finds_the_latency(episodes):
+    """No truth: the linearised filter's likelihood of the laser readings over the latency (and walk, noise)."""
+    res = tune_profile(episodes, with_truth=False, share_sensors=True)
+    lat = {v.key: v for v in res.values}["sensors[0].latency_s"]
+    assert lat.pinned and abs(lat.value - 0.015) < 0.003, lat
+    assert res.method == "innovations" and res.episodes == 2 and res.steps == 2 * STEPS
+    assert "sensors[0].latency_s" in tune_report(res)
+
+
+def test_cli_tune_errors_are_one_line(episodes, tmp_path, capsys):
+    import shutil
+
+    (tmp_path / "exists.yaml").write_text("x")
+    rc, out, err = run_cli(capsys, "seam", "tune", episodes[0], "--out", tmp_path / "exists.yaml")
+    assert_one_line_error(rc, out, err, "exists.yaml: exists; expected a new file (or --overwrite)")
+    rc, out, err = run_cli(capsys, "seam", "tune", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "seam tune: expected at least one LOGDIR (or --simulate RUNS)")
+    bare = tmp_path / "bare"
+    shutil.copytree(episodes[0], bare)
+    (bare / "truth.csv").unlink()
+    rc, out, err = run_cli(capsys, "seam", "tune", bare, "--with-truth", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "no truth.csv; expected one per episode with --with-truth")
+    with pytest.raises(ConfigError):
+        tune_profile([bare], with_truth=True)
+    assert not (tmp_path / "p.yaml").exists()
