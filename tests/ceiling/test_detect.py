@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.detect.dots import LASER_COLORS, Dot, DotDetector
+from posekit.ceiling.detect.dots import DotDetector
 from posekit.ceiling.detect.lines import LineDetector
+from posekit.ceiling.detect.spots import LASER_COLORS, Dot
 from posekit.ceiling.sim.render import CeilingScene, SceneConfig, robot_path
 from posekit.errors import ConfigError, InputFileError
 
@@ -195,9 +196,9 @@ def test_laser_colours_wrap_hue():
     (dict(colors=("red", "red")), "colors: expected distinct names"),
     (dict(learning_rate=0.0), "learning_rate"),
     (dict(contrast=300), "contrast"),
-    (dict(min_color_fraction=0.0), r"min_color_fraction: expected a number in \(0, 1\], got 0.0"),
-    (dict(k_sigma=-1.0), "k_sigma must be >= 0"),
-    (dict(relight_gain=0.0), r"relight_gain in \(0, 1\)"),
+    (dict(alpha_pixel=0.0), r"alpha_pixel: expected a probability in \(0, 0.5\), got 0.0"),
+    (dict(relight_gain=0.0), r"relight_gain must be in \(0, 1\)"),
+    (dict(block_px=0), r"block_px >= 1"),
 ])
 def test_bad_parameters(kwargs, match):
     with pytest.raises(ConfigError, match=match):
@@ -236,12 +237,12 @@ def test_line_segment_case_c_by_hough_transform():
 
 
 def test_jpeg_compressed_dot_keeps_its_colour():
-    """4:2:0 chroma of JPEG / MJPG / H.264 washes a small saturated dot's red halo out to a
-    saturation of ~0.3-0.45 (the independent generator's dot: white core, red rim): the colour
-    test keeps it at quality 50-90 in every frame, the first included (the first background
-    replaces small bright spots by their neighbourhood's median), while a white lamp of the
-    same size stays rejected. (With the former 0.45 threshold and 30 % of the pixels: 34, 24
-    and 18 of 39 frames.)"""
+    """4:2:0 chroma of JPEG / MJPG / H.264 washes a small saturated dot's red halo out pixel by
+    pixel (the independent generator's dot: white core, red rim): the colour of the light it
+    adds, summed over the spot, keeps it at quality 50-90 in every frame, the first included
+    (the first background replaces small saturated spots by their neighbourhood's median),
+    its colour known; a white lamp of the same size is at most a spot of unknown colour (it
+    can never start a track)."""
     import cv2
 
     from tests.ceiling.test_track_scene import Scene
@@ -254,7 +255,7 @@ def test_jpeg_compressed_dot_keeps_its_colour():
             cv2.circle(img, (400, 200), 2, (255, 255, 255), -1)      # a white lamp
             img = cv2.imdecode(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, q])[1], cv2.IMREAD_COLOR)
             dots = det.detect(img)
-            assert all(np.hypot(d.u - 400, d.v - 200) > 10 for d in dots)
+            assert all(not d.colour_known for d in dots if np.hypot(d.u - 400, d.v - 200) <= 10)
             uv = sc.uv(sc.truth[k])[0]
-            found += any(np.hypot(d.u - uv[0], d.v - uv[1]) < 0.5 for d in dots)
+            found += any(np.hypot(d.u - uv[0], d.v - uv[1]) < 0.5 and d.colour_known for d in dots)
         assert found == 40, q

@@ -11,7 +11,7 @@ writing are in the comments (``docs/notes/issue-25.md`` has the command that pri
 
 import numpy as np
 import pytest
-from footage import FPS, H, Overlay, W, calibration, judge, robot_path
+from footage import FPS, Overlay, calibration, decoy_path, judge, robot_path, scenes
 
 from posekit.ceiling.detect.dots import DotDetector
 from posekit.ceiling.detect.scene import MOVING, STATIC, StaticLights
@@ -21,9 +21,10 @@ from posekit.ceiling.track.pipeline import track_frames
 LAMPS = {"lamp_xy": (700.0, 600.0), "blink_xy": (1200.0, 300.0)}
 
 
-def run(scene: Overlay):
-    cam = Camera(calibration(), (W, H))
-    return track_frames(scene.frames(), [cam], ("red",))
+def run(scene: Overlay, **detector):
+    cam = Camera(calibration(clip=scene.clip), scene.size)
+    dets = [DotDetector(("red",), **detector)] if detector else None
+    return track_frames(scene.frames(), [cam], ("red",), detectors=dets)
 
 
 def test_no_dot_is_never_ok():
@@ -52,6 +53,56 @@ def test_dot_on_real_footage_meets_the_bar(lamps):
     assert j["pred_cover_3s"] >= 0.90
     assert res.stats["rebuilds"] == 0 and res.stats["scene"] == "learned online"
     assert all(r.reasons == () for r in res.rows if r.status == "ok")
+
+
+@pytest.mark.parametrize(("clip", "stride"), [("parking", 4), ("parking", 8), ("vtest", 8)])
+def test_traffic_without_a_dot_is_never_ok_whatever_the_background_stride(clip, stride):
+    # a parking lot seen from above (Intel's car-detection clip): red and white cars with tail
+    # lights and glints drive through, plus a steady and a blinking red lamp drawn like the laser.
+    # The tail lights move steadily and saturate: what rejects them is the ring test (they sit
+    # on a car, not on the unchanged ceiling). Measured 0 ok, 0 suspect of 300 at strides 1, 2, 4
+    # and 8 on both clips (round 1: 5 ok rows here, 102 on a traffic clip not in the tree; a
+    # band of 1/8 of the rows per frame instead of 1/4 then turned 0 into 100)
+    res = run(Overlay(dot=False, clip=clip, lamp_xy=(700.0, 600.0), blink_xy=(1200.0, 300.0)),
+              background_stride=stride)
+    assert res.counts()["ok"] == 0 and res.counts()["suspect"] == 0
+    assert res.stats["rebuilds"] == 0
+
+
+def test_dot_on_a_parking_lot_meets_the_bar():
+    # measured: ok 0.941 of the visible frames, median 0.25 mm, 0.994 within 2σ, 0 > 50 mm,
+    # acquired 0.32 s after the start of motion, predicted 1.0 within 3σ
+    scene = scenes("parking")["dot"]
+    res = run(scene)
+    j = judge(res.rows, scene)
+    assert j["ok_far"] == 0 and j["ok_unseen"] == 0 and j["ok_on_object"] == 0
+    assert j["ok_rate"] >= 0.90 and j["median_mm"] <= 3.0 and j["cover_2s"] >= 0.80
+    assert 0.0 <= j["acquired_s"] <= 1.0 and j["pred_cover_3s"] >= 0.90
+
+
+def test_jpeg_quality_60_is_never_ok_off_the_dot():
+    # quality 60 (and 60 twice): the dot merges with the striped barrier tape now and then.
+    # Measured: ok 0.917 of the visible frames, 0 ok > 50 mm, 0.909 within 2σ (twice: 0.912, 0,
+    # 0.909); round 1: 12 ok rows > 50 mm off with σ 3-8 mm
+    scene = scenes("vtest")["dot, JPEG q60"]
+    res = run(scene)
+    j = judge(res.rows, scene)
+    assert j["ok_far"] == 0 and j["ok_unseen"] == 0
+    assert j["cover_2s"] >= 0.80 and j["ok_rate"] >= 0.80
+    assert j["pred_cover_3s"] >= 0.90
+
+
+@pytest.mark.parametrize("clip", ["vtest", "parking"])
+def test_predicted_rows_are_honest_under_a_moving_decoy(clip):
+    # the decoy runs 0.3-0.8 m away while the dot is hidden and after: the rows in doubt carry the
+    # two hypotheses in their std_mm. Measured pred_cover_3s 1.0 on both (round 1: 0.69), 0 ok off
+    # the dot; ok 0.884 (vtest) and 0.639 (parking) of the visible frames: while two moving
+    # laser-like spots are in view the rows are suspect, by design
+    scene = Overlay(decoy=decoy_path(clip), clip=clip)
+    res = run(scene)
+    j = judge(res.rows, scene)
+    assert j["ok_far"] == 0 and j["ok_unseen"] == 0
+    assert j["pred_cover_3s"] >= 0.90
 
 
 def test_a_moving_decoy_while_the_dot_is_hidden_is_never_a_confident_jump():
@@ -116,12 +167,17 @@ def test_slow_dot_is_moving_and_a_jittering_lamp_is_static():
 
 def test_detector_background_copes_with_the_real_scene():
     # the foreground model of running mean and variance: the dot is found on grass, brick, tape
-    # and concrete in most visible frames, sub-pixel, with no rebuild of the background
+    # and concrete in most visible frames, sub-pixel, with no rebuild of the background. Where
+    # the dot was last seen is protected from the background update, as the tracking pipeline
+    # does with its track (unprotected, a dot that stops for 1.5 s fades into the background:
+    # 225 of 251 frames)
     scene = Overlay(**LAMPS)
     det = DotDetector(("red",))
     found, errs, n = 0, [], 0
+    last = []
     for k, _, frame in scene.frames():
-        dots = det.detect(frame)
+        dots = det.detect(frame, protect=last)
+        last = [tuple(scene.uv[k])] if scene.drawn[k] else last
         if not scene.visible[k]:
             continue
         n += 1

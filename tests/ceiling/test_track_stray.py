@@ -6,7 +6,8 @@ never ``ok`` on anything but the laser dot, corners are re-acquired in the frame
 import numpy as np
 import pytest
 
-from posekit.ceiling.detect.dots import DotDetector, DotSignature
+from posekit.ceiling.detect.dots import DotDetector
+from posekit.ceiling.detect.signature import DotSignature
 from posekit.ceiling.track.pipeline import track_frames
 from tests.ceiling.test_pipeline import ACQUIRE
 from tests.ceiling.test_track_scene import Scene, ok_errors
@@ -88,7 +89,7 @@ def test_static_lights_model_learns_the_lamps_not_a_moving_dot():
     seen = {"led": [], "blink": [], "dot": []}
     for k, _, img in sc.frames():
         dots = det.detect(img)
-        states = sl.update(k, [(d.u, d.v) for d in dots], [d.color for d in dots], [d.saturated for d in dots])
+        states = sl.update(k, [(d.u, d.v) for d in dots], [d.color for d in dots])
         dot_uv = sc.uv(sc.truth[k])[0]
         for d, s in zip(dots, states):
             for name, p in (("led", led), ("blink", blink), ("dot", dot_uv)):
@@ -100,7 +101,7 @@ def test_static_lights_model_learns_the_lamps_not_a_moving_dot():
 
 
 def test_signature_tells_a_dim_or_large_blob_from_the_laser():
-    from posekit.ceiling.detect.dots import Dot
+    from posekit.ceiling.detect.spots import Dot
     sig = DotSignature()
     for k in range(10):
         sig.update(Dot("red", 0.0, 0.0, 30, 500.0))

@@ -9,8 +9,10 @@ renderer) and :mod:`~posekit.ceiling.studies`.
 
 from .camera.grid import CeilingGrid, find_grid_corners
 from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
-from .detect.dots import Dot, DotDetector, DotSignature
+from .detect.dots import DotDetector
 from .detect.lines import Line, LineDetector
+from .detect.signature import DotSignature
+from .detect.spots import Dot
 from .sim.config import SceneConfig
 from .sim.render import CeilingScene, iter_frames, render_video, true_homography
 from .studies.accuracy import heading_std_closed_form, known_points_assessment, simulate_heading_error

@@ -64,16 +64,20 @@ class LineDetector(DotDetector):
         A blob is a segment if the ratio of its principal axes is at least this.
     min_length_px : float
         Shorter segments are dropped.
+    contrast : int
+        Floor of the bar (grey levels): the extent of a segment's centre line is where the light
+        it adds exceeds it (25 for the paper's laser line on a lit ceiling).
     **kwargs
         Any other :class:`DotDetector` parameter (``roi_radius_px`` defaults to 48 here so a
         window holds a whole segment).
     """
 
     def __init__(self, color: str = "red", *, min_elongation: float = 3.0, min_length_px: float = 12.0,
-                 max_area_px: int = 5000, roi_radius_px: int = 48, method: str = "moments", **kwargs):
+                 max_area_px: int = 5000, roi_radius_px: int = 48, method: str = "moments", contrast: int = 25,
+                 **kwargs):
         if method not in LINE_METHODS:
             raise ConfigError(f"LineDetector: unknown method '{method}'; expected one of {', '.join(LINE_METHODS)}")
-        super().__init__((color,), max_area_px=max_area_px, roi_radius_px=roi_radius_px, **kwargs)
+        super().__init__((color,), max_area_px=max_area_px, roi_radius_px=roi_radius_px, contrast=contrast, **kwargs)
         self.min_elongation = float(min_elongation)
         self.min_length_px = float(min_length_px)
         self.method = method
@@ -87,7 +91,7 @@ class LineDetector(DotDetector):
         lines = super().detect(frame_bgr, predicted_uv)
         if self.method == "hough":
             bg = self._bg if bg is None else bg
-            lines = [h for h in (_hough_line(frame_bgr, bg, line, self.contrast) for line in lines) if h is not None]
+            lines = [h for h in (_hough_line(frame_bgr, bg, line, self.bar_floor) for line in lines) if h is not None]
         return sorted(lines, key=lambda line: -line.length_px)
 
     def _make(self, color: str, row: np.ndarray, x0: int, y0: int) -> Line | None:

@@ -7,8 +7,9 @@ static light is told from the laser by a statistical test, not a distance thresh
 
 * the candidates of each frame are chained into short image tracks (nearest neighbour within
   a gate of ``max(4 px, 4σ_scene)`` around the track's last position moved on by its last
-  velocity, at most ``assoc_px``; a track survives ``max_gap`` frames unseen, so a blinking
-  light keeps its history);
+  velocity, at most ``assoc_px``; a spot seen once is continued within ``assoc_px`` in the
+  next frame, later only where it was; a track survives ``max_gap`` frames unseen, so a
+  blinking light keeps its history);
 * the jitter σ of a track is the larger of its own — from the second differences of
   consecutive sightings (``p₀ − 2p₁ + p₂`` has covariance ``6σ²I`` for a still point *and* for
   one moving at constant speed, so the motion does not inflate it;
@@ -20,23 +21,26 @@ static light is told from the laser by a statistical test, not a distance thresh
   below ``jitter_floor_px``;
 * the motion statistic is the distance between the mean positions of the first and the second
   half of the window: under "static" (independent jitter of σ) ``d ~ N(0, σ²(1/n₁ + 1/n₂) I)``,
-  so ``T = |d|² / (2σ²(1/n₁ + 1/n₂))`` follows an F(2, ν) law, ν = n − 2 (the effective
-  degrees of freedom of the median of the overlapping second differences: measured by
-  Monte-Carlo, 0.8–1.2 × alpha rejections of independent Gaussian jitter for n = 8–20). A track is **moving** when ``T``
-  exceeds the ``1 − alpha`` quantile (``alpha`` = 1e-3 by default: one lamp in a thousand
-  windows reads as motion) **and** the motion is a robot's: its last ``steady_frames``
-  sightings are in consecutive frames (a dot in view is seen every frame) and each of their
-  steps advances along their net displacement (the spots of a compressed real video step once
-  at a key frame and sit, or hop back and forth between two stripes of a tape; under
-  exchangeable jitter four steps all advancing happen 1 time in 16 or less, and only *after*
-  the F test rejected). **Static** when it has at least ``min_frames`` sightings and the F test
-  does not reject; otherwise **new**.
+  so ``T = |d|² / (2σ²(1/n₁ + 1/n₂))`` follows an F(2, ν) law: ν = n − 2 when σ is the track's
+  own (the effective degrees of freedom of the median of the overlapping second differences:
+  measured by Monte-Carlo, 0.8–1.2 × alpha rejections of independent Gaussian jitter for
+  n = 8–20), ν = the residual degrees of freedom of all the static spots behind the scene's
+  jitter when that is larger (then nearly χ²₂/2: a handful of sightings suffice). A track is
+  **moving** when ``T`` exceeds the ``1 − alpha`` quantile (``alpha`` = 1e-3 by default: one
+  lamp in a thousand windows reads as motion) **and** the motion is a robot's: a sign test —
+  its last ``steady_frames`` (m) sightings, seen within 2 (m − 1) frames, each advance along
+  their net displacement (the spots of a compressed real video step once at a key frame and
+  sit, or hop back and forth between two stripes of a tape; steps in no order all advance
+  with probability at most 2^-(m-1), 1/16 for m = 5, and only *after* the F test rejected).
+  **Static** when it has at least ``min_frames`` sightings and the F test does not reject;
+  otherwise **new**.
 
 A scene learned beforehand (:func:`learn_scene`, ``posekit ceiling learn-scene``) seeds the
 model: a candidate within ``max(4σ_j, 1 px)`` of a known light is static from its first
 sighting. Without one, lights are learned online (:attr:`StaticLights.n_static`).
 """
 
+import itertools
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -83,11 +87,14 @@ class Light:
     y_mm: float = float("nan")
 
 
+_IDS = itertools.count(1)
+
+
 @dataclass
 class _Track:
     colour: str
+    id: int = field(default_factory=lambda: next(_IDS))
     pts: list = field(default_factory=list)        # [(frame, u, v)], the last `window`
-    strong: list = field(default_factory=list)     # per sighting: saturated like a laser core
     last: int = 0
     seen: int = 0
     state: int = NEW
@@ -115,8 +122,8 @@ class StaticLights:
     jitter_floor_px : float
         Smallest centroid jitter believed, px (quantisation and compression leave at least this).
     steady_frames : int
-        A track found not static is called moving only when its last this many sightings are
-        in consecutive frames and each step advances along their net displacement.
+        A track found not static is called moving only when its last this many sightings
+        (within twice as many frames) each advance along their net displacement.
     known : iterable of Light, optional
         Lights of a learned scene (static from their first sighting).
     """
@@ -138,13 +145,17 @@ class StaticLights:
         self._q = {}
         self._frame = -1
         self._scene_jitter = self.jitter_floor_px
+        self._scene_dof = 0                  # residual degrees of freedom behind the scene's jitter
+        self.ids = np.zeros(0, np.int64)
+        self.seen = np.zeros(0, np.int64)
 
     # -- the test --------------------------------------------------------------------------
-    def _threshold(self, n: int) -> float:
-        if n not in self._q:
-            nu = max(n - 2, 1)              # effective dof of the median of overlapping second differences
-            self._q[n] = f_quantile(1.0 - self.alpha, 2, nu)
-        return self._q[n]
+    def _threshold(self, nu: int) -> float:
+        """``1 - alpha`` quantile of F(2, ν) (ν capped at 1000: the χ²₂/2 law beyond)."""
+        nu = int(min(max(nu, 1), 1000))
+        if nu not in self._q:
+            self._q[nu] = f_quantile(1.0 - self.alpha, 2, nu)
+        return self._q[nu]
 
     def scene_jitter_px(self) -> float:
         """The scene's centroid jitter, px: the 90th percentile of the spread (1σ per axis about
@@ -154,6 +165,7 @@ class StaticLights:
 
     def _measure_scene_jitter(self) -> float:
         js = [lt.jitter_px for lt in self.known]
+        dof = 1000 * len(self.known)
         for t in self.tracks:
             if len(t.pts) >= self.min_frames and t.state != MOVING:
                 f = np.array([k for k, _, _ in t.pts], float)
@@ -161,6 +173,8 @@ class StaticLights:
                 A = np.column_stack([np.ones_like(f), f - f.mean()])
                 r = p - A @ np.linalg.lstsq(A, p, rcond=None)[0]        # about a constant-velocity fit
                 js.append(float(np.sqrt(np.sum(r * r) / (2.0 * max(len(f) - 2, 1)))))
+                dof += 2 * (len(f) - 2)
+        self._scene_dof = dof
         return max(float(np.percentile(js, 90)), self.jitter_floor_px) if js else self.jitter_floor_px
 
     @staticmethod
@@ -172,11 +186,14 @@ class StaticLights:
         dd = (p[:-2] - 2.0 * p[1:-1] + p[2:])[(f[2:] - f[:-2]) == 2]
         return float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12)) if len(dd) else 0.0
 
-    def test(self, pts: np.ndarray, floor_px: float | None = None, frames=None) -> tuple[float, float, float]:
+    def test(self, pts: np.ndarray, floor_px: float | None = None, frames=None,
+             floor_dof: int = 0) -> tuple[float, float, float]:
         """Motion statistic of sightings ``pts`` (n, 2) px: ``(T, threshold, jitter_px)``;
         moving when ``T > threshold``. ``frames`` (n,): their frame numbers; only second
         differences of three consecutive frames measure the jitter (across a gap the motion
-        would count as jitter)."""
+        would count as jitter). The jitter is the track's own (ν = n − 2 degrees of freedom)
+        or ``floor_px`` (the scene's, measured with ``floor_dof`` degrees of freedom),
+        whichever is larger; the threshold is the F(2, ν) quantile of that estimate."""
         pts = np.asarray(pts, float).reshape(-1, 2)
         n = len(pts)
         dd = pts[:-2] - 2.0 * pts[1:-1] + pts[2:]
@@ -184,16 +201,20 @@ class StaticLights:
             f = np.asarray(frames)
             dd = dd[(f[2:] - f[:-2]) == 2]
         s = float(np.sqrt(np.median(np.sum(dd * dd, axis=1)) / _LN2x12)) if len(dd) else 0.0
-        s = max(s, self.jitter_floor_px if floor_px is None else floor_px)
+        floor = self.jitter_floor_px if floor_px is None else floor_px
+        nu = n - 2
+        if floor >= s:
+            s, nu = floor, max(int(floor_dof), n - 2)
         n1 = n // 2
         d = pts[n1:].mean(axis=0) - pts[:n1].mean(axis=0)
         T = float(d @ d) / (2.0 * s * s * (1.0 / n1 + 1.0 / (n - n1)))
-        return T, self._threshold(n), s
+        return T, self._threshold(nu), s
 
     # -- one frame -------------------------------------------------------------------------
-    def update(self, frame: int, uv, colours, strong=None) -> np.ndarray:
+    def update(self, frame: int, uv, colours) -> np.ndarray:
         """Chain this frame's candidates into tracks and test each; returns their states (K,)
-        (:data:`NEW`, :data:`MOVING` or :data:`STATIC`).
+        (:data:`NEW`, :data:`MOVING` or :data:`STATIC`). Afterwards :attr:`ids` (K,) holds the
+        identity of each candidate's track and :attr:`seen` (K,) how many frames it was seen in.
 
         Parameters
         ----------
@@ -202,11 +223,6 @@ class StaticLights:
         uv : ndarray, shape (K, 2)
             Candidate centroids, px.
         colours : sequence of str, length K
-        strong : sequence of bool, length K, optional
-            Which candidates have a saturated core (:attr:`~posekit.ceiling.detect.dots.Dot.saturated`);
-            a track is called moving only if all but one of its last ``steady_frames``
-            sightings were (a laser saturates the camera in every frame; a flickering tape or a
-            shirt now and then). Default: all.
         """
         uv = np.asarray(uv, float).reshape(-1, 2)
         self._frame = frame = int(frame)
@@ -222,7 +238,7 @@ class StaticLights:
                 q0 = t.pts[-2]
                 vel = np.array([q[1] - q0[1], q[2] - q0[2]]) / max(q[0] - q0[0], 1)
                 centre, radius = np.array(q[1:]) + vel * gap, min(base + 0.5 * float(np.hypot(*vel)) * gap, self.assoc_px)
-            elif len(t.pts) >= 2:
+            elif len(t.pts) >= 2 or gap > 1:          # no velocity to carry it over a gap: only where it was
                 centre, radius = np.array(q[1:]), base
             else:
                 centre, radius = np.array(q[1:]), self.assoc_px
@@ -239,6 +255,8 @@ class StaticLights:
             match[k] = j
             taken.add(j)
         floor = self._scene_jitter
+        self.ids = np.zeros(len(uv), np.int64)
+        self.seen = np.zeros(len(uv), np.int64)
         for k, (p, c) in enumerate(zip(uv, colours)):
             if k in match:
                 t = self.tracks[match[k]]
@@ -247,13 +265,12 @@ class StaticLights:
                 t.known = self._known_at(p, c)
                 self.tracks.append(t)
             t.pts.append((frame, float(p[0]), float(p[1])))
-            t.strong.append(True if strong is None else bool(strong[k]))
             del t.pts[:-self.window]
-            del t.strong[:-self.window]
             t.last = frame
             t.seen += 1
             t.state = self._state(t, floor)
             states[k] = t.state
+            self.ids[k], self.seen[k] = t.id, t.seen
         if not frame % 5:                       # it changes slowly: every fifth frame
             self._scene_jitter = self._measure_scene_jitter()
         return states
@@ -275,23 +292,52 @@ class StaticLights:
         if n < 4:
             return NEW
         P = np.array([(u, v) for _, u, v in t.pts])
-        T, thr, _ = self.test(P, floor, [f for f, _, _ in t.pts])
+        T, thr, _ = self.test(P, floor, [f for f, _, _ in t.pts], self._scene_dof)
         if T > thr:
             return MOVING if self._steady(t, P) else NEW
         return STATIC if n >= self.min_frames else NEW
 
     def _steady(self, t: _Track, P: np.ndarray) -> bool:
-        """The last ``steady_frames`` sightings are in consecutive frames and every step among
-        them advances along their net displacement (a robot's dot progresses frame after frame;
-        a spot that steps once and sits, or hops back and forth, does not)."""
+        """The last ``steady_frames`` (m) sightings, within ``2 (m - 1)`` frames, each advance
+        along their net displacement: a sign test of a robot's progression against a spot
+        whose steps come in no order (a compressed video's spot that steps once at a key frame
+        and sits, or hops between two stripes), for which all m - 1 steps advance with
+        probability at most 2^-(m-1) (1/16 for m = 5)."""
         m = self.steady_frames
-        if len(P) < m or t.pts[-1][0] - t.pts[-m][0] != m - 1 or sum(t.strong[-m:]) < m - 1:
+        if len(P) < m or t.pts[-1][0] - t.pts[-m][0] > 2 * (m - 1):
             return False
         tail = P[-m:]
         net = tail[-1] - tail[0]
-        return bool(np.all(np.diff(tail, axis=0) @ net > 0))
+        return bool(np.all((tail[1:] - tail[:-1]) @ net > 0))
 
     # -- what it learned -------------------------------------------------------------------
+    def settled_uv(self, keep=()) -> list:
+        """Last sighting ``(u, v)`` px of every spot seen this frame that has settled — found
+        static (known lights included), or seen in at least ``min_frames`` frames without being
+        found moving (a spot that hops between two places) — except the tracks whose identity
+        is in ``keep`` (the tracked dots). What a detector may absorb into its background: it
+        is part of the scene."""
+        return [t.pts[-1][1:] for t in self.tracks if t.last == self._frame and t.id not in keep
+                and (t.state == STATIC or (t.seen >= self.min_frames and t.state != MOVING))]
+
+    def settled_near(self, uv, radius_px: float, exclude=None) -> bool:
+        """True if a settled spot (static, or seen in ``min_frames`` frames without moving; its
+        mean position) other than the track ``exclude`` lies within ``radius_px`` of ``uv``."""
+        for t in self.tracks:
+            if t.id != exclude and (t.state == STATIC or (t.seen >= self.min_frames and t.state != MOVING)):
+                u = sum(p[1] for p in t.pts) / len(t.pts)
+                v = sum(p[2] for p in t.pts) / len(t.pts)
+                if (u - uv[0]) ** 2 + (v - uv[1]) ** 2 <= radius_px * radius_px:
+                    return True
+        return False
+
+    def last_uv(self, identity) -> tuple | None:
+        """Last sighting ``(u, v)`` px of the track ``identity`` if it was seen this frame."""
+        for t in self.tracks:
+            if t.id == identity and t.last == self._frame:
+                return t.pts[-1][1:]
+        return None
+
     @property
     def n_static(self) -> int:
         """Static lights currently held (known ones included)."""

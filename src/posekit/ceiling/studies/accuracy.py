@@ -406,7 +406,7 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
         if empty_first:
             scene.config = still_at((-1e5, -1e5))         # off the ceiling: no dot in view
             det.detect(scene.render_frame(2 * i))
-        dots = [d for d in det.detect(frame) if d.color == "red"]
+        dots = [d for d in det.detect(frame) if d.color == "red" and d.saturated]     # the laser drives its channel to white
         if dots:
             uv[i] = (dots[0].u, dots[0].v)
     est = np.full_like(uv, np.nan)

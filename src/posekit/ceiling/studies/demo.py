@@ -520,7 +520,8 @@ def _track_dotted_line(video, cal, lens, progress):
     """Track the §III-C dotted line: :class:`~posekit.ceiling.linetrack.DottedLineDetector` in
     the line pipeline of :func:`~posekit.ceiling.track.pipeline.track_frames`."""
     from ..track.linetrack import DottedLineDetector
-    from ..track.pipeline import frame_groups, make_cameras, open_sources, track_frames
+    from ..track.pipeline import track_frames
+    from ..track.setup import frame_groups, make_cameras, open_sources
 
     streams = open_sources([video])
     cameras = make_cameras(streams, [cal], lens)

@@ -5,7 +5,8 @@ from .cameras import Camera, MultiCameraTracker
 from .linetrack import LineTracker, LineTrackerConfig
 from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
 from .outputs import TrackOutputs
-from .pipeline import TrackResult, iter_track, read_track_csv, track_frames, track_video, write_track_csv
+from .pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
+from .results import TrackResult
 from .scene_learning import SceneLearning, learn_scene
 from .sources import open_frames, open_live
 from .tracker import Tracker

@@ -201,7 +201,8 @@ class MultiCameraTracker:
     def step(self, t_s: float, dots_image: Sequence[Mapping | None], *,
              frame: int | None = None, eligible: Sequence[Mapping | None] | None = None,
              std_px: Sequence[Mapping | None] | None = None,
-             moving: Sequence[Mapping | None] | None = None) -> TrackRow:
+             moving: Sequence[Mapping | None] | None = None,
+             associable: Sequence[Mapping | None] | None = None) -> TrackRow:
         """Fuse one frame of detections from every camera.
 
         Parameters
@@ -219,6 +220,9 @@ class MultiCameraTracker:
             (see :meth:`Camera.measurement`).
         moving : sequence of mapping or None, optional
             Per camera ``{colour: (K,) bool}``: candidates found moving (see :meth:`Tracker.step`).
+        associable : sequence of mapping or None, optional
+            Per camera ``{colour: (K,) bool}``: candidates the dot may be associated with (see
+            :meth:`Tracker.step`).
 
         Returns
         -------
@@ -254,6 +258,10 @@ class MultiCameraTracker:
             seen[i] = meas
             key = primary if primary in meas else next(iter(meas))
             xy, R, bd = meas[key]
+            mv = None
+            if moving is not None and moving[i] is not None and key in moving[i]:
+                mv = np.asarray(moving[i][key], dtype=bool).reshape(-1)
+                mv = mv[np.all(np.isfinite(np.asarray(det[key], dtype=float).reshape(-1, 2)), axis=1)]
             if key in pred:                      # keep only candidates that pass the gate
                 p, Pp = pred[key]
                 d2 = _mahalanobis2(xy - p, Pp + cfg.min_meas_std_mm ** 2 * np.eye(2) + R)
@@ -261,9 +269,11 @@ class MultiCameraTracker:
                 if not ok.any():
                     continue
                 k = int(np.argmin(np.where(ok, d2, np.inf)))
-            else:
-                k = 0
-            views.append((i, key == primary, float(bd[k]), float(R[k, 0, 0] + R[k, 1, 1])))
+                starts = True
+            else:                                # no track: a candidate seen moving can start one
+                k = int(np.argmax(mv)) if mv is not None and mv.any() else 0
+                starts = mv is None or bool(mv[k])
+            views.append((i, key == primary, float(bd[k]), float(R[k, 0, 0] + R[k, 1, 1]), starts))
         if not views:
             if not seen:
                 return self.tracker.step(t_s, None, frame=frame)
@@ -271,18 +281,18 @@ class MultiCameraTracker:
             # first seeing) camera so that its outlier and re-initialisation logic runs
             chosen = self.active if self.active in seen else next(iter(seen))
         else:
-            views.sort(key=lambda v: (not v[1], -v[2], v[3]))   # primary seen, far from border, small R
-            chosen = views[0][0]
-            for i, has_primary, bd, _ in views:
+            views.sort(key=lambda v: (not v[1], not v[4], -v[2], v[3]))   # primary seen, can start, far from
+            chosen = views[0][0]                                          # the border, small R
+            for i, has_primary, bd, _, _ in views:
                 if i == self.active and has_primary and bd >= self.border_margin_px:
                     chosen = i
                     break
             self.active = chosen
         meas = seen[chosen]
-        el = mv = None
-        if eligible is not None and eligible[chosen] is not None:
-            el = {c: eligible[chosen][c] for c in meas if c in eligible[chosen]}
-        if moving is not None and moving[chosen] is not None:
-            mv = {c: moving[chosen][c] for c in meas if c in moving[chosen]}
+        def pick(flags):
+            if flags is None or flags[chosen] is None:
+                return None
+            return {c: flags[chosen][c] for c in meas if c in flags[chosen]}
         return self.tracker.step(t_s, {c: m[0] for c, m in meas.items()}, {c: m[1] for c, m in meas.items()},
-                                 frame=frame, camera=chosen, eligible=el, moving=mv)
+                                 frame=frame, camera=chosen, eligible=pick(eligible), moving=pick(moving),
+                                 associable=pick(associable))

@@ -11,6 +11,15 @@ lies in the gates of both and one robot has no other dot) neither takes it and b
 verified dot that no live robot claims, and only when the choice is unambiguous (as many
 free dots as lost robots, taken in order of image column so the first fix is repeatable).
 
+Each robot's tracker sees every dot of the frame, the other robots' dots marked ``claimed``
+(never associated, never rivals), so the verdict rules of the single tracker
+(:mod:`~posekit.ceiling.track.verdicts`) hold per robot: a robot whose dot was gated out for
+``reinit_after`` frames re-acquires only a lone free dot found moving, far from every robot's
+gate, and its rows are then ``suspect`` (probation, the previous track kept as the other
+hypothesis in ``std_mm``); another free moving laser-like dot outside its gate makes its rows
+``suspect``; a lost robot starts only on a dot found moving (``moving``), never on a static
+one.
+
 Output: one :class:`~posekit.ceiling.track.TrackRow` per robot per frame with ``robot``
 0..n-1; the CSV is the single-robot one plus a last column ``robot``
 (``frame,time_s,x,y,heading_deg,status,std_mm,robot``), rows of a frame in robot order.
@@ -27,7 +36,7 @@ import numpy as np
 from ...errors import ConfigError
 from ._kalman import _mahalanobis2
 from .cameras import Camera
-from .pipeline import _TimedRows
+from .results import _TimedRows
 from .tracker import Tracker, TrackerConfig, TrackRow
 
 __all__ = ["MultiRobotTracker", "RobotsResult", "iter_track_robots", "track_robots_frames", "track_robots_video"]
@@ -56,7 +65,7 @@ class MultiRobotTracker:
         return [tr.predict(t_s).get("red") for tr in self.trackers]
 
     def step(self, t_s: float, dots_world, meas_cov=None, *, frame: int | None = None,
-             eligible=None) -> list[TrackRow]:
+             eligible=None, moving=None) -> list[TrackRow]:
         """Share this frame's dots out among the robots and advance every filter.
 
         Parameters
@@ -69,6 +78,9 @@ class MultiRobotTracker:
             Their covariances, mm² (default ``config.meas_std_mm²·I``).
         eligible : ndarray of bool, shape (K,), optional
             Verified dots (see :meth:`Tracker.step`); default all.
+        moving : ndarray of bool, shape (K,), optional
+            Dots found moving by a test over several frames (see :meth:`Tracker.step`); default:
+            each tracker's own test.
 
         Returns
         -------
@@ -83,10 +95,13 @@ class MultiRobotTracker:
         R = (np.broadcast_to(cfg.meas_std_mm ** 2 * np.eye(2), (k, 2, 2)) if meas_cov is None
              else np.asarray(meas_cov, dtype=float).reshape(k, 2, 2)) + cfg.min_meas_std_mm ** 2 * np.eye(2)
         el = np.ones(k, bool) if eligible is None else np.asarray(eligible, bool).reshape(k)
+        mv = None if moving is None else np.asarray(moving, bool).reshape(k)
         n = len(self.trackers)
         assign: list[int | None] = [None] * n
         pred = self.predict(t_s)
         live = [i for i in range(n) if pred[i] is not None]
+        gated = np.zeros(k, bool)                  # inside some live robot's gate
+        contested = set()                          # live robots with a dot in their gate
         if k and live:
             big = 1e9
             cost = np.full((len(live), k), big)
@@ -100,6 +115,9 @@ class MultiRobotTracker:
                 dist_pred = np.hypot(*(z - p).T)
                 ok = ((d2 <= cfg.gate_chi2) | (el & (dist_pred <= cfg.gate_floor_mm))) & (dist_last <= reach)
                 cost[row, ok] = d2[ok]
+                gated |= ok
+                if ok.any():
+                    contested.add(i)
             rows, cols = linear_sum_assignment(cost)
             for r, c in zip(rows, cols):
                 if cost[r, c] < big:
@@ -121,13 +139,19 @@ class MultiRobotTracker:
             if len(free) == len(lost):
                 for i, c in zip(lost, free):
                     assign[i] = c
+        taken = {c for c in assign if c is not None}
+        far = np.array([c not in taken and not gated[c] for c in range(k)], bool)
         out = []
         for i, tr in enumerate(self.trackers):
             c = assign[i]
-            if c is None:
-                row = tr.step(t_s, None, frame=frame)
+            if c is None and (pred[i] is None or i in contested) or k == 0:
+                row = tr.step(t_s, None, frame=frame)       # lost without a clear dot, or its dot merged
             else:
-                row = tr.step(t_s, {"red": z[c]}, {"red": R[c]}, frame=frame, eligible={"red": [True]})
+                claimed = np.array([j in taken and j != c for j in range(k)], bool)
+                assoc = np.arange(k) == c if c is not None else far     # unassigned: only far, free dots
+                row = tr.step(t_s, {"red": z}, {"red": R}, frame=frame, eligible={"red": el},
+                              moving=None if mv is None else {"red": mv}, associable={"red": assoc},
+                              claimed={"red": claimed})
             row.robot = i
             out.append(row)
         return out
@@ -165,15 +189,20 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
 
     ``frames`` yields ``(index, time_s, image)`` (image BGR (H, W, 3), or None when the
     frame could not be decoded: every robot's row is then ``lost``). Every frame is searched
-    whole (several dots); a dot the camera's model of static lights finds static
-    (:class:`~posekit.ceiling.detect.scene.StaticLights`) never starts a robot's track.
+    whole (several dots); every dot goes through the laser tests of the single-robot pipeline
+    (:func:`~posekit.ceiling.track.verify.verify_candidates`: static lights, the ring test, the
+    colour, the signature of the robots' dots), and only one found moving starts a robot's track.
     """
-    from ..detect.scene import STATIC, StaticLights
+    from ..detect.scene import StaticLights
+    from ..detect.signature import DotSignature
+    from .verify import verify_candidates
 
     if detector is None:
         from ..detect.dots import DotDetector
         detector = DotDetector(("red",))
     lights = StaticLights(jitter_floor_px=camera.detection_std_px)
+    signatures = {"red": DotSignature()}
+    followed: set = set()                      # image-track identities of the robots' dots
     mrt = MultiRobotTracker(n_robots, config)
     for item in frames:
         index, t_s, image = item[:3]
@@ -181,12 +210,24 @@ def iter_track_robots(frames: Iterable, camera: Camera, n_robots: int, *, config
             image = image[0]
         t0 = time.perf_counter()
         ds = [] if image is None else [d for d in detector.detect(image) if d.color == "red"]
-        if ds:
-            uv = np.array([[d.u, d.v] for d in ds])
-            xy, R = camera.measurement(uv)
-            el = lights.update(index, uv, ["red"] * len(ds)) != STATIC
+        cand = verify_candidates(index, ds, lights, signatures, camera.detection_std_px, followed={"red": followed})
+        mv = None
+        if cand.dots:
+            uv = cand.uv["red"]
+            xy, R = camera.measurement(uv, cand.std_px["red"])
+            el, mv = cand.eligible["red"], cand.moving["red"]
         else:
             xy, R, el = np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0, bool)
+        rows = mrt.step(t_s, xy, R, frame=index, eligible=el, moving=mv)
+        followed = set()
+        for r in rows:
+            if r.status in ("ok", "suspect") and "red" in r.measured:
+                p = camera.to_image(np.asarray(r.measured["red"], float).reshape(1, 2))[0]
+                ident = cand.identity("red", p)
+                if ident is not None:
+                    followed.add(ident)
+                    best = min(cand.dots, key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2)
+                    signatures["red"].update(best)
         rows = mrt.step(t_s, xy, R, frame=index, eligible=el)
         if image is None:
             rows = [replace(r, x=float("nan"), y=float("nan"), status="lost", std_mm=float("nan"), measured={},
@@ -219,7 +260,7 @@ def track_robots_video(source, calibration, n_robots: int, *, config: TrackerCon
     calibration, ``camera`` the lens model); ``on_row(row, robot)`` as in
     :func:`track_robots_frames`.
     """
-    from .pipeline import frame_groups, make_cameras, open_sources
+    from .setup import frame_groups, make_cameras, open_sources
 
     streams = open_sources([source], fps, loop=loop, max_frames=max_frames, live=live)
     cams = make_cameras(streams, [calibration], camera)

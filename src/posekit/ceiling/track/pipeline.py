@@ -22,16 +22,18 @@ module ... to save energy and computational cost").
 import csv
 import time
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import ConfigError, InputFileError
 from .cameras import Camera, MultiCameraTracker, border_distance
-from .types import STATUSES, TrackerConfig, TrackRow
+from .results import TrackResult
+from .setup import _as_calibration, _as_scenes, frame_groups, make_cameras, open_sources
+from .types import TrackerConfig, TrackRow
 
-__all__ = ["TRACK_COLUMNS", "TrackResult", "parse_dots", "iter_track", "track_frames", "track_video",
+__all__ = ["TRACK_COLUMNS", "parse_dots", "iter_track", "track_frames", "track_video",
            "write_track_csv", "read_track_csv"]
 
 TRACK_COLUMNS = ("frame", "time_s", "x", "y", "heading_deg", "status", "std_mm", "std_heading_deg", "reason")
@@ -46,85 +48,6 @@ LINE_DOTS = ("line",)
 :class:`~posekit.ceiling.linetrack.LineTracker`)."""
 
 
-class _TimedRows:
-    """What every per-frame track result shares: iteration over ``rows`` and the timings.
-
-    Subclasses are dataclasses with ``rows``, ``seconds_total`` (s) and ``seconds_processing``
-    (shape (N,), s per frame) fields; ``_n_frames`` gives the number of frames behind ``rows``.
-    """
-
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    def _n_frames(self) -> int:
-        return len(self.rows)
-
-    @property
-    def fps(self) -> float:
-        """Frames per second end to end (decode + detect + map + filter)."""
-        return self._n_frames() / self.seconds_total if self.seconds_total > 0 else float("nan")
-
-    @property
-    def processing_ms(self) -> float:
-        """Median processing time per frame without decoding, ms."""
-        return float(np.median(self.seconds_processing) * 1e3) if len(self.seconds_processing) else float("nan")
-
-
-@dataclass
-class TrackResult(_TimedRows):
-    """Track of a video, with what is needed to plot and time it.
-
-    Attributes
-    ----------
-    rows : list of TrackRow
-        One per frame (iterate the result directly for the rows).
-    image_uv : ndarray, shape (N, 2)
-        Primary dot detected in the camera used at each frame, px (NaN where none
-        was accepted): the trajectory in the image (the paper's Fig. 8).
-    seconds_total : float
-        Wall time of the whole run, decoding included, s.
-    seconds_processing : ndarray, shape (N,)
-        Wall time of detection + mapping + filtering per frame, s (decoding excluded).
-    fps_source : str
-        Where the frame rate of the timestamps came from.
-    cameras : list of str
-        Camera names.
-    warnings : list of str
-        What the sources reported (a video shorter than its header says, a stream that stopped).
-    stats : dict
-        ``rebuilds`` and ``relights`` of the detectors' backgrounds (a rebuild is a scene
-        change the exposure gain did not explain; 0 on a steady scene), ``static_lights`` held
-        at the end and where they came from (``scene``: ``"learned online"`` or ``"from the
-        scene file"``).
-    """
-
-    rows: list[TrackRow]
-    image_uv: np.ndarray
-    seconds_total: float
-    seconds_processing: np.ndarray
-    fps_source: str = ""
-    cameras: list = field(default_factory=list)
-    warnings: list = field(default_factory=list)
-    stats: dict = field(default_factory=dict)
-
-    def xy(self) -> np.ndarray:
-        """(N, 2) track in the world plane, mm (NaN where lost)."""
-        return np.array([[r.x, r.y] for r in self.rows], dtype=float).reshape(-1, 2)
-
-    def heading_deg(self) -> np.ndarray:
-        return np.array([r.heading_deg for r in self.rows], dtype=float)
-
-    def status(self) -> np.ndarray:
-        return np.array([r.status for r in self.rows])
-
-    def counts(self) -> dict[str, int]:
-        s = self.status()
-        return {k: int(np.sum(s == k)) for k in STATUSES}
-
-
 def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
     """``"red"`` or ``"red,green"`` → a tuple of colours, ``"line"`` → ``("line",)`` (one
     laser line, case C); ConfigError otherwise."""
@@ -134,13 +57,6 @@ def parse_dots(text: str | Sequence[str]) -> tuple[str, ...]:
     if not items or any(c not in KNOWN_COLOURS for c in items) or len(set(items)) != len(items):
         raise ConfigError(f"--dots: expected 'red' or 'red,green', got {text!r} (or 'line' for a laser line)")
     return tuple(items)
-
-
-def _as_calibration(cal):
-    if isinstance(cal, (str, Path)):
-        from ..camera.homography import load_calibration
-        return load_calibration(cal)
-    return cal
 
 
 def _dots_by_colour(dots) -> dict[str, np.ndarray]:
@@ -154,7 +70,7 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
                config: TrackerConfig | None = None, detectors: Sequence | None = None,
                border_margin_px: float = 20.0, use_roi: bool = True, survey_every: int = 30,
                timings: list | None = None, scenes: Sequence | None = None,
-               stats: dict | None = None) -> Iterator[tuple[TrackRow, np.ndarray]]:
+               stats: dict | None = None, tests=None) -> Iterator[tuple[TrackRow, np.ndarray]]:
     """Track frame by frame, yielding each row as soon as its frame is done (live use).
 
     Per frame and camera: the detector searches a window around the predicted dot while the
@@ -181,8 +97,9 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
     uv : ndarray, shape (2,)
         The primary dot as detected in the camera used, px (NaN when not ``ok``).
     """
-    from ..detect.dots import DotSignature
-    from ..detect.scene import MOVING, STATIC, StaticLights
+    from ..detect.scene import StaticLights
+    from ..detect.signature import DotSignature
+    from .verify import LaserTests, verify_candidates
 
     dots = parse_dots(dots)
     cfg = TrackerConfig(dots=dots) if config is None else replace(config, dots=dots)
@@ -199,6 +116,10 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
                  scene="from the scene file" if any(s is not None for s in scenes) else "learned online")
     survey_every = max(int(survey_every), 1)
     signatures = [{c: DotSignature() for c in dots} for _ in cameras]     # per camera and colour
+    absorb = [[] for _ in cameras]             # per camera: the static lights of the last frame
+    followed = [{} for _ in cameras]           # per camera: image-track identity of each tracked dot
+    protect = [[] for _ in cameras]            # per camera: where the tracked dots were last seen
+    tests = LaserTests() if tests is None else tests
     mct = MultiCameraTracker(cameras, cfg, border_margin_px=border_margin_px)
     suspect_cal = [getattr(c.calibration, "status", "ok") == "suspect" for c in cameras]
     confident = False
@@ -220,31 +141,23 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             if bd >= 2 * border_margin_px:
                 search = [a]                        # camera switch: the others can sleep
         survey = index % survey_every == 0
-        detections, eligible, stds, moving, found = [], [], [], [], {}
+        detections, eligible, stds, moving, assoc, found = [], [], [], [], [], {}
         for i, (det, img) in enumerate(zip(detectors, images)):
             if i not in search or img is None:
-                detections.append(None)
-                eligible.append(None)
-                stds.append(None)
-                moving.append(None)
+                for lst in (detections, eligible, stds, moving, assoc):
+                    lst.append(None)
                 continue
             roi = pred[i] if (use_roi and confident and not survey and pred[i]) else None
-            ds = det.detect(img, predicted_uv=roi)
-            found[i] = ds
-            states = lights[i].update(index, [(d.u, d.v) for d in ds], [d.color for d in ds],
-                                      [d.saturated for d in ds])
-            by, el, sd, mv = {}, {}, {}, {}
-            for d, s in zip(ds, states):
-                sig = signatures[i][d.color]
-                by.setdefault(d.color, []).append((d.u, d.v))
-                el.setdefault(d.color, []).append(s != STATIC and d.saturated and sig.consistent(d))
-                mv.setdefault(d.color, []).append(s == MOVING)
-                sd.setdefault(d.color, []).append(sig.std_px(d, cameras[i].detection_std_px))
-            detections.append({c: np.asarray(v, dtype=float) for c, v in by.items()})
-            eligible.append({c: np.asarray(v, dtype=bool) for c, v in el.items()})
-            moving.append({c: np.asarray(v, dtype=bool) for c, v in mv.items()})
-            stds.append({c: np.asarray(v, dtype=float) for c, v in sd.items()})
-        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving)
+            ds = det.detect(img, predicted_uv=roi, protect=list(pred[i].values()) + protect[i], absorb=absorb[i])
+            cand = verify_candidates(index, ds, lights[i], signatures[i], cameras[i].detection_std_px, tests,
+                                     followed[i])
+            found[i] = cand
+            detections.append(cand.uv)
+            eligible.append(cand.eligible)
+            moving.append(cand.moving)
+            stds.append(cand.std_px)
+            assoc.append(cand.associable(followed[i]))
+        row = mct.step(t_s, detections, frame=index, eligible=eligible, std_px=stds, moving=moving, associable=assoc)
         if all(img is None for img in images):
             why = "; ".join(e for e in errors if e) or "the frame could not be decoded"
             row = replace(row, x=float("nan"), y=float("nan"), heading_deg=float("nan"), status="lost",
@@ -257,18 +170,26 @@ def iter_track(frames: Iterable, cameras: Sequence[Camera], dots: Sequence[str] 
             why = "; ".join(getattr(cal, "reasons", ()) or ("the calibration is suspect",))
             row = replace(row, status="suspect", reasons=row.reasons + (f"calibration: {why}",))
         uv = np.full(2, np.nan)
-        for i, ds in found.items():
+        for i, cand in found.items():
             if row.camera == i and row.measured:
                 track_uv = cameras[i].to_image(np.array(list(row.measured.values())))
                 for j, c in enumerate(row.measured):
                     p = track_uv[j]
-                    best = min((d for d in ds if d.color == c), key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2,
-                               default=None)
+                    best = min((d for d in cand.dots if d.color == c),
+                               key=lambda d: (d.u - p[0]) ** 2 + (d.v - p[1]) ** 2, default=None)
                     if best is None:
                         continue
                     signatures[i][c].update(best)
+                    followed[i][c] = cand.identity(c, (best.u, best.v))
                     if c == dots[0] and row.status in ("ok", "suspect"):
                         uv = np.array([best.u, best.v])
+        for i in range(len(cameras)):                   # a lost dot follows no image track any more
+            for c, (_, _, status) in (row.dots or {}).items():
+                if status == "lost":
+                    followed[i].pop(c, None)
+            keep = set(followed[i].values())
+            absorb[i] = lights[i].settled_uv(keep)      # next frame: the scene's settled spots fade in,
+            protect[i] = [p for p in (lights[i].last_uv(f) for f in keep) if p is not None]   # the tracked ones not
         confident = row.status == "ok"
         stats.update(rebuilds=sum(getattr(d, "rebuilds", 0) for d in detectors),
                      relights=sum(getattr(d, "relights", 0) for d in detectors),
@@ -411,100 +332,6 @@ def _track_line_frames(frames: Iterable, cameras: Sequence[Camera], *, config: T
                        seconds_processing=np.array(proc), cameras=[c.name for c in cameras])
 
 
-def _as_lens(lens):
-    if lens is None:
-        return None
-    if isinstance(lens, (str, Path)):
-        from ..camera.lens import load_camera
-        return load_camera(lens)
-    return lens
-
-
-def open_sources(sources, fps: float | None = None, *, loop: int = 1, max_frames: int | None = None,
-                 live: bool = False) -> list:
-    """One frame source per input: :func:`~posekit.ceiling.video_io.open_live` for a camera
-    index, device or URL (or any input when ``live``), else
-    :func:`~posekit.ceiling.video_io.open_frames`."""
-    from .sources import is_live_source, open_frames, open_live
-
-    out = []
-    for s in sources:
-        if live or is_live_source(s):
-            out.append(open_live(s, loop=loop, max_frames=max_frames, fps=fps))
-        else:
-            out.append(open_frames(s, fps, max_frames=max_frames))
-    return out
-
-
-def frame_groups(streams) -> Iterator[tuple[int, float, list, list]]:
-    """``(index, time_s, images, errors)`` of synchronised sources (the shortest ends it); an
-    image that could not be decoded is None and its error says why."""
-    for group in zip(*streams):
-        f0 = group[0]
-        yield f0.index, f0.time_s, [f.image for f in group], [f.error for f in group]
-
-
-def make_cameras(streams, calibrations, lenses=None) -> list[Camera]:
-    """:class:`Camera` of each source from its calibration (object or JSON path) and lens
-    model (``CameraModel``, camera JSON path, or None)."""
-    if not isinstance(calibrations, (list, tuple)):
-        calibrations = [calibrations]
-    if len(streams) != len(calibrations):
-        raise ConfigError(f"track_video: {len(streams)} input(s) but {len(calibrations)} calibration(s); "
-                          "give one calibration per camera")
-    if lenses is None or not isinstance(lenses, (list, tuple)):
-        lenses = [lenses] * len(streams)
-    if len(lenses) != len(streams):
-        raise ConfigError(f"--camera given {len(lenses)} time(s) for {len(streams)} input(s); "
-                          "give one camera model per input, or one for all")
-    cams = []
-    for cal, st, lens in zip(calibrations, streams, lenses):
-        lens = _as_lens(lens)
-        if lens is not None and tuple(lens.image_size) != tuple(st.image_size):
-            raise ConfigError(f"{st.path}: frames are {st.image_size[0]}x{st.image_size[1]} px but the camera model "
-                              f"is for {lens.image_size[0]}x{lens.image_size[1]} px; calibrate the lens at the "
-                              "resolution of the video")
-        cal = fit_calibration(_as_calibration(cal), st.image_size, str(st.path), notes=getattr(st, "warnings", None))
-        cams.append(Camera(cal, st.image_size, name=str(st.path), lens=lens))
-    return cams
-
-
-def fit_calibration(cal, frame_size, source: str = "INPUT", notes: list | None = None):
-    """The calibration for frames of ``frame_size`` (w, h) px.
-
-    A calibration that knows its image size and matches is returned as is; one made at another
-    resolution of the same shape (aspect within 0.5 %) gets its homography scaled (pixel
-    centres: ``u' + ½ = s (u + ½)``) and a note in ``notes``; another shape is a one-line
-    :class:`ConfigError`. Without a size, calibration points beyond the frame are a
-    :class:`ConfigError` too (a calibration made for larger frames).
-    """
-    w, h = int(frame_size[0]), int(frame_size[1])
-    size = getattr(cal, "image_size", None)
-    if size is not None and tuple(size) != (w, h):
-        cw, ch = size
-        s = w / cw
-        if abs(h / ch - s) > 0.005 * s:
-            raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration was made on {cw}x{ch} px "
-                              "images of another shape; calibrate at the resolution of the video")
-        from ..camera.homography import Calibration
-        c = 0.5 / s - 0.5
-        A = np.array([[1.0 / s, 0.0, c], [0.0, 1.0 / s, c], [0.0, 0.0, 1.0]])     # new px -> old px
-        Hwi = cal.H_world_image @ A
-        Hwi = Hwi / Hwi[2, 2]
-        Hiw = np.linalg.inv(Hwi)
-        ext = None if cal.points_extent is None else tuple(s * (v + 0.5) - 0.5 for v in cal.points_extent)
-        if notes is not None:
-            notes.append(f"{source}: the calibration was made on {cw}x{ch} px images, frames are {w}x{h} px: "
-                         f"its homography is scaled by {s:g}")
-        return Calibration(Hiw / Hiw[2, 2], Hwi, cal.rms_px * s, cal.rms_world, cal.inliers, cal.n_points, cal.camera,
-                           (w, h), ext, cal.status, cal.reasons, cal.rms_all_px * s)
-    ext = getattr(cal, "points_extent", None)
-    if size is None and ext is not None and (ext[2] > w - 0.5 + 1.0 or ext[3] > h - 0.5 + 1.0):
-        raise ConfigError(f"{source}: frames are {w}x{h} px but the calibration points reach u={ext[2]:.0f}, "
-                          f"v={ext[3]:.0f} px; was the calibration made at another resolution?")
-    return cal
-
-
 def make_detectors(dots, n: int, detector_options: dict | None = None):
     """``n`` detectors for ``dots`` (None: the defaults of :func:`track_frames`)."""
     if detector_options is None:
@@ -596,24 +423,6 @@ def track_video(sources, calibrations, dots: Sequence[str] | str = ("red",), *, 
     result.fps_source = streams[0].fps_source
     result.warnings = [w for st in streams for w in st.warnings]
     return result
-
-
-def _as_scenes(scene, n: int) -> list:
-    """Per source ``(lights or None, image_size or None, name)`` from ``track_video``'s ``scene``."""
-    if scene is None:
-        return [(None, None, "")] * n
-    items = list(scene) if isinstance(scene, (list, tuple)) else [scene]
-    if len(items) == 1:
-        items = items * n
-    if len(items) != n:
-        raise ConfigError(f"--scene given {len(items)} time(s) for {n} input(s); give it once for all inputs or "
-                          "once per input")
-    from ..detect.scene import load_scene
-    out = []
-    for s in items:
-        lights, size = load_scene(s)
-        out.append((lights, size, str(s)))
-    return out
 
 
 def write_track_csv(rows: Iterable[TrackRow], path: str | Path) -> Path:

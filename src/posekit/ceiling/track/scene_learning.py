@@ -17,7 +17,7 @@ import numpy as np
 from ..detect.dots import DotDetector
 from ..detect.scene import MOVING, Light, StaticLights, save_scene
 from .cameras import Camera
-from .pipeline import _as_calibration, _as_lens, fit_calibration
+from .setup import _as_calibration, _as_lens, fit_calibration
 from .sources import is_live_source, open_frames, open_live
 
 __all__ = ["SceneLearning", "learn_scene"]
@@ -93,8 +93,7 @@ def learn_scene(source, calibration, *, camera=None, out=None, fps: float | None
         if fr.image is None:
             continue
         dots = det.detect(fr.image)
-        states = model.update(fr.index, [(d.u, d.v) for d in dots], [d.color for d in dots],
-                              [d.saturated for d in dots])
+        states = model.update(fr.index, [(d.u, d.v) for d in dots], [d.color for d in dots])
         for k, s in enumerate(states):
             if s == MOVING:
                 moving_tracks.add((round(dots[k].u / 20), round(dots[k].v / 20)))

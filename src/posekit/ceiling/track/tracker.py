@@ -31,27 +31,20 @@ Status of a frame, for the primary dot (red; its x, y are the track):
 ``predicted``
     no accepted dot this frame (the dot fell into an air-conditioning hole, was occluded
     or gated out) and the last accepted one is at most ``max_predict_s`` old; x, y is the
-    constant-velocity prediction, and its ``std_mm`` grows with the time coasted by
-    ``coast_speed_share`` of the distance travelled (the robot may stop or turn unseen).
+    constant-velocity prediction, and its ``std_mm`` grows with the time coasted as the
+    motion model predicts (``q t³ / 3`` per axis), with the process noise ``q`` the larger of
+    the configured one and the one fitted from the track's own measurements
+    (:func:`~posekit.ceiling.track.motion_noise.fitted_accel_psd`: a robot that has stopped and turned in view may do it unseen).
 ``lost``
     no accepted dot for longer than ``max_predict_s`` (or never): x, y are NaN
     (empty in the CSV). A lone verified detection seen moving re-initialises the filter.
 
-A row is never ``ok`` without a dot. Heading (case B of the paper) is the direction from
-the red to the green dot, filtered by a circular constant-turn-rate filter on the unwrapped
-angle (innovations wrapped to (-π, π]), with its 1σ (``std_heading_deg``, from the two dots'
-covariances: ``σθ² = n̂ᵀ(R_red + R_green)n̂ / d²``); a measured direction more than 3σ from
-the filter's prediction (a turn on the spot) restarts the filter on the measurement, so the
-heading of a frame whose two dots were measured never lies more than 3σ from what they say.
-NaN with one dot, or when the green or red dot has not been seen for ``max_predict_s``.
-
-Every row carries ``reasons``: why it is not ``ok``.
-
-:class:`Tracker` works on world measurements (no video needed).
-:class:`~posekit.ceiling.cameras.MultiCameraTracker` (case D, :mod:`posekit.ceiling.cameras`;
-also importable from here) takes image detections from several calibrated cameras, maps them to the world,
-picks one camera per frame (the active one while its dot stays clear of the image border,
-else the one whose dot is farthest from its border) and feeds one :class:`Tracker`.
+A row is never ``ok`` without a dot; every row carries ``reasons``: why it is not ``ok``.
+Heading (case B of the paper): the direction from the red to the green dot with its 1σ
+(:mod:`~posekit.ceiling.track.heading`), never more than 3σ from what a frame's two measured
+dots say; NaN with one dot, or when either dot has not been seen for ``max_predict_s``.
+:class:`Tracker` works on world measurements (no video needed); the cameras' side is
+:class:`~posekit.ceiling.track.cameras.MultiCameraTracker`.
 """
 
 from collections.abc import Mapping
@@ -59,63 +52,17 @@ from collections.abc import Mapping
 import numpy as np
 
 from ...errors import GeometryError, TrajectoryError
+from . import verdicts
+from ._inputs import _as_candidates, _as_covariances, _as_eligible
 from ._kalman import _inv_sym, _mahalanobis2, _wrap, cv_predict, kf_update  # noqa: F401 (re-exported)
+from .heading import second_dot_at_separation, update_heading
+from .motion_noise import extra_psd, record_measurement
 from .types import CHI2_2DOF_999, STATUSES, DotState, HeadingState, TrackerConfig, TrackRow  # noqa: F401
 
-__all__ = [
-    "STATUSES",
-    "TrackerConfig",
-    "TrackRow",
-    "DotState",
-    "HeadingState",
-    "Tracker",
-    "cv_predict",
-    "kf_update",
-]
+__all__ = ["STATUSES", "TrackerConfig", "TrackRow", "DotState", "HeadingState", "Tracker", "cv_predict", "kf_update"]
 
 
 # --- the world-plane tracker ---------------------------------------------------------------
-
-def _as_candidates(value, colour: str) -> np.ndarray:
-    """(K, 2) float array of candidate world positions (K may be 0)."""
-    if value is None:
-        return np.zeros((0, 2))
-    z = np.asarray(value, dtype=float)
-    if z.ndim == 1 and z.shape == (2,):
-        z = z[None, :]
-    if z.ndim != 2 or z.shape[1] != 2:
-        raise GeometryError(f"Tracker.step: dots_world[{colour!r}] must have shape (2,) or (K, 2) "
-                            f"(x, y in mm), got shape {np.shape(value)}")
-    return z[np.all(np.isfinite(z), axis=1)]
-
-
-def _as_eligible(value, raw, k: int) -> np.ndarray:
-    """(K,) bool flags of the finite candidates (all True by default)."""
-    if value is None:
-        return np.ones(k, bool)
-    e = np.asarray(value, dtype=bool).reshape(-1)
-    if raw is not None:
-        zr = np.asarray(raw, dtype=float).reshape(-1, 2)
-        if e.shape[0] == zr.shape[0]:
-            e = e[np.all(np.isfinite(zr), axis=1)]
-    if e.shape[0] != k:
-        raise GeometryError(f"Tracker.step: eligible flags for {e.shape[0]} candidate(s), expected {k}")
-    return e
-
-
-def _as_covariances(value, k: int, colour: str, default_std: float, floor: float) -> np.ndarray:
-    """(K, 2, 2) measurement covariances (default isotropic), floored at ``floor²``."""
-    if value is None:
-        R = np.broadcast_to(default_std ** 2 * np.eye(2), (k, 2, 2)).copy()
-    else:
-        R = np.asarray(value, dtype=float)
-        if R.shape == (2, 2):
-            R = np.broadcast_to(R, (k, 2, 2)).copy()
-        if R.shape != (k, 2, 2) or not np.all(np.isfinite(R)):
-            raise GeometryError(f"Tracker.step: meas_cov[{colour!r}] must be finite with shape (2, 2) "
-                                f"or ({k}, 2, 2) (mm²), got shape {np.shape(value)}")
-    return R + floor ** 2 * np.eye(2)
-
 
 class Tracker:
     """Constant-velocity Kalman tracking of the laser dot(s) in the world plane.
@@ -183,7 +130,8 @@ class Tracker:
     # -- one frame -------------------------------------------------------------------------
     def step(self, t_s: float, dots_world: Mapping | np.ndarray | None,
              meas_cov: Mapping | None = None, *, frame: int | None = None,
-             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None) -> TrackRow:
+             camera: int = -1, eligible: Mapping | None = None, moving: Mapping | None = None,
+             associable: Mapping | None = None, claimed: Mapping | None = None) -> TrackRow:
         """Advance to ``t_s`` and fuse this frame's detections.
 
         Parameters
@@ -214,6 +162,13 @@ class Tracker:
             re-acquired only on the one eligible candidate found moving, and a track is
             ``suspect`` while another eligible moving candidate is in view outside its gate.
             Default: the tracker's own test (chained motion of at least ``min_move_mm``).
+        associable : mapping, optional
+            ``{colour: (K,) bool}``: the candidates the dot may be associated with this frame
+            (the one that continues its image track, when the caller knows it; the one a
+            several-robot assignment gave it). Default: all.
+        claimed : mapping, optional
+            ``{colour: (K,) bool}``: candidates that belong to other tracks (other robots):
+            never associated, never rivals. Default: none.
 
         Returns
         -------
@@ -255,24 +210,30 @@ class Tracker:
             mv = None
             if moving is not None and c in moving:
                 mv = _as_eligible(moving[c], dots_world.get(c), len(z)) & el
+            cl = np.zeros(len(z), bool)
+            if claimed is not None and c in claimed:
+                cl = _as_eligible(claimed[c], dots_world.get(c), len(z))
+            assoc = ~cl
+            if associable is not None and c in associable:
+                assoc &= _as_eligible(associable[c], dots_world.get(c), len(z))
             st = self.states[c]
             had = st.x is not None and self._alive(st, t_s)
-            accepted = self._update_dot(st, t_s, z, R, el, mv)
+            accepted = self._update_dot(st, t_s, z, R, el & ~cl, None if mv is None else mv & ~cl, assoc)
+            free = ~cl
             if accepted is not None:
                 measured[c] = accepted
-                other = self._rival(st, z, R, mv, accepted[0])
-                if st.probation is not None and other is not None:
-                    st.probation = (st.probation[0], st.probation[1], True)
+                free = ~cl & np.any(z != accepted[0], axis=1)
+                other = verdicts.rival(st.x, st.P, z, R, None if mv is None else mv & free, accepted[0],
+                                       cfg.gate_chi2, cfg.gate_floor_mm)
+                self._follow_doubt(st, t_s, z, R, el & free, other is not None)
                 if st.probation is not None and (t_s <= st.probation[0] + 1e-9 or st.probation[2]):
-                    why[c] = (f"re-acquired {st.probation[1]:.0f} mm from where the track was predicted"
-                              + ("; another moving laser-like spot was seen since: which is the laser cannot be told"
-                                 if st.probation[2] else
-                                 f" ({cfg.max_predict_s:g} s of probation: the previous dot may only be hidden)"),)
+                    why[c] = (verdicts.doubt_reason(st.probation[1], st.probation[2], cfg.max_predict_s),)
                 elif other is not None:
                     why[c] = (f"another moving laser-like spot at ({other[0]:.0f}, {other[1]:.0f}) mm, outside the "
                               "gate: which is the laser cannot be told",)
             else:
-                why[c] = self._why_not(st, t_s, len(z), had, el, mv)
+                self._follow_doubt(st, t_s, z, R, el & free, False)
+                why[c] = verdicts.why_not(st, t_s, len(z), had, el, mv, self._alive(st, t_s), self.config)
         self._rigid_second_dot(t_s, dots_world, meas_cov, eligible, measured, why)
         for c in cfg.dots:
             st = self.states[c]
@@ -280,13 +241,17 @@ class Tracker:
                 status = "suspect" if c in why else "ok"
             elif self._alive(st, t_s):
                 status = "predicted"
+                if st.alt is not None:
+                    why[c] = tuple(why.get(c, ())) + ("the track's identity is in doubt (re-acquired away from its "
+                                                      "prediction): the 1σ spans both hypotheses",)
             else:
                 status = "lost"
                 st.x = st.P = None
+                st.alt = st.probation = None
             xy = st.x[:2].copy() if st.x is not None else np.full(2, np.nan)
             dots[c] = (float(xy[0]), float(xy[1]), status)
 
-        heading, heading_std = self._update_heading(t_s, measured)
+        heading, heading_std = update_heading(self.heading, self.config, t_s, measured, self.states)
         main = self.states[cfg.dots[0]]
         x, y, status = dots[cfg.dots[0]]
         std = self._std_mm(main, t_s) if main.x is not None else float("nan")
@@ -297,86 +262,46 @@ class Tracker:
                         dots=dots)
 
     def _rigid_second_dot(self, t_s, dots_world, meas_cov, eligible, measured, why) -> None:
-        """The two lasers sit on one robot: their distance is fixed. When the first dot was
-        accepted and the second was not (a turn on the spot swings it far outside its own gate),
-        a lone eligible candidate of the second colour at that distance (within 3σ of the
-        separation measured so far, at least ``gate_floor_mm / 2``) is the second dot: its filter
-        restarts there, so the heading follows what the two dots measure. The separation is
-        learned from the frames where both were accepted."""
-        cfg = self.config
-        if len(cfg.dots) < 2:
-            return
-        c0, c1 = cfg.dots[0], cfg.dots[1]
-        if c0 in measured and c1 in measured:
-            d = float(np.hypot(*(measured[c1][0] - measured[c0][0])))
-            n, m, v = self._sep
-            n += 1
-            dm = d - m
-            m += dm / n
-            self._sep = (n, m, v + dm * (d - m))
-            return
-        n, m, v = self._sep
-        if c0 not in measured or c1 in measured or n < 5:
-            return
-        z = _as_candidates(dots_world.get(c1), c1)
-        if len(z) == 0:
-            return
-        el = _as_eligible(None if eligible is None else eligible.get(c1), dots_world.get(c1), len(z))
-        R = _as_covariances((meas_cov or {}).get(c1), len(z), c1, cfg.meas_std_mm, cfg.min_meas_std_mm)
-        sd = max(3.0 * float(np.sqrt(v / (n - 1))), cfg.gate_floor_mm / 2.0)
-        dist = np.hypot(*(z - measured[c0][0]).T)
-        at = np.flatnonzero(el & (np.abs(dist - m) <= sd))
-        if len(at) != 1:
-            return
-        k = int(at[0])
-        st = self.states[c1]
-        self._start(st, t_s, z[k], R[k] * st.noise_scale)
-        measured[c1] = (z[k], R[k])
-        why.pop(c1, None)
+        """The second dot found at the learned separation from the first
+        (:func:`~posekit.ceiling.track.heading.second_dot_at_separation`): its filter restarts there."""
+        self._sep, found = second_dot_at_separation(self._sep, self.config, dots_world, meas_cov, eligible, measured)
+        if found is not None:
+            c1, z, R = found
+            st = self.states[c1]
+            self._start(st, t_s, z, R * st.noise_scale)
+            measured[c1] = (z, R)
+            why.pop(c1, None)
 
     def _coast_var(self, st: DotState, t_s: float) -> float:
-        """Variance per axis (mm²) of the manoeuvre a robot may make unseen since the last
-        accepted dot: ``(coast_speed_share · |v| · t)²``."""
+        """Variance per axis (mm²) of the manoeuvre the track's own data says the robot may make
+        unseen since the last accepted dot, beyond what the filter's process noise already
+        predicts: ``max(q̂ - q, 0) t³ / 3`` (:func:`~posekit.ceiling.track.motion_noise.fitted_accel_psd`)."""
         since = t_s - st.t_meas_s
         if st.x is None or not np.isfinite(since) or since <= 0:
             return 0.0
-        return (self.config.coast_speed_share * float(np.hypot(*st.x[2:])) * since) ** 2
+        return extra_psd(st, self.config.accel_psd_mm2_s3) * since ** 3 / 3.0
 
     def _std_mm(self, st: DotState, t_s: float) -> float:
-        """1σ of the position (largest axis), the coasting manoeuvre included, mm."""
-        return float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+        """1σ of the position (largest axis), the coasting manoeuvre included, mm; while the
+        identity is in doubt, that of the two-hypothesis mixture (:func:`verdicts.mixture_std`)."""
+        std = float(np.sqrt(np.linalg.eigvalsh(st.P[:2, :2])[-1] + self._coast_var(st, t_s)))
+        return verdicts.mixture_std(std, st.x[:2], st.alt, t_s)
 
-    def _rival(self, st: DotState, z: np.ndarray, R: np.ndarray, moving, accepted_z):
-        """An eligible, moving candidate outside the gate of the accepted one (or None)."""
-        if moving is None or not moving.any():
-            return None
-        d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R)
-        far = moving & (d2 > self.config.gate_chi2) & (np.hypot(*(z - accepted_z).T) > self.config.gate_floor_mm)
-        if not far.any():
-            return None
-        return z[int(np.flatnonzero(far)[0])]
-
-    def _why_not(self, st: DotState, t_s: float, n: int, had: bool, eligible, moving) -> tuple:
-        """The reason of a row without an accepted dot."""
-        if self._alive(st, t_s):
-            since = t_s - st.t_meas_s
-            if n == 0:
-                return (f"no dot seen this frame; predicted {since:.2f} s after the last one",)
-            if st.pending is not None:
-                return (f"a candidate near the prediction waits to be seen moving with the track ({since:.2f} s "
-                        "coasted)",)
-            return (f"{n} candidate(s), none inside the gate of the prediction ({since:.2f} s coasted)",)
-        if had:
-            return (f"no dot accepted for more than {self.config.max_predict_s:g} s",)
-        if n == 0:
-            return ("no dot seen",)
-        k = int(np.count_nonzero(eligible))
-        if moving is not None:
-            m = int(np.count_nonzero(moving))
-            if m > 1:
-                return (f"{m} moving laser-like spots: which is the laser cannot be told",)
-            return (f"{n} candidate(s), {k} laser-like, none seen moving yet (static lights are never acquired)",)
-        return (f"{n} candidate(s), {k} laser-like, none seen moving by {self.config.min_move_mm:g} mm yet",)
+    def _follow_doubt(self, st: DotState, t_s: float, z, R, usable, rival_seen: bool) -> None:
+        """Carry the alternative hypothesis of a dot in probation: follow it with the usable
+        candidates in its gate; a rival, or the previous dot seen again, makes the doubt last for
+        the rest of the track; a probation that ends without either closes it."""
+        if st.probation is None:
+            return
+        cfg = self.config
+        until, jump, conflicted = st.probation
+        if st.alt is not None and verdicts.follow_alternative(st.alt, t_s, z, R, usable, cfg.accel_psd_mm2_s3,
+                                                               cfg.gate_chi2):
+            conflicted = True
+        conflicted = conflicted or rival_seen
+        st.probation = (until, jump, conflicted)
+        if not conflicted and t_s > until + 1e-9:
+            st.alt = None
 
     def _start(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray) -> None:
         st.pending = st.seen = st.probation = None
@@ -388,7 +313,7 @@ class Tracker:
         st.z_meas = np.array(z, dtype=float)
 
     def _update_dot(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray, eligible: np.ndarray,
-                    moving: np.ndarray | None = None):
+                    moving: np.ndarray | None = None, assoc: np.ndarray | None = None):
         """Predict ``st`` to ``t_s`` and fuse the best gated candidate; returns (z, R) or None.
 
         While the track is fresh (the previous frame was accepted): (1) the candidate of
@@ -420,8 +345,9 @@ class Tracker:
             st.last_d2 = float("nan")
             return None
         R = R * st.noise_scale
+        assoc = np.ones(len(z), bool) if assoc is None else assoc
         if st.x is None:
-            return self._acquire(st, t_s, z, R, eligible, moving)
+            return self._acquire(st, t_s, z, R, eligible & assoc, None if moving is None else moving & assoc)
         since = t_s - st.t_meas_s
         fresh = since <= 1.5 * dt_pred + 1e-9
         reach = cfg.gate_floor_mm + cfg.max_speed_mm_s * since
@@ -430,9 +356,12 @@ class Tracker:
         coast = 0.0 if fresh else self._coast_var(st, t_s)
         d2 = _mahalanobis2(z - st.x[:2], st.P[:2, :2] + R + coast * np.eye(2))
         st.last_d2 = float(d2.min())
-        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach)
-        near = eligible & (dist_pred <= cfg.gate_floor_mm)
-        lone = np.flatnonzero(eligible)
+        # inside the χ² gate and within reach; an unverified candidate (a washed-out or merged dot,
+        # the dot crossing a lamp) also within gate_floor_mm of the prediction: the χ² gate of a
+        # fresh track, whose velocity is barely known, is far wider than a dot moves in a frame
+        in_gate = (d2 <= cfg.gate_chi2) & (dist_last <= reach) & assoc & (eligible | (dist_pred <= cfg.gate_floor_mm))
+        near = eligible & assoc & (dist_pred <= cfg.gate_floor_mm)
+        lone = np.flatnonzero(eligible & assoc)
         if fresh:
             if in_gate.any():
                 k = int(np.argmin(np.where(in_gate, d2, np.inf)))
@@ -448,7 +377,7 @@ class Tracker:
                 return z[k], R[k]
         else:
             rest = dist_last <= cfg.gate_floor_mm       # where the dot was last seen (the robot stopped)
-            usable = (in_gate | near | rest) & eligible
+            usable = (in_gate | near | rest) & eligible & assoc
             if usable.any():
                 k = int(np.argmin(np.where(usable, d2, np.inf)))
                 if (cfg.min_move_mm == 0 or (since <= cfg.confirm_after_s + 1e-9 and (in_gate[k] or near[k]))
@@ -461,10 +390,11 @@ class Tracker:
         st.n_rejected += 1
         if st.n_rejected < cfg.reinit_after:
             return None
-        pred = st.x[:2].copy()
-        got = self._acquire(st, t_s, z, R, eligible, moving)   # the prediction is not trusted any more
+        prev = verdicts.open_alternative(st.x, st.P, t_s, st.t_meas_s, extra_psd(st, cfg.accel_psd_mm2_s3))
+        got = self._acquire(st, t_s, z, R, eligible & assoc, None if moving is None else moving & assoc)
         if got is not None:                     # a jump while the old dot may only be hidden: not ok yet
-            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - pred))), False)
+            st.probation = (t_s + cfg.max_predict_s, float(np.hypot(*(got[0] - prev.x[:2]))), False)
+            st.alt = prev                       # the previous track: the other hypothesis
         return got
 
     def _accepted(self, st: DotState, t_s: float, z: np.ndarray, R: np.ndarray):
@@ -554,80 +484,11 @@ class Tracker:
 
     def _fuse(self, st: DotState, z: np.ndarray, R: np.ndarray, inflate: float = 1.0,
               t_s: float | None = None) -> None:
-        """Kalman update (the prior covariance inflated by ``inflate`` for a manoeuvre), and the
-        running scale of the measurement noise.
-
-        The scale comes from the jitter of the accepted measurements themselves: for three
-        consecutive, evenly spaced ones the second difference ``z₀ - 2 z₁ + z₂`` has covariance
-        ``6 σ² I`` (plus the motion's ``a Δt²``, which only errs on the safe side), so
-        ``σ² ≈ median |Δ²z|² / (6 · 2 ln 2)`` over the last 25; ``scale = σ² / (tr R / 2)``, at
-        least 1. Unlike innovation statistics it does not depend on the process noise, which
-        dominates the prediction at 15 frames/s.
-        """
+        """Kalman update (the prior covariance inflated by ``inflate`` for a manoeuvre), then the
+        track's measurement statistics (:func:`~posekit.ceiling.track.motion_noise.record_measurement`:
+        the noise scale and the fitted process noise)."""
         if inflate > 1.0:
             st.P = st.P * inflate
         st.x, st.P = kf_update(st.x, st.P, z, R)
-        if not self.config.adapt_noise or t_s is None:
-            return
-        hist = st.noise_stats
-        if hist is None:
-            hist = st.noise_stats = {"z": [], "d2": []}
-        zs = hist["z"]
-        if zs:
-            gap = t_s - zs[-1][0]
-            prev = zs[-1][0] - zs[-2][0] if len(zs) > 1 else gap
-            if not 0 < gap <= 1.5 * prev:            # not consecutive frames: start again
-                zs.clear()
-        zs.append((t_s, np.array(z, dtype=float)))
-        if len(zs) == 3:
-            (t0, z0), (t1, z1), (t2, z2) = zs
-            if abs((t2 - t1) - (t1 - t0)) <= 0.2 * (t1 - t0):
-                dd = z0 - 2.0 * z1 + z2
-                hist["d2"].append(float(dd @ dd))
-                del hist["d2"][:-25]
-            zs.pop(0)
-        if len(hist["d2"]) >= 8:
-            var = float(np.median(hist["d2"])) / (6.0 * 2.0 * np.log(2.0))
-            trR = float(R[0, 0] + R[1, 1]) / st.noise_scale
-            st.noise_scale = float(np.clip(var / max(trR / 2.0, 1e-12), 1.0, 400.0))
-
-    def _update_heading(self, t_s: float, measured: dict) -> tuple[float, float]:
-        """Circular filter of the red→green direction; returns (degrees in (-180, 180], 1σ in
-        degrees), NaN without a heading.
-
-        The measured direction's variance is ``n̂ᵀ(R₀ + R₁)n̂ / d²`` (n̂ perpendicular to the
-        red→green segment of length d). A measurement more than 3σ from the prediction (the
-        robot turned faster than the filter's model) restarts the filter on it: the heading of
-        a frame whose two dots were measured is what they say, within its σ.
-        """
-        cfg = self.config
-        nan = float("nan")
-        if len(cfg.dots) < 2:
-            return nan, nan
-        h = self.heading
-        c0, c1 = cfg.dots[0], cfg.dots[1]
-        if h.x is not None and t_s - h.t_meas_s > cfg.max_predict_s + 1e-9:
-            h.x = h.P = None
-        if h.x is not None:
-            h.x, h.P = cv_predict(h.x, h.P, max(t_s - h.t_s, 0.0), cfg.heading_psd_rad2_s3)
-        h.t_s = t_s
-        if c0 in measured and c1 in measured:
-            (z0, R0), (z1, R1) = measured[c0], measured[c1]
-            d = z1 - z0
-            dist = float(np.hypot(*d))
-            if dist > 0:
-                theta = float(np.arctan2(d[1], d[0]))
-                n = np.array([-d[1], d[0]]) / dist          # perpendicular: the direction of angle error
-                var = float(n @ (R0 + R1) @ n) / dist ** 2   # small-angle law: σθ² = σ⊥² / d²
-                nu = _wrap(theta - h.x[0]) if h.x is not None else 0.0
-                if h.x is None or nu * nu > 9.0 * (h.P[0, 0] + var):
-                    h.x = np.array([theta, 0.0])
-                    h.P = np.diag([var, cfg.init_rate_std_rad_s ** 2])
-                else:
-                    h.x, h.P = kf_update(h.x, h.P, np.array([h.x[0] + nu]), np.array([[var]]),
-                                         innovation=np.array([nu]))
-                h.t_meas_s = t_s
-        if h.x is None or any(self.states[c].x is None for c in (c0, c1)):
-            return nan, nan
-        deg = float(np.degrees(_wrap(h.x[0])))
-        return (180.0 if deg == -180.0 else deg), float(np.degrees(np.sqrt(max(h.P[0, 0], 0.0))))
+        if t_s is not None:
+            record_measurement(st, t_s, z, R, self.config.adapt_noise)

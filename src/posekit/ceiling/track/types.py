@@ -76,12 +76,6 @@ class TrackerConfig:
         candidate starts a track only once it has moved this far (mm) over its chained
         history. 0: a lone candidate starts the track at once (world measurements known to be
         the dot, no stray light possible).
-    coast_speed_share : float
-        While the dot is not measured, the prediction's 1σ grows by this share of the distance
-        the track would travel at its speed: a ground robot may stop or turn while its dot is
-        hidden, which leaves the constant-velocity prediction by up to ``|v| t`` (a stop); 0.5
-        puts a stop at 2σ and a right-angle turn (``√2 |v| t``) at 2.8σ. Also widens the gate
-        of a coasting track by as much.
     adapt_noise : bool
         Scale the measurement covariance by a running mean of the normalised innovation
         squared of accepted measurements (at least 1), so that ``std_mm`` stays honest when
@@ -104,7 +98,6 @@ class TrackerConfig:
     adapt_noise: bool = True
     confirm_after_s: float = 0.25
     min_move_mm: float = 8.0
-    coast_speed_share: float = 0.5
 
     def __post_init__(self):
         dots = tuple(self.dots)
@@ -118,7 +111,7 @@ class TrackerConfig:
             if not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a positive number, got {v!r}")
         for name in ("min_meas_std_mm", "max_predict_s", "gate_floor_mm", "max_speed_mm_s", "confirm_after_s",
-                     "min_move_mm", "coast_speed_share"):
+                     "min_move_mm"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ConfigError(f"TrackerConfig.{name}: expected a number >= 0, got {v!r}")
@@ -160,7 +153,10 @@ class DotState:
     probation : tuple or None
         ``(until_s, jump_mm, conflicted)`` after a re-acquisition away from a live prediction:
         the rows are ``suspect`` until then, and for as long as the track lives once another
-        moving laser-like spot was seen during that time.
+        moving laser-like spot (or the previous dot) was seen during that time.
+    alt : Alternative or None
+        The previous track while the identity is in doubt (:mod:`posekit.ceiling.track.verdicts`):
+        the rows' ``std_mm`` spans both hypotheses.
     """
 
     x: np.ndarray | None = None
@@ -175,6 +171,7 @@ class DotState:
     pending: tuple | None = None
     seen: list | None = None
     probation: tuple | None = None
+    alt: object = None
 
 
 @dataclass
@@ -207,8 +204,8 @@ class TrackRow:
         :mod:`posekit.ceiling.track.tracker`).
     std_mm : float
         1σ of the position: square root of the largest eigenvalue of the position
-        covariance, mm (NaN when lost); while coasting it includes the manoeuvre term
-        (``coast_speed_share``).
+        covariance, mm (NaN when lost); while coasting it grows with the process noise
+        fitted from the track (:func:`~posekit.ceiling.track.motion_noise.fitted_accel_psd`).
     std_heading_deg : float
         1σ of the heading, degrees (NaN with one dot or without a heading).
     reasons : tuple of str
