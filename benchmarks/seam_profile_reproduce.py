@@ -1,9 +1,8 @@
 """Re-run the command in the header of each shipped seam profile and compare every value, 1σ, note and the
 episodes' SHA-256 with the file (issue 26: "a test checks that re-running it reproduces the file").
 
-Run from a source checkout (``.ci/run`` does; about 1.5 min for the default, 15 s per example profile, on 2
-cores, so it is not in the pytest suite, which checks the cheap half: the episodes the command simulates are the
-ones the file names, tests/seam/test_seam_profile.py)::
+Run from a source checkout (about 1 min for the default, 15 s per example profile, on 2 cores); the suite runs
+the same comparison (tests/seam/test_seam_profile.py)::
 
     python benchmarks/seam_profile_reproduce.py [PROFILE.yaml ...]
 
