@@ -15,9 +15,12 @@ from .detect.signature import DotSignature
 from .detect.spots import Dot
 from .sim.config import SceneConfig
 from .sim.render import CeilingScene, iter_frames, render_video, true_homography
+from .sim.simulation import CeilingSimulation, scene_config, scene_effects, simulate, simulation_dots
 from .studies.accuracy import heading_std_closed_form, known_points_assessment, simulate_heading_error
 from .studies.demo import run_demo
+from .studies.demo_command import check_demo_lens, demo
 from .track.cameras import Camera, MultiCameraTracker
+from .track.command import TrackPlan, TrackRun, plan_track, track_input
 from .track.multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
 from .track.outputs import TrackOutputs
 from .track.pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
@@ -62,4 +65,15 @@ __all__ = [
     "simulate_heading_error",
     "heading_std_closed_form",
     "run_demo",
+    "simulate",
+    "scene_config",
+    "scene_effects",
+    "simulation_dots",
+    "CeilingSimulation",
+    "demo",
+    "check_demo_lens",
+    "track_input",
+    "plan_track",
+    "TrackPlan",
+    "TrackRun",
 ]

@@ -5,6 +5,7 @@ from pathlib import Path
 
 from .._extras import require
 from .._numbers import parse_number
+from ._config import add_config_arguments
 from ._flags import bounded_float, check_flags, check_range, seed
 
 __all__ = ["add_calibrate_parser", "run_calibrate"]
@@ -52,6 +53,7 @@ def add_calibrate_parser(verbs):
     c.add_argument("--light-bars", action="store_true", help="the T-bars are lighter than the tiles")
     c.add_argument("--write-points", metavar="FOUND.csv",
                    help="with --from-image: write the crossings found as a points CSV")
+    add_config_arguments(c)
     c.set_defaults(func=run_calibrate)
     return c
 

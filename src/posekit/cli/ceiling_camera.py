@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 from ..errors import CalibrationError, ConfigError
+from ._config import add_config_arguments
 from ._flags import bounded_float, check_flags
 
 __all__ = ["add_camera_parser", "run_camera", "parse_board"]
@@ -35,6 +36,7 @@ def add_camera_parser(verbs):
     c.add_argument("--k3", action="store_true",
                    help="also estimate k3 (wide-angle lenses, boards seen into the corners); default k3 = 0, "
                         "which extrapolates better beyond the area the boards covered")
+    add_config_arguments(c)
     c.set_defaults(func=run_camera)
     return c
 
