@@ -250,3 +250,21 @@ def test_seam_study_and_design_dump_the_cell_configuration_they_read_back(tmp_pa
     err = capsys.readouterr().err
     assert rc == 1 and err == "posekit: error: --out: an output folder is required (or use --dump-config)\n"
 
+
+
+def test_ceiling_calibrate_is_one_library_call(rendered, tmp_path, capsys):
+    """The same CAL.json; a point moved 40 px is rejected by RANSAC and named as off the fit."""
+    from posekit.ceiling import calibrate_file
+
+    lines = (rendered / "calibration_points.csv").read_text().splitlines()
+    x, y, u, v = (float(t) for t in lines[3].split(","))
+    lines[3] = f"{x:g},{y:g},{u + 40:g},{v:g}"
+    (tmp_path / "p.csv").write_text("\n".join(lines) + "\n")
+    argv = [str(tmp_path / "p.csv"), "--camera", str(rendered / "camera.json"), "--residuals", "none"]
+    assert main(["ceiling", "calibrate", *argv, "--out", str(tmp_path / "cli.json")]) == 0
+    printed = capsys.readouterr().out
+    run = calibrate_file(tmp_path / "p.csv", tmp_path / "lib.json", camera=rendered / "camera.json")
+    assert (tmp_path / "cli.json").read_bytes() == (tmp_path / "lib.json").read_bytes()
+    assert run.exit_code == 0 and run.ransac_used and list(run.rejected) == [2]     # line 4 of the file
+    assert run.rejected_lens == 0 and not run.too_many_rejected and run.residual_px[2] > 30
+    assert f"RANSAC rejected 1 of {len(lines) - 1} points" in printed and "1 are off the fit alone" in printed

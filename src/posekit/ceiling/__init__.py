@@ -7,6 +7,7 @@ Parts: :mod:`~posekit.ceiling.camera` (lens, homography calibration),
 renderer) and :mod:`~posekit.ceiling.studies`.
 """
 
+from .camera.commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files
 from .camera.grid import CeilingGrid, find_grid_corners
 from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
 from .detect.dots import DotDetector
@@ -73,6 +74,10 @@ __all__ = [
     "demo",
     "check_demo_lens",
     "track_input",
+    "calibrate_file",
+    "calibrate_lens_files",
+    "PointsCalibration",
+    "LensRun",
     "plan_track",
     "TrackPlan",
     "TrackRun",
