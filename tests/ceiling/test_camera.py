@@ -215,3 +215,26 @@ def test_bad_board(text):
         parse_board(text)
     assert str(exc.value) == (f"--board: expected the inner corners as COLSxROWS, each 2..100 (e.g. 9x6), "
                               f"got '{text}'")
+
+
+def test_the_command_is_one_library_call(tmp_path, views, capsys):
+    """``ceiling camera`` = :func:`posekit.ceiling.calibrate_lens_files`: the same file; an unreadable
+    image is named (as it is met) and counted among the views."""
+    from posekit.ceiling import calibrate_lens_files
+
+    _, images = views
+    for name, img in images[:5]:
+        cv2.imwrite(str(tmp_path / name), img)
+    argv = [str(tmp_path / n) for n, _ in images[:5]] + [str(tmp_path / "missing.png")]
+    assert run_cli(["camera", *argv, "--board", "9x6", "--square-mm", "25", "--out", str(tmp_path / "cli.json")]) == 0
+    printed = capsys.readouterr()
+    seen = []
+    run = calibrate_lens_files(argv, BOARD, SQUARE, tmp_path / "lib.json", on_unreadable=lambda n, w: seen.append(n))
+    cli, lib = load_camera(tmp_path / "cli.json"), load_camera(tmp_path / "lib.json")
+    # OpenCV's solver is not bit-reproducible across calls (its threads): equal to 1e-9
+    np.testing.assert_allclose(cli.K, lib.K, rtol=1e-9)
+    np.testing.assert_allclose(cli.dist, lib.dist, rtol=1e-9, atol=1e-12)
+    assert seen == [str(tmp_path / "missing.png")] and run.views == 6 and len(run.result.used) == 5
+    assert "calibrated the lens from 5 of 6 views" in printed.out
+    assert printed.err.count("view skipped") == 1
+    assert run.low_coverage == ("posekit: warning: the corners do not reach" in printed.err)

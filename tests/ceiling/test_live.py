@@ -197,7 +197,7 @@ def test_folder_with_undecodable_frames_gets_lost_rows(capsys, clip, tmp_path):
         cv2.imwrite(str(folder / f"f{k:03d}.png"), img)
     (folder / "f007.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
     (folder / "f012.png").write_bytes(b"")
-    rc, stdout, err = run_cli(capsys, "ceiling", "track", folder, "--calibration", out / "cal.json", "--fps", "15",
+    rc, stdout, err = run_cli(capsys, "ceiling", "track", folder, "--calibration", out / "cal.json", "--frame-rate-hz", "15",
                               "--out", tmp_path / "t.csv")
     assert rc == 0, err
     t = read_track_csv(tmp_path / "t.csv")

@@ -110,7 +110,7 @@ def test_bad_frame_input_is_one_line_naming_the_path(tmp_path):
                                                              "(skipped)")
     assert all(f.image is not None for f in frames[:-1])
     assert len(list(open_frames(sizes, max_frames=2))) == 2
-    with pytest.raises(ConfigError, match="--fps must be a positive number"):
+    with pytest.raises(ConfigError, match="--frame-rate-hz must be a positive number"):
         open_frames(sizes, fps=0.0)
 
 
@@ -301,7 +301,7 @@ def test_cli_track_video_and_image_folder(capsys, short_render):
     out, paths = short_render
     from posekit.ceiling.studies.demo import read_truth_csv
     truth = read_truth_csv(paths.truth)
-    for source, extra in ((paths.video, []), (paths.frames_dir, ["--fps", "15"])):
+    for source, extra in ((paths.video, []), (paths.frames_dir, ["--frame-rate-hz", "15"])):
         csv_path = out / f"track_{source.name}.csv"
         rc, stdout, err = cli(capsys, "track", source, "--calibration", out / "cal.json", "--dots", "red,green",
                               "--out", csv_path, *extra)

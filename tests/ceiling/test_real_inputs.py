@@ -84,14 +84,14 @@ def test_frame_of_another_size_is_a_lost_row_and_max_frames_everywhere(capsys, c
     cv2.imwrite(str(folder / "f005.png"), np.zeros((2160, 3840, 3), np.uint8))      # one 4K frame
     (folder / "f008.png").write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR garbage")  # a corrupt PNG
     rc, out, err = run_cli(capsys, "ceiling", "track", folder, "--calibration", clips / "cal.json",
-                           "--fps", "10", "--out", tmp_path / "t.csv")
+                           "--frame-rate-hz", "10", "--out", tmp_path / "t.csv")
     assert rc == 0, err
     assert "libpng" not in err and "IHDR" not in err            # the decoder's words stay in the row
     t = read_track_csv(tmp_path / "t.csv")
     assert len(t["frame"]) == 12 and t["status"][5] == "lost" and t["status"][8] == "lost"
     assert t["reason"][5] == "f005.png is 3840x2160 px but the first frame is 320x240 px (skipped)"
     assert "f008.png" in t["reason"][8]
-    for src, extra in ((folder, ["--fps", "10"]), (clips / "dot.avi", [])):
+    for src, extra in ((folder, ["--frame-rate-hz", "10"]), (clips / "dot.avi", [])):
         rc, out, err = run_cli(capsys, "ceiling", "track", src, "--calibration", clips / "cal.json", *extra,
                                "--max-frames", "7", "--out", tmp_path / "m.csv")
         assert rc == 0, err

@@ -224,7 +224,7 @@ def test_calibrate_counts_and_finds_coinciding_points_without_pairing_them():
     (["profiler", "study", "corners", "--gauges", "10000", "--count", "10000"], ["simulated gauge poses"]),
     (["profiler", "simulate", "--gauge", "demo-5", "--rotation-deg", "4,4,1e9"],
      ["--rotation-deg: expected three numbers in 0..180 deg, got '4,4,1e9'"]),
-    (["ceiling", "simulate", "--duration-s", "3600", "--fps", "60"], ["216000 frames; expected at most 54000"]),
+    (["ceiling", "simulate", "--duration-s", "3600", "--frame-rate-hz", "60"], ["216000 frames; expected at most 54000"]),
     (["ceiling", "calibrate", "p.csv", "--from-image", "r.png", "--grid", "600,1e-9"],
      ["--grid: expected two numbers in 10..100000 mm"]),
     (["localcal", "simulate", "--method", "line", "--start-q-deg", "1e7,0,0,0,0"],

@@ -123,7 +123,7 @@ def test_four_coefficients_are_the_opencv_model_with_k3_zero(capsys, scene):
     tmp, frames, cal = scene
     cam = _camera(tmp, "d4.json", dist=[0.01, -0.002, 0.0, 0.0])
     assert load_camera(cam).dist.tolist() == [0.01, -0.002, 0.0, 0.0, 0.0]
-    rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--camera", cam, "--fps", 15)
+    rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--camera", cam, "--frame-rate-hz", 15)
     assert rc == 0, e
     assert (tmp / "t.csv").read_text().splitlines()[0] == ("frame,time_s,x,y,heading_deg,status,std_mm,"
                                                             "std_heading_deg,reason")
@@ -221,7 +221,7 @@ def test_udp_target(capsys, scene, udp, message):
 
 def test_remote_udp_with_allow_remote_runs(capsys, scene):
     tmp, frames, cal = scene
-    rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--udp", "192.0.2.1:5005", "--allow-remote", "--fps", 15)
+    rc, o, e = _track(capsys, frames, cal, tmp / "t.csv", "--udp", "192.0.2.1:5005", "--allow-remote", "--frame-rate-hz", 15)
     assert rc == 0, e
     assert o.startswith("3 frames: 0 ok, 0 suspect, 0 predicted, 3 lost;")
 
@@ -242,7 +242,7 @@ def test_track_outputs_and_flags(capsys, scene):
          "--robots: several robots are tracked with one red dot each (--dots red) and one camera"),
         (["--live", "--loop", "0"], "--loop: expected an integer in 1..1000000, got 0"),
         (["--max-frames", "0"], "--max-frames: expected an integer in 1..1000000000, got 0"),
-        (["--fps", "nan"], "--fps: expected a number in 0.01..10000 Hz, got nan"),
+        (["--frame-rate-hz", "nan"], "--frame-rate-hz: expected a number in 0.01..10000 Hz, got nan"),
         (["--camera", tmp / "missing.json"], f"{tmp / 'missing.json'}: no such file; expected a camera JSON file "
                                              "(posekit ceiling camera --out)"),
     ]
@@ -279,14 +279,14 @@ def test_bad_frames_and_folders(capsys, scene):
     out = tmp / "t.csv"
     # a frame that does not decode, or whose header claims 10^10 pixels: a 'lost' row, the run goes on
     (frames / "001.png").write_bytes(b"garbage")
-    rc, o, e = _track(capsys, frames, cal, out, "--fps", 10)
+    rc, o, e = _track(capsys, frames, cal, out, "--frame-rate-hz", 10)
     assert rc == 0, e
     rows = out.read_text().splitlines()
     assert [r.split(",")[:7] for r in rows[1:]] == [[str(k), f"0.{k}00000", "", "", "", "lost", ""] for k in range(3)]
     assert rows[2].endswith("001.png: cannot decode this file as an image")   # the reason column
     # a frame of another size: a 'lost' row with the reason, the run goes on
     cv2.imwrite(str(frames / "001.png"), np.zeros((40, 30, 3), np.uint8))
-    rc, o, e = _track(capsys, frames, cal, out, "--fps", 10)
+    rc, o, e = _track(capsys, frames, cal, out, "--frame-rate-hz", 10)
     assert rc == 0, e
     assert out.read_text().splitlines()[2].endswith(",001.png is 30x40 px but the first frame is 64x48 px (skipped)")
     # a folder with nothing that decodes, an empty folder, a broken video

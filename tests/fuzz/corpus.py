@@ -91,12 +91,14 @@ def _episode_seed() -> dict:
 
 def _scene(path):
     """``posekit ceiling simulate --config PATH``'s scene settings (the parser's defaults), not the render."""
-    from posekit.ceiling.track.pipeline import parse_dots
-    from posekit.cli.ceiling_simulate import scene_config
+    from posekit.ceiling.sim.simulation import scene_config
+    from posekit.cli.ceiling_simulate import simulate_options
     from posekit.cli.main import build_parser
 
     args = build_parser().parse_args(["ceiling", "simulate", "--config", str(path), "--out", str(path) + ".out"])
-    return scene_config(args, parse_dots("red,green"))
+    options = simulate_options(args)
+    options.pop("frames_png")
+    return scene_config(**{**options, "dots": "red,green"})
 
 
 def _consumers():

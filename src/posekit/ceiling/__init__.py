@@ -7,6 +7,7 @@ Parts: :mod:`~posekit.ceiling.camera` (lens, homography calibration),
 renderer) and :mod:`~posekit.ceiling.studies`.
 """
 
+from .camera.commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files
 from .camera.grid import CeilingGrid, find_grid_corners
 from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
 from .detect.dots import DotDetector
@@ -15,9 +16,12 @@ from .detect.signature import DotSignature
 from .detect.spots import Dot
 from .sim.config import SceneConfig
 from .sim.render import CeilingScene, iter_frames, render_video, true_homography
+from .sim.simulation import CeilingSimulation, scene_config, scene_effects, simulate, simulation_dots
 from .studies.accuracy import heading_std_closed_form, known_points_assessment, simulate_heading_error
 from .studies.demo import run_demo
+from .studies.demo_command import check_demo_lens, demo
 from .track.cameras import Camera, MultiCameraTracker
+from .track.command import TrackPlan, TrackRun, plan_track, track_input
 from .track.multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
 from .track.outputs import TrackOutputs
 from .track.pipeline import iter_track, read_track_csv, track_frames, track_video, write_track_csv
@@ -62,4 +66,19 @@ __all__ = [
     "simulate_heading_error",
     "heading_std_closed_form",
     "run_demo",
+    "simulate",
+    "scene_config",
+    "scene_effects",
+    "simulation_dots",
+    "CeilingSimulation",
+    "demo",
+    "check_demo_lens",
+    "track_input",
+    "calibrate_file",
+    "calibrate_lens_files",
+    "PointsCalibration",
+    "LensRun",
+    "plan_track",
+    "TrackPlan",
+    "TrackRun",
 ]

@@ -67,10 +67,14 @@ def _option_value(argv: list[str], flag: str) -> str | None:
 def _convert(action: argparse.Action, key: str, value, source: str):
     """The file's value as the flag would parse it; a one-line ConfigError naming the file and key."""
     where = f"{source}: '{key}'"
-    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+    if isinstance(action, argparse._StoreConstAction):      # store_true/false/const: keyed by the flag
         if not isinstance(value, bool):
             raise ConfigError(f"{where}: expected true or false, got {value!r}")
         return value
+    if isinstance(action, argparse._AppendAction) or action.nargs in ("+", "*"):   # a list: one item per use
+        items = value if isinstance(value, (list, tuple)) else [value]
+        one = argparse.Action(action.option_strings, action.dest, type=action.type, choices=action.choices)
+        return [_convert(one, key, v, source) for v in items]
     if value is None:
         raise ConfigError(f"{where}: expected a value, got null")
     if isinstance(value, (list, tuple)):
@@ -105,6 +109,8 @@ def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
             action.required = False
             if not action.option_strings and action.nargs is None:
                 action.nargs = "?"                   # a positional argument may be missing too
+            elif not action.option_strings and action.nargs == "+":
+                action.nargs = "*"
     path = _option_value(argv, "--config")
     if path is None:
         return
@@ -126,11 +132,34 @@ def apply_config(parser: argparse.ArgumentParser, argv: list[str]) -> None:
             continue                                 # null: not given (a required flag must then be given)
         value = _convert(action, key, value, path)
         # a store_false flag (--no-timestamps -> timestamps) is keyed by its flag: true means "given"
-        values[action.dest] = (not value) if isinstance(action, argparse._StoreFalseAction) else value
+        if isinstance(action, argparse._StoreFalseAction):
+            value = not value
+        elif isinstance(action, argparse._StoreConstAction) and not isinstance(action, argparse._StoreTrueAction):
+            if not value:
+                continue                             # --ransac / --no-ransac: false is "not given"
+            value = action.const
+        if isinstance(action, argparse._AppendAction):
+            action.__class__ = _FileAppend           # a flag given on the line replaces the file's list
+            action.file_default = value
+        values[action.dest] = value
         action.required = False
         if not action.option_strings and action.nargs is None:
             action.nargs = "?"
+        elif not action.option_strings and action.nargs == "+":
+            action.nargs = "*"                       # IMAGE ...: the file's list unless the line gives some
     leaf.set_defaults(**values)
+
+
+class _FileAppend(argparse._AppendAction):
+    """A repeated flag whose default came from ``--config``: its first use on the line starts a new list
+    (flags win over the file) instead of appending to the file's."""
+
+    file_default = None
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest, None) is self.file_default:
+            setattr(namespace, self.dest, [])
+        super().__call__(parser, namespace, values, option_string)
 
 
 def dump_config(parser: argparse.ArgumentParser, argv: list[str], args) -> str:
@@ -144,6 +173,10 @@ def dump_config(parser: argparse.ArgumentParser, argv: list[str], args) -> str:
             value = float(value) if isinstance(value, float) else int(value)
         if isinstance(action, argparse._StoreFalseAction):
             value = not value                        # keyed by the flag: true means "--no-x given"
+        elif isinstance(action, argparse._StoreConstAction) and not isinstance(action, argparse._StoreTrueAction):
+            value = value is not None and value == action.const     # --ransac/--no-ransac: true = given
+        elif isinstance(action, argparse._AppendAction) and value is not None:
+            value = list(value)
         out[key] = value
     return yaml.safe_dump(out, sort_keys=False, allow_unicode=True)
 

@@ -3,8 +3,8 @@
 import sys
 from pathlib import Path
 
-from .._extras import require
 from .._numbers import parse_number
+from ._config import add_config_arguments
 from ._flags import bounded_float, check_flags, check_range, seed
 
 __all__ = ["add_calibrate_parser", "run_calibrate"]
@@ -52,6 +52,7 @@ def add_calibrate_parser(verbs):
     c.add_argument("--light-bars", action="store_true", help="the T-bars are lighter than the tiles")
     c.add_argument("--write-points", metavar="FOUND.csv",
                    help="with --from-image: write the crossings found as a points CSV")
+    add_config_arguments(c)
     c.set_defaults(func=run_calibrate)
     return c
 
@@ -70,53 +71,15 @@ def _pair(text, option, lo, hi):
     return vals
 
 
-def _points_from_image(args, seeds, grid_mm, origin_mm, camera=None):
-    """Crossings found in the reference image: (world (N, 2) mm, pixels as seen (N, 2), lines).
-    With ``camera`` the image is undistorted first (``cv2.undistort``, same K: straight T-bars),
-    the seeds with it, and the crossings are distorted back to the pixels as seen."""
-    cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
-    import numpy as np
-
-    from ..ceiling.camera.grid import CeilingGrid, find_grid_corners
-    from ..ceiling.camera.homography import write_points_csv
-    from ..errors import CalibrationError
-    from ..io import read_image
-
-    img = read_image(args.from_image, cv2.IMREAD_GRAYSCALE, error=CalibrationError)
-    if img is None:
-        raise CalibrationError(f"{args.from_image}: cannot decode the image; expected an image file OpenCV reads")
-    grid = CeilingGrid(grid_mm, origin_mm, args.bar_mm)
-    seed_uv = seeds.image_uv
-    if camera is not None:
-        from ..ceiling.camera.homography import undistort_calibration_points
-        img = cv2.undistort(img, camera.K, camera.dist, None, camera.K)
-        seed_uv = undistort_calibration_points(camera, seed_uv, seeds.lines)
-    corners = find_grid_corners(img, grid, seed_world=seeds.world_xy, seed_image=seed_uv,
-                                polarity="light" if args.light_bars else "dark")
-    seen = corners.image_uv if camera is None else camera.distort_points(corners.image_uv)
-    print(f"found {len(corners.image_uv)} grid crossings in {args.from_image}"
-          + (" (undistorted with --camera)" if camera is not None else ""))
-    if args.write_points:
-        write_points_csv(args.write_points, corners.world_xy, seen)
-        print(f"wrote the crossings to {args.write_points}")
-    lines = np.arange(len(corners.image_uv)) + 2 if args.write_points else None
-    return corners.world_xy, seen, lines
-
-
-def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
+def _print_residuals(args, run) -> None:
     """Per-point residuals (px in the image, mm on the ceiling) and why RANSAC rejected each point."""
     import numpy as np
 
-    from ..ceiling.camera.homography import point_residuals
-
-    e_px, e_mm = point_residuals(cal, world, image)
-    n = len(world)
-    rejected = np.flatnonzero(~cal.inliers)
-    lens = np.zeros(n, dtype=bool)
-    if radial is not None and radial.detected and radial.off_px is not None:
-        lens = radial.off_px <= args.threshold_px
+    cal, world, seen, lines = run.calibration, run.world, run.seen, run.lines
+    e_px, e_mm, lens = run.residual_px, run.residual_mm, run.lens_pattern
+    n, rejected = len(world), run.rejected
     if rejected.size:
-        n_lens = int(lens[rejected].sum())
+        n_lens = run.rejected_lens
         why = []
         if n_lens:
             why.append(f"{n_lens} follow the radial pattern of lens distortion (not mis-clicks: use --camera)")
@@ -124,7 +87,7 @@ def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
             why.append(f"{rejected.size - n_lens} are off the fit alone (mis-clicked or wrong X, Y?)")
         print(f"RANSAC rejected {rejected.size} of {n} points (more than {args.threshold_px:g} px from the fit of "
               f"the others): " + "; ".join(why))
-        if rejected.size > n / 3 and not n_lens:
+        if run.too_many_rejected:
             print("posekit: warning: RANSAC rejected more than a third of the points: check the points, or raise "
                   "--threshold-px if the clicks are coarse", file=sys.stderr)
     if args.residuals == "none":
@@ -142,53 +105,43 @@ def _print_residuals(args, cal, world, image, seen, lines, radial) -> None:
 def run_calibrate(args) -> int:
     """Run ``posekit ceiling calibrate``; returns the exit code (0; 1 when the calibration is
     suspect, after writing it)."""
-    import numpy as np
+    import math
 
-    from ..ceiling.camera.homography import calibrate_points, read_points_csv
+    from ..ceiling.camera.commands import calibrate_file
     from ..errors import ConfigError
 
-    if not (np.isfinite(args.threshold_px) and args.threshold_px > 0):
+    if not (math.isfinite(args.threshold_px) and args.threshold_px > 0):
         raise ConfigError(f"--threshold-px must be a number > 0, got {args.threshold_px:g}")
     check_flags(args)
     grid_mm = _pair(args.grid, "--grid", 10.0, 1e5)
     origin_mm = _pair(args.grid_origin, "--grid-origin", -1e6, 1e6)
     size = _image_size(args.image_size) if args.image_size else None
-    pts = read_points_csv(args.points)
-    camera = None
-    if args.camera:
-        from ..ceiling.camera.lens import load_camera
-        camera = load_camera(args.camera)
-    if args.from_image:
-        world, seen, lines = _points_from_image(args, pts, grid_mm, origin_mm, camera)
-        if size is None:
-            size = _reference_size(args.from_image)
-    else:
+    run = calibrate_file(args.points, args.out, camera=args.camera, image_size=size, refine=args.refine,
+                         ransac=args.ransac, threshold_px=args.threshold_px, seed=args.seed,
+                         from_image=args.from_image, grid=grid_mm, grid_origin=origin_mm, bar_mm=args.bar_mm,
+                         light_bars=args.light_bars, write_points=args.write_points)
+    cal, radial = run.calibration, run.radial
+    if run.found is not None:
+        print(f"found {run.found} grid crossings in {args.from_image}"
+              + (" (undistorted with --camera)" if args.camera else ""))
         if args.write_points:
-            raise ConfigError("--write-points needs --from-image")
-        world, seen, lines = pts.world_xy, pts.image_uv, pts.lines
-    cal, radial = calibrate_points(world, seen, camera=camera, lines=lines, image_size=size, refine=args.refine,
-                                   ransac=args.ransac, threshold_px=args.threshold_px, rng=args.seed)
-    image = seen if camera is None else np.asarray(cal.camera.undistort_points(seen))
+            print(f"wrote the crossings to {args.write_points}")
     n, n_in = cal.n_points, int(cal.inliers.sum())
-    ransac_used = args.ransac if args.ransac is not None else n >= 6
-    how = f"RANSAC at {args.threshold_px:g} px, " if ransac_used else ""
+    how = f"RANSAC at {args.threshold_px:g} px, " if run.ransac_used else ""
     how += "refined" if args.refine else "DLT only"
-    how += f", pixels undistorted with {args.camera}" if camera is not None else ", no lens model"
+    how += f", pixels undistorted with {args.camera}" if args.camera else ", no lens model"
     print(f"calibrated from {n_in} of {n} points ({how}): rms {cal.rms_px:.3f} px in the image, "
           f"{cal.rms_world:.3f} world units (mm) on the ceiling")
-    _print_residuals(args, cal, world, image, seen, lines, None if camera is not None else radial)
-    if camera is None and radial is not None and radial.detected:
+    _print_residuals(args, run)
+    if run.lens_distortion_seen:
         print(f"posekit: warning: looks like lens distortion: calibrate the camera (posekit ceiling camera) and "
               f"pass --camera; a plain homography leaves {radial.rms_px:.1f} px rms that grows with the distance "
               f"from the image centre (r^3 term {radial.k_r3_px:+.1f} px, t = {radial.t_stat:.1f}, "
               f"{100 * radial.explained:.0f} % of the residuals)", file=sys.stderr)
-    out = Path(args.out)
-    cal.to_json(out)
-    print(f"wrote {out}", file=sys.stdout)
-    if cal.status == "suspect":
+    print(f"wrote {Path(args.out)}", file=sys.stdout)
+    if run.exit_code:
         print(f"posekit: suspect: {'; '.join(cal.reasons)}"[:600], file=sys.stderr)
-        return 1
-    return 0
+    return run.exit_code
 
 
 def _image_size(text: str) -> tuple[int, int]:
@@ -200,10 +153,3 @@ def _image_size(text: str) -> tuple[int, int]:
     if not m or not all(1 <= int(g) <= 100_000 for g in m.groups()):
         raise ConfigError(f"--image-size: expected WIDTHxHEIGHT in px (e.g. 864x480), got '{str(text)[:40]}'")
     return int(m.group(1)), int(m.group(2))
-
-
-def _reference_size(path) -> tuple[int, int] | None:
-    cv2 = require("cv2", "vision", "posekit ceiling calibrate --from-image")
-    from ..io import read_image
-    img = read_image(path, cv2.IMREAD_GRAYSCALE)
-    return None if img is None else (int(img.shape[1]), int(img.shape[0]))

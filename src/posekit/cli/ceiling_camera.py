@@ -4,15 +4,12 @@ import re
 import sys
 from pathlib import Path
 
-from ..errors import CalibrationError, ConfigError
+from ..errors import ConfigError
+from ._config import add_config_arguments
 from ._flags import bounded_float, check_flags
 
 __all__ = ["add_camera_parser", "run_camera", "parse_board"]
 
-#: Most images one calibration reads.
-MAX_VIEWS = 500
-#: Below this fraction of the image covered by the boards, the summary warns.
-LOW_COVERAGE = 0.5
 
 
 def add_camera_parser(verbs):
@@ -35,6 +32,7 @@ def add_camera_parser(verbs):
     c.add_argument("--k3", action="store_true",
                    help="also estimate k3 (wide-angle lenses, boards seen into the corners); default k3 = 0, "
                         "which extrapolates better beyond the area the boards covered")
+    add_config_arguments(c)
     c.set_defaults(func=run_camera)
     return c
 
@@ -49,62 +47,30 @@ def parse_board(text: str) -> tuple[int, int]:
 
 
 def expand_images(paths) -> list:
-    """The image paths of ``paths``, a folder replaced by its images sorted by name."""
-    from ..ceiling.track.sources import list_images
+    """The image paths of ``paths``, a folder replaced by its images sorted by name
+    (:func:`posekit.ceiling.camera.commands.expand_images`)."""
+    from ..ceiling.camera.commands import expand_images as _expand
 
-    out = []
-    for p in paths:
-        out.extend(list_images(Path(p)) if Path(p).is_dir() else [p])
-    return out
-
-
-def _views(paths):
-    """(name, grey image or None) per path, read through posekit.io (size limits, one-line errors)."""
-    from .._extras import require
-    from ..errors import InputFileError
-    from ..io import read_image
-    cv2 = require("cv2", "vision", "posekit ceiling camera")
-
-    for p in paths:
-        try:
-            img = read_image(p, cv2.IMREAD_GRAYSCALE, error=CalibrationError)
-        except (CalibrationError, InputFileError) as exc:
-            print(f"posekit: warning: {exc}; view skipped", file=sys.stderr)
-            img = None
-            yield str(p), img, True
-            continue
-        yield str(p), img, False
+    return _expand(paths)
 
 
 def run_camera(args) -> int:
     """Run ``posekit ceiling camera``; returns the exit code (0)."""
-    from ..ceiling.camera.lens import calibrate_camera, save_camera
+    from ..ceiling.camera.commands import calibrate_lens_files
 
     check_flags(args)
     board = parse_board(args.board)
-    if Path(args.out).is_dir():              # before the calibration, not after it
-        raise ConfigError(f"--out {args.out}: is a folder; expected a CAMERA.json file name")
-    images = expand_images(args.images)
-    if len(images) > MAX_VIEWS:
-        raise ConfigError(f"{len(images)} images; expected at most {MAX_VIEWS}")
-    unreadable = []
-
-    def views():
-        for name, img, bad in _views(images):
-            if bad:
-                unreadable.append(name)
-                continue
-            yield name, img
-
-    result = calibrate_camera(views(), board, args.square_mm, fix_k3=not args.k3)
+    run = calibrate_lens_files(args.images, board, args.square_mm, args.out, k3=args.k3,
+                               on_unreadable=lambda name, why: print(f"posekit: warning: {why}; view skipped",
+                                                                     file=sys.stderr))
+    result = run.result
     for name, why in result.skipped:
         print(f"posekit: warning: {name}: {why}; view skipped", file=sys.stderr)
     for w in result.warnings:
         print(f"posekit: warning: {w}", file=sys.stderr)
     cam = result.camera
     K, d = cam.K, cam.dist
-    n_all = len(result.used) + len(result.skipped) + len(unreadable)
-    print(f"calibrated the lens from {len(result.used)} of {n_all} views ({board[0]}x{board[1]} inner corners, "
+    print(f"calibrated the lens from {len(result.used)} of {run.views} views ({board[0]}x{board[1]} inner corners, "
           f"{args.square_mm:g} mm squares): rms {cam.rms_px:.3f} px")
     print(f"  fx {K[0, 0]:.2f} px, fy {K[1, 1]:.2f} px, cx {K[0, 2]:.2f} px, cy {K[1, 2]:.2f} px "
           f"({cam.image_size[0]}x{cam.image_size[1]})")
@@ -115,12 +81,10 @@ def run_camera(args) -> int:
           f"{result.per_view_rms_px[worst]:.3f} px ({result.used[worst]})")
     print(f"  coverage: the boards cover {100 * result.coverage:.0f} % of the image, "
           f"{result.cells_hit} of 9 cells of a 3x3 grid")
-    if result.coverage < LOW_COVERAGE or result.cells_hit < 9:
+    if run.low_coverage:
         print("posekit: warning: the corners do not reach every part of the image; the distortion there is "
               "extrapolated: add views with the board near the uncovered edges and corners", file=sys.stderr)
-    out = Path(args.out)
-    save_camera(cam, out)
-    print(f"wrote {out}")
+    print(f"wrote {Path(args.out)}")
     return 0
 
 

@@ -1,6 +1,7 @@
 """``posekit ceiling demo`` (wired into ``cli/ceiling.py``)."""
 
 from ._common import add_deprecated, add_overwrite, out_folder, staged
+from ._config import add_config_arguments
 from ._flags import check_flags, seed
 from .ceiling_track import _DURATION, _frame_progress
 
@@ -27,34 +28,23 @@ def add_demo_parser(verbs):
     d.add_argument("--duration-s", dest="seconds", type=_DURATION, default=None,
                    help="length of the rendered video, (0, 3600] s (default: the renderer's)")
     d.add_argument("--seed", type=seed, default=0, help="random seed of the render (default 0)")
+    add_config_arguments(d)
     d.set_defaults(func=run_demo)
 
 
 def run_demo(args) -> int:
-    from ..ceiling.studies.demo import run_demo as demo
+    from ..ceiling.studies.demo_command import check_demo_lens, demo
     from ..ceiling.track.pipeline import parse_dots
 
-    dots = parse_dots(args.dots)
+    parse_dots(args.dots)
     check_flags(args)
     out_folder(args)
     if args.camera is not None:
-        _check_lens(args)                    # a bad CAMERA.json fails before the render, not after it
+        check_demo_lens(args.camera, args.realistic)     # before the staged folder is made
     with staged(args) as tmp:
-        report = demo(tmp, dots=dots, seconds=args.seconds, seed=args.seed, progress=_frame_progress(desc="demo"),
-                      camera=args.camera, realistic=args.realistic, line_pattern=args.line_pattern)
+        report = demo(tmp, dots=args.dots, duration_s=args.seconds, seed=args.seed,
+                      progress=_frame_progress(desc="demo"), camera=args.camera, realistic=args.realistic,
+                      line_pattern=args.line_pattern)
         summary = report.summary().replace(str(tmp), str(args.out))
     print(summary)
     return 0
-
-
-def _check_lens(args) -> None:
-    """Read the ``--camera`` model and check it against the demo's frame size, before anything is rendered."""
-    from ..ceiling.camera.lens import load_camera
-    from ..ceiling.sim.render import SceneConfig
-    from ..errors import ConfigError
-
-    lens = load_camera(args.camera)
-    cfg = SceneConfig.realistic() if args.realistic else SceneConfig()
-    if tuple(lens.image_size) != (cfg.width_px, cfg.height_px):
-        raise ConfigError(f"--camera {args.camera}: the model is for {lens.image_size[0]}x{lens.image_size[1]} px "
-                          f"images; the demo renders {cfg.width_px}x{cfg.height_px}")

@@ -2,7 +2,11 @@
 
 import sys
 
+from ._common import add_deprecated
+from ._config import add_config_arguments
 from ._flags import bounded_float, bounded_int, check_flags
+
+_FPS = bounded_float(0.01, 1e4, "Hz", flag="--frame-rate-hz")
 
 __all__ = ["add_learn_scene_parser", "run_learn_scene"]
 
@@ -18,10 +22,12 @@ def add_learn_scene_parser(verbs):
     s.add_argument("--calibration", required=True, metavar="CAL.json", help="calibration of this camera")
     s.add_argument("--camera", default=None, metavar="CAMERA.json", help="lens model (posekit ceiling camera)")
     s.add_argument("--out", required=True, metavar="SCENE.json", help="scene file to write")
-    s.add_argument("--fps", type=bounded_float(0.01, 1e4, "Hz"), default=None,
+    add_deprecated(s, "--fps", "--frame-rate-hz", "fps", _FPS)
+    s.add_argument("--frame-rate-hz", dest="fps", type=_FPS, default=None,
                    help="frame rate for an image folder (default: the video's, or 15)")
     s.add_argument("--max-frames", type=bounded_int(1, 10**7), default=None,
                    help="read at most this many frames (needed for a camera)")
+    add_config_arguments(s)
     s.set_defaults(func=run_learn_scene)
     return s
 

@@ -5,14 +5,17 @@ from pathlib import Path
 
 from .._numbers import parse_number
 from ..errors import ConfigError
-from ._common import add_overwrite, out_folder, staged
+from ._common import add_deprecated, add_overwrite, out_folder, staged
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_simulate_parser", "run_simulate"]
 
-DOT_CHOICES = {"red": ("red",), "red,green": ("red", "green"), "red,red": ("red", "red"), "line": ("line",)}
-#: Longest video, s, and its most frames (--duration-s × --fps: one hour at 15 fps, ~1.5 GB of MJPG).
-MAX_DURATION_S, MAX_FRAMES = 3600.0, 54_000
+#: ``posekit.ceiling.sim.simulation.MAX_DURATION_S`` (not imported: the parser stays light; a test keeps them equal).
+MAX_DURATION_S = 3600.0
+
+
+_FPS = bounded_float(1.0, 120.0, "Hz", flag="--frame-rate-hz")
+_NOISE = bounded_float(0.0, 255.0, "grey levels", flag="--noise-grey")
 
 
 def add_simulate_parser(verbs):
@@ -34,11 +37,13 @@ def add_simulate_parser(verbs):
                                                  "40 cm apart), line (case C); default red")
     s.add_argument("--duration-s", type=bounded_float(0.0, MAX_DURATION_S, "s", lo_open=True), default=60.0,
                    help="video length, (0, 3600] s, at most 54,000 frames (default 60)")
-    s.add_argument("--fps", type=bounded_float(1.0, 120.0, "Hz"), default=15.0, help="frame rate, 1..120 Hz (default 15)")
+    add_deprecated(s, "--fps", "--frame-rate-hz", "fps", _FPS)
+    s.add_argument("--frame-rate-hz", dest="fps", type=_FPS, default=15.0, help="frame rate, 1..120 Hz (default 15)")
     s.add_argument("--holes", action="store_true", default=True,
                    help="air-conditioning vents where a dot vanishes (default)")
     s.add_argument("--no-holes", dest="holes", action="store_false", help="a ceiling without vents")
-    s.add_argument("--noise-std", type=bounded_float(0.0, 255.0, "grey levels"), default=None,
+    add_deprecated(s, "--noise-std", "--noise-grey", "noise_grey", _NOISE)
+    s.add_argument("--noise-grey", type=_NOISE, default=None,
                    help="sensor noise, 0..255 grey levels (default 2; 3 with --realistic)")
     s.add_argument("--frames-png", action="store_true", help="also write every frame as frames/NNNNNN.png")
     r = s.add_argument_group("realism (default: off; --realistic: the values in brackets)")
@@ -83,13 +88,12 @@ def _moved(paths, old: Path, new: Path):
     return paths._replace(**{k: move(v) for k, v in paths._asdict().items()})
 
 
-_FLAG_KEYS = {"bloom": "bloom", "exposure_step_s": "exposure_step_s", "occluders": "occluders",
-              "shadows": "shadows", "stray_lights": "stray_lights", "blinking_lights": "blinking_lights",
-              "reflections": "reflections", "codec": "codec", "line_pattern": "line_pattern"}
+_EFFECTS = ("bloom", "exposure_step_s", "occluders", "shadows", "stray_lights", "blinking_lights", "reflections",
+            "codec", "line_pattern")
 
 
 def parse_distortion(text: str) -> tuple:
-    """'k1,k2,p1,p2,k3' (or 4 values) -> 5 floats; one-line ConfigError naming --distortion."""
+    """'k1,k2,p1,p2,k3' (or 4 values) -> floats; one-line ConfigError naming --distortion."""
     import math
     try:
         vals = tuple(parse_number(v) for v in text.split(","))
@@ -98,71 +102,32 @@ def parse_distortion(text: str) -> tuple:
     if len(vals) not in (4, 5) or not all(math.isfinite(v) and abs(v) <= 10 for v in vals):
         raise ConfigError(f"--distortion: expected 5 comma-separated numbers k1,k2,p1,p2,k3 within ±10, "
                           f"got '{text[:80]}'")
-    return vals + (0.0,) * (5 - len(vals))
+    return vals
 
 
-def scene_config(args, dots):
-    """The SceneConfig of the flags: defaults, then --realistic, then --config, then the flags given."""
-    import dataclasses
-
-    from ..ceiling.sim.render import REALISTIC, SceneConfig
-    from ..io import load_yaml
-
-    values = dict(REALISTIC) if args.realistic else {}
-    if args.config:
-        data = load_yaml(args.config, expected="a YAML mapping of scene settings", error=ConfigError)
-        if not isinstance(data, dict):
-            raise ConfigError(f"{args.config}: expected a mapping of scene settings (e.g. 'bloom: 1')")
-        known = {f.name for f in dataclasses.fields(SceneConfig)}
-        for key in data:
-            if key not in known:
-                raise ConfigError(f"{args.config}: unknown setting '{str(key)[:40]}'; expected keys of "
-                                  "SceneConfig (e.g. dist, bloom, occluders, stray_lights, codec, focal_px)")
-        values.update(data)
-    values.update(seed=args.seed, dots=dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes)
-    if args.noise_std is not None:
-        values["noise_std"] = args.noise_std
-    if args.distortion is not None:
-        values["dist"] = parse_distortion(args.distortion)
-    for flag, key in _FLAG_KEYS.items():
-        if getattr(args, flag) is not None:
-            values[key] = getattr(args, flag)
-    try:
-        return SceneConfig(**values)
-    except (TypeError, ValueError, OverflowError) as exc:   # a setting of the wrong kind (text for a number, ...)
-        if isinstance(exc, ConfigError):
-            raise ConfigError(f"{args.config}: {exc}" if args.config else str(exc)) from None
-        raise ConfigError(f"{args.config or '--config'}: {str(exc)[:120]}; expected each setting as in "
-                          "SceneConfig (numbers, lists of numbers, names)") from None
+def simulate_options(args) -> dict:
+    """The keyword arguments of :func:`posekit.ceiling.sim.simulation.simulate` from the parsed flags."""
+    return dict(seed=args.seed, dots=args.dots, duration_s=args.duration_s, fps=args.fps, holes=args.holes,
+                noise_grey=args.noise_grey, realistic=args.realistic, config=args.config,
+                distortion=None if args.distortion is None else parse_distortion(args.distortion),
+                frames_png=args.frames_png, **{k: getattr(args, k) for k in _EFFECTS})
 
 
 def run_simulate(args) -> int:
-    from ..ceiling.sim.render import render_video
+    from ..ceiling.sim.simulation import scene_effects, simulate, simulation_dots
 
-    dots = DOT_CHOICES.get(args.dots.replace(" ", "").lower())
-    if dots is None:
-        raise ConfigError(f"--dots: expected one of {' | '.join(DOT_CHOICES)}, got '{args.dots}'")
+    simulation_dots(args.dots)
     if not args.duration_s > 0:
         raise ConfigError(f"--duration-s: expected a positive number of seconds, got {args.duration_s}")
     check_flags(args)
-    if args.duration_s * args.fps > MAX_FRAMES:
-        raise ConfigError(f"--duration-s {args.duration_s:g} × --fps {args.fps:g} = {args.duration_s * args.fps:.0f} "
-                          f"frames; expected at most {MAX_FRAMES}")
-    config = scene_config(args, dots)
+    options = simulate_options(args)
     out_folder(args)
     with staged(args) as tmp:
-        paths = render_video(config, tmp, frames_png=args.frames_png, progress=_progress)
+        config, paths = simulate(tmp, progress=_progress, **options)
     paths = _moved(paths, tmp, Path(args.out))
     print(f"wrote {paths.n_frames} frames ({config.width_px}x{config.height_px}, {config.fps:g} fps) to "
           f"{paths.video}; truth {paths.truth.name}, calibration {paths.calibration_points.name}, "
           f"reference {paths.reference.name}, lens {paths.camera.name}"
           + (f", frames in {paths.frames_dir}" if paths.frames_dir else ""))
-    effects = [name for name, on in (
-        (f"distortion k1={config.dist[0]:g}", any(config.dist)), (f"bloom {config.bloom:g}", config.bloom > 0),
-        (f"exposure steps every ~{config.exposure_step_s:g} s", config.exposure_step_s > 0),
-        (f"{config.occluders} occluder(s)", config.occluders), (f"{config.shadows} shadow(s)", config.shadows),
-        (f"{config.stray_lights} steady + {config.blinking_lights} blinking red light(s)",
-         config.stray_lights + config.blinking_lights),
-        (f"{config.reflections} reflection(s)", config.reflections), (f"codec {config.codec}", True)) if on]
-    print("effects: " + ", ".join(effects))
+    print("effects: " + ", ".join(scene_effects(config)))
     return 0

@@ -16,7 +16,7 @@ from ._flags import bounded_float, bounded_int, check_flags, seed
 
 __all__ = ["add_design_parser", "parse_counts"]
 
-#: Most episodes of one design (configurations × runs).
+#: Most episodes of one design (configurations × runs): ``posekit.seam.frontend.commands_batch``'s.
 MAX_DESIGN_EPISODES = 100_000
 
 
@@ -68,16 +68,21 @@ def add_design_parser(verbs):
                    help="lever arm turning the rotation RMSE into mm in the score (default 100)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the episodes (default 0)")
     add_dask_args(p)
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--dump-config", action="store_true",
+                   help="print the effective configuration (--config with the overrides; loadable by --config) "
+                        "and exit")
+    p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
     add_overwrite(p)
     p.set_defaults(func=run_design, sensors_count=None)
     return p
 
 
 def run_design(args) -> int:
-    from ..seam.frontend.config import apply_overrides, config_from_dict, load_config
-    from ..seam.frontend.design import design_configurations, distance_grid, sensor_design, write_design
-    from .seam_simulate import layout_notes, with_profile
+    from ..seam.frontend.commands import episode_config
+    from ..seam.frontend.commands_batch import check_design_size, design
+    from ..seam.frontend.config import dump_config
+    from ..seam.frontend.design import distance_grid
+    from .seam_simulate import layout_notes
 
     check_dask_args(args)
     check_flags(args)
@@ -85,24 +90,22 @@ def run_design(args) -> int:
     counts = parse_counts(args.sensors)
     grid = distance_grid(args.distances_mm)
     with layout_notes():
-        cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
-    cfg = apply_overrides(with_profile(cfg, args.profile), {"trajectory.kind": args.trajectory,
-                                                            "filter.particles": args.particles,
-                                "trajectory.steps": args.steps})
-    n = len(design_configurations(counts, grid, args.angle))
-    if n * args.runs > MAX_DESIGN_EPISODES:
-        raise ConfigError(f"{n} configurations × --runs {args.runs} = {n * args.runs:,} episodes; expected at most "
-                          f"{MAX_DESIGN_EPISODES:,}")
+        cfg = episode_config(args.config, profile=args.profile, trajectory=args.trajectory,
+                             particles=args.particles, steps=args.steps)
+    if args.dump_config:
+        sys.stdout.write(dump_config(cfg))
+        return 0
+    if not args.out:
+        raise ConfigError("--out: an output folder is required (or use --dump-config)")
+    check_design_size(counts, grid, args.angle, args.runs)
     out_folder(args)
-    design = sensor_design(cfg, counts=counts, distances_mm=grid, angle=args.angle, runs=args.runs, seed=args.seed,
-                           lever_mm=args.lever_mm, scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
-        paths = write_design(design, tmp)
-    rows = design.rows()
-    failed = sum(r["status"] != "ok" for r in rows)
-    print(f"seam design: {len(rows)} configurations × {design.runs} runs on the {design.trajectory} seam, "
-          f"{cfg.filter.particles} particles, {design.wall_s:.1f} s; {failed} failed")
-    print(f"score = ‖RMSE translation‖ + {design.lever_mm:g} mm × ‖RMSE rotation‖ (mm; lower is better); "
+        run = design(cfg, tmp, sensors=counts, distances_mm=grid, angle=args.angle, runs=args.runs, seed=args.seed,
+                     lever_mm=args.lever_mm, scheduler=local_scheduler(args), n_workers=args.workers)
+    result, rows, failed = run.design, run.design.rows(), run.failed
+    print(f"seam design: {len(rows)} configurations × {result.runs} runs on the {result.trajectory} seam, "
+          f"{cfg.filter.particles} particles, {result.wall_s:.1f} s; {failed} failed")
+    print(f"score = ‖RMSE translation‖ + {result.lever_mm:g} mm × ‖RMSE rotation‖ (mm; lower is better); "
           f"kinematics only: {rows[0]['kinematic_score']:.3f}")
     print(f"{'rank':>4}  {'sensors':>7}  {'distances_mm':<16}{'angle':>6}" +
           "".join(f"{a:>9}" for a in ("x mm", "y mm", "z mm", "rx deg", "ry deg", "rz deg")) + f"{'score':>9}")
@@ -112,10 +115,9 @@ def run_design(args) -> int:
                                                    "rmse_ry_deg", "rmse_rz_deg")) + f"{r['score']:>9.3f}")
     if len(rows) > 15:
         print(f"... {len(rows) - 15} more in ranking.csv")
-    print(f"wrote {args.out}: {', '.join(paths)}")
+    print(f"wrote {args.out}: {', '.join(run.paths)}")
     sys.stdout.flush()
     if failed:
         print(f"posekit: error: {failed} of {len(rows)} configurations failed; their rows in ranking.csv say why",
               file=sys.stderr)
-        return 1
-    return 0
+    return run.exit_code

@@ -5,17 +5,19 @@ Precedence of settings: defaults < ``--config`` file < flags.
 
 import functools
 import sys
-import time
 
 from ..errors import ConfigError
 from ._common import add_overwrite, out_folder, staged
 from ._common import progress as _progress
+from ._config import add_config_arguments
 from ._flags import bounded_int, check_flags, seed
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "add_demo_parser", "add_simulate_parser", "build_config", "rmse_table"]
 
 #: The trajectory kinds (``posekit.seam.frontend.config.TRAJECTORY_KINDS``, not imported here: the parser stays light).
 TRAJECTORIES = ("xy", "yz", "line", "bend")
+#: ``posekit.seam.frontend.commands``' DEMO_*, MAX_KEPT_STEPS, MAX_RECORDED, RECORD_DEFAULT (not imported: the
+#: parser stays light; a test keeps them equal).
 #: The demo's episode: shorter and with fewer particles than the paper's 500 steps × 500.
 DEMO_STEPS = 300
 DEMO_PARTICLES = 300
@@ -112,40 +114,31 @@ def add_demo_parser(verbs):
                    help=f"particle count, 1..{MAX_PARTICLES} (default {DEMO_PARTICLES})")
     p.add_argument("--out", default=None, help="also write figures, metrics.json and report.html here")
     add_overwrite(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_demo)
     return p
 
 
 def build_config(args):
-    """The effective :class:`~posekit.seam.frontend.config.SeamConfig`: defaults < ``--config`` < flags."""
-    from ..seam.frontend.compare import with_sensors
-    from ..seam.frontend.config import apply_overrides, config_from_dict, load_config
+    """The effective :class:`~posekit.seam.frontend.config.SeamConfig`: defaults < ``--config`` < flags
+    (:func:`posekit.seam.frontend.commands.episode_config`)."""
+    from ..seam.frontend.commands import episode_config
 
-    with layout_notes():
-        cfg = load_config(args.config) if args.config else config_from_dict({}, "defaults")
-    cfg = with_profile(cfg, getattr(args, "profile", None))
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
                              ("--seed", args.seed, 0)):
         if value is not None and value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
     check_flags(args, ("particles", "steps", "seed"))
-    cfg = apply_overrides(cfg, {"trajectory.kind": args.trajectory, "filter.particles": args.particles,
-                                "trajectory.steps": args.steps, "seed": args.seed})
-    if args.sensors is not None:
-        cfg = with_sensors(cfg, args.sensors)
-    return cfg
+    with layout_notes():
+        return episode_config(args.config, profile=getattr(args, "profile", None), trajectory=args.trajectory,
+                              sensors=args.sensors, particles=args.particles, steps=args.steps, seed=args.seed)
 
 
 def with_profile(cfg, path):
     """``cfg`` with the profile file ``path`` (``--profile``) in place of its own; unchanged for None."""
-    if path is None:
-        return cfg
-    from ..seam.frontend.config import config_from_dict
-    from ..seam.frontend.profile import load_profile
+    from ..seam.frontend.commands import with_profile as _with_profile
 
-    data = _config_data(cfg)
-    data["profile"] = load_profile(path).model_dump(mode="python", exclude_none=True)
-    return config_from_dict(data, "--profile")
+    return _with_profile(cfg, path)
 
 
 class layout_notes:
@@ -170,39 +163,6 @@ class layout_notes:
         return False
 
 
-def _config_data(cfg) -> dict:
-    """A configuration as the mapping that validates back into it (the profile whole, with its values)."""
-    data = cfg.model_dump(mode="python")
-    data["profile"] = cfg.profile.model_dump(mode="python", exclude_none=True)
-    return data
-
-
-def _check_runs(runs):
-    if runs < 1:
-        raise ConfigError(f"--runs: expected an integer >= 1, got {runs}")
-
-
-def _check_kept(runs: int, steps: int, configurations: int = 1) -> None:
-    """At most :data:`MAX_KEPT_STEPS` episode-steps held for the metrics and figures."""
-    kept = runs * steps * configurations
-    if kept > MAX_KEPT_STEPS:
-        times = f" × {configurations} configurations" if configurations > 1 else ""
-        raise ConfigError(f"--runs {runs} × {steps} steps{times} = {kept:,} episode-steps kept for the metrics and "
-                          f"figures; expected at most {MAX_KEPT_STEPS:,} (1 GiB): fewer --runs or --steps")
-
-
-def _record_count(args, steps: int) -> int:
-    """``--record-particles``, or its default within :data:`MAX_RECORDED`; a one-line error for a
-    given value over it."""
-    if args.record_particles is None:
-        return min(RECORD_DEFAULT, MAX_RECORDED // steps)
-    if steps * args.record_particles > MAX_RECORDED:
-        raise ConfigError(f"--record-particles {args.record_particles} × {steps} steps = "
-                          f"{steps * args.record_particles:,} recorded particle poses; expected at most "
-                          f"{MAX_RECORDED:,} (96 MB): at most {MAX_RECORDED // steps} per step, or 0 (no Fig. 5)")
-    return args.record_particles
-
-
 def _save_log_rules(args) -> dict:
     """``--overwrite`` names the ``--out`` folder: it replaces a ``--save-log`` folder only while
     posekit wrote everything in it (never files of the user's)."""
@@ -211,6 +171,7 @@ def _save_log_rules(args) -> dict:
 
 
 def run_simulate(args) -> int:
+    from ..seam.frontend.commands import check_kept, record_count, simulate_episodes
     from ..seam.frontend.config import dump_config
 
     cfg = build_config(args)
@@ -219,12 +180,13 @@ def run_simulate(args) -> int:
         return 0
     if not args.out:
         raise ConfigError("--out: an output folder is required (or use --dump-config)")
-    _check_runs(args.runs)
+    if args.runs < 1:
+        raise ConfigError(f"--runs: expected an integer >= 1, got {args.runs}")
     if args.record_particles is not None and args.record_particles < 0:
-        raise ConfigError(f"--record-particles: expected an integer >= 0, got {args.record_particles}")
+        record_count(args.record_particles, 1)          # its one-line error
     check_flags(args)
-    _check_kept(args.runs, cfg.trajectory.steps, 6 if args.compare else 1)
-    record = _record_count(args, cfg.trajectory.steps)
+    check_kept(args.runs, cfg.trajectory.steps, 6 if args.compare else 1)
+    record_count(args.record_particles, cfg.trajectory.steps)
     out_folder(args)
     if args.save_log:
         from ..io import check_out_folder
@@ -232,25 +194,17 @@ def run_simulate(args) -> int:
         if str(args.save_log) == str(args.out):
             raise ConfigError("--save-log: expected a folder other than --out")
         check_out_folder(args.save_log, flag="--save-log", **_save_log_rules(args))
-    from ..seam.frontend.compare import compare_configurations, run_episodes
-    from ..seam.frontend.report import write_simulation
-    from ..seam.frontend.simulate import metrics
-
-    results = run_episodes(cfg, args.runs, record_particles=record, progress=progress,
-                           desc="episodes")
-    m = metrics(results)
-    comparison = (compare_configurations(cfg, args.runs, progress=progress, reuse=(cfg, results))
-                  if args.compare else None)
     with staged(args) as tmp:
-        paths = write_simulation(tmp, results, m, dump_config(cfg), comparison=comparison)
-    if args.save_log:
-        from ..io import staged_folder
-        from ..seam.frontend.logs import write_episode_log
-        from ..seam.frontend.simulate import simulate_data
+        if args.save_log:
+            from ..io import staged_folder
 
-        seed0 = results[0].seed
-        with staged_folder(args.save_log, flag="--save-log", **_save_log_rules(args)) as tmp:
-            write_episode_log(tmp, cfg, simulate_data(cfg, seed0), seed0)
+            with staged_folder(args.save_log, flag="--save-log", **_save_log_rules(args)) as log_tmp:
+                sim = simulate_episodes(cfg, tmp, runs=args.runs, compare=args.compare,
+                                        record_particles=args.record_particles, save_log=log_tmp, progress=progress)
+        else:
+            sim = simulate_episodes(cfg, tmp, runs=args.runs, compare=args.compare,
+                                    record_particles=args.record_particles, progress=progress)
+    m, comparison, results, paths = sim.metrics, sim.comparison, sim.results, sim.paths
     count = cfg.cell.sensors.count
     label = f"{cfg.trajectory.kind}, {count} sensor{'s' if count != 1 else ''}"
     rows = [(label, _rmse_values(m))]
@@ -290,39 +244,35 @@ def _status_text(counts: dict, long: bool = False) -> str:
 
 def demo_verdict(sets) -> str:
     """The demo's verdict line: on each seam, on how many of the six axes two sensors beat the robot's
-    kinematics (the paper's Fig. 8: two sensors give the smallest error; expected on every axis)."""
-    parts = []
-    for kind in dict.fromkeys(s.trajectory for s in sets):
-        two = next((s for s in sets if s.trajectory == kind and s.sensors == 2), None)
-        if two is None:
-            continue
-        ours, fk = _rmse_values(two.metrics), _rmse_values(two.metrics, "kinematic_")
-        parts.append(f"{kind} {sum(a < b for a, b in zip(ours, fk))}/6")
+    kinematics (:func:`posekit.seam.frontend.commands.two_sensor_wins`)."""
+    from ..seam.frontend.commands import two_sensor_wins
+
+    parts = [f"{kind} {n}/6" for kind, n in two_sensor_wins(sets).items()]
     return ("verdict: two sensors beat the kinematics on " + ", ".join(parts) + " axes (the paper's Fig. 8: two "
             "sensors give the smallest error; expected 6/6; fewer sensors leave some axes unobserved)")
 
 
 def run_demo(args) -> int:
-    from ..seam.frontend.compare import compare_configurations
-    from ..seam.frontend.config import apply_overrides, config_from_dict, dump_config
-    from ..seam.frontend.report import write_simulation
+    from ..seam.frontend.commands import check_kept, demo
 
-    _check_runs(args.runs)
+    if args.runs < 1:
+        raise ConfigError(f"--runs: expected an integer >= 1, got {args.runs}")
     for flag, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 2),
                              ("--seed", args.seed, 0)):
         if value < low:
             raise ConfigError(f"{flag}: expected an integer >= {low}, got {value}")
     check_flags(args)
-    _check_kept(args.runs, args.steps, 6)
+    check_kept(args.runs, args.steps, 6)
     if args.out:
         out_folder(args)
-    cfg = apply_overrides(config_from_dict({}, "defaults"),
-                          {"trajectory.steps": args.steps, "filter.particles": args.particles, "seed": args.seed})
-    t0 = time.perf_counter()
-    record = min(RECORD_DEFAULT, MAX_RECORDED // args.steps) if args.out else 0
-    sets = compare_configurations(cfg, args.runs, record_particles=record, progress=progress)
+        with staged(args) as tmp:
+            run = demo(seed=args.seed, runs=args.runs, steps=args.steps, particles=args.particles, out=tmp,
+                       progress=progress)
+    else:
+        run = demo(seed=args.seed, runs=args.runs, steps=args.steps, particles=args.particles, progress=progress)
+    sets, main = run.sets, run.main
     print(f"seam demo: {args.runs} run(s) × {args.steps} steps, {args.particles} particles, sensors 20/40 mm ahead "
-          f"({time.perf_counter() - t0:.1f} s)")
+          f"({run.wall_s:.1f} s)")
     print("RMSE per axis of the tool pose in the seam frame against the simulated truth (mm, deg; lower is "
           "better); FK only = the robot's kinematics without the filter; status = steps tracking/degraded/lost")
     rows = [(s.label, _rmse_values(s.metrics)) for s in sets]
@@ -334,12 +284,8 @@ def run_demo(args) -> int:
     print(demo_verdict(sets))
     total = {k: sum(s.metrics.get("status_counts", {}).get(k, 0) for s in sets) for k in ("tracking", "degraded", "lost")}
     print(f"status over all configurations: {_status_text(total, long=True)}")
-    main = next(s for s in sets if s.trajectory == "xy" and s.sensors == 2)
     print(f"filter step median: {main.metrics['step_ms_median']:.3f} ms ({main.label}, {args.particles} particles; "
           f"the paper's sensor period is 10 ms)")
     if args.out:
-        with staged(args) as tmp:
-            paths = write_simulation(tmp, main.results, main.metrics, dump_config(main.config), comparison=sets,
-                                     title="Seam tracking demo")
-        print(f"wrote {args.out}: {', '.join(p.name for p in paths.values())}")
+        print(f"wrote {args.out}: {', '.join(p.name for p in run.paths.values())}")
     return 0

@@ -9,7 +9,8 @@ from ._common import add_dask_args, add_overwrite, check_dask_args, local_schedu
 from ._flags import bounded_float, bounded_int, check_flags, seed
 
 #: Most random parameter draws, most episodes per draw, and most episodes in all (a study of
-#: 100,000 default episodes takes about a day on 2 cores: more belongs on a cluster, in parts).
+#: 100,000 default episodes takes about a day on 2 cores: more belongs on a cluster, in parts;
+#: ``posekit.seam.frontend.commands_batch.MAX_STUDY_EPISODES``, a test keeps them equal).
 MAX_RUNS, MAX_EPISODES, MAX_STUDY_EPISODES = 10_000, 100, 100_000
 
 __all__ = ["add_study_parser", "parse_factors"]
@@ -42,7 +43,10 @@ def add_study_parser(verbs):
                    help="relative half-range of a perturbation around the base value, (0, 1) (default 0.5)")
     p.add_argument("--seed", type=seed, default=0, help="study seed (default 0; same seed, same table)")
     add_dask_args(p)
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--dump-config", action="store_true",
+                   help="print the effective configuration (--config with the overrides; loadable by --config) "
+                        "and exit")
+    p.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
     add_overwrite(p)
     p.set_defaults(func=run_study)
     return p
@@ -72,8 +76,9 @@ def parse_factors(text: str | None):
 
 
 def run_study(args) -> int:
+    from ..seam.frontend.commands_batch import check_study_size, study
+    from ..seam.frontend.config import dump_config
     from ..seam.frontend.report import ERROR_AXES
-    from ..seam.frontend.study import make_factors, seam_study, study_base, write_study
     from ._common import out_folder, staged
     from .seam_simulate import build_config
 
@@ -82,34 +87,32 @@ def run_study(args) -> int:
         if v < 1:
             raise ConfigError(f"{flag}: expected an integer >= 1, got {v}")
     cfg = build_config(args)
+    if args.dump_config:
+        sys.stdout.write(dump_config(cfg))
+        return 0
+    if not args.out:
+        raise ConfigError("--out: an output folder is required (or use --dump-config)")
     check_flags(args)
-    if args.runs * args.episodes > MAX_STUDY_EPISODES:
-        raise ConfigError(f"--runs {args.runs} × --episodes {args.episodes} = {args.runs * args.episodes:,} episodes; "
-                          f"expected at most {MAX_STUDY_EPISODES:,} (about a day on 2 cores)")
+    check_study_size(args.runs, args.episodes)
     names, ranges = parse_factors(args.parameters)
-    factors = make_factors(study_base(cfg), names, spread=args.spread, ranges=ranges)
     out_folder(args)
-    study = seam_study(cfg, runs=args.runs, factors=factors, episodes=args.episodes, seed=args.seed,
-                       scheduler=local_scheduler(args), n_workers=args.workers)
     with staged(args) as tmp:
-        report = write_study(study, tmp)
-        written = [n for n in ("fig6_pvalues.png", "parameters_ranked.csv", "runs.csv", "report.html")
-                   if (report.parent / n).exists()]
-    failed = sum(s != "ok" for s in study.status)
-    print(f"seam study: {len(study.X)} runs × {study.episodes} episode(s), {len(factors)} parameters, "
-          f"{failed} failed; {study.wall_s:.1f} s wall, {study.task_cpu_s:.1f} s CPU in the tasks")
-    if study.effects is None:
-        print(f"no linear models: {study.effects_error}")
+        run = study(cfg, tmp, runs=args.runs, episodes=args.episodes, parameters=names, ranges=ranges,
+                    spread=args.spread, seed=args.seed, scheduler=local_scheduler(args), n_workers=args.workers)
+    result, failed = run.study, run.failed
+    print(f"seam study: {len(result.X)} runs × {result.episodes} episode(s), {len(result.factors)} parameters, "
+          f"{failed} failed; {result.wall_s:.1f} s wall, {result.task_cpu_s:.1f} s CPU in the tasks")
+    if result.effects is None:
+        print(f"no linear models: {result.effects_error}")
     else:
         print(f"{'rank':>4}  {'parameter':<28}{'min log10 p':>12}  most affected   " +
               "".join(f"{'lg p ' + a:>9}" for a in ERROR_AXES))
-        for r in study.ranked:
+        for r in result.ranked:
             print(f"{r['rank']:>4}  {r['parameter']:<28}{r['min_log10_p']:>12.2f}  {r['most_affected']:<14}  "
                   + "".join(f"{r['log10_p_' + a]:>9.2f}" for a in ERROR_AXES))
-    print(f"wrote {args.out}: {', '.join(written)}")
+    print(f"wrote {args.out}: {', '.join(run.written)}")
     sys.stdout.flush()
     if failed:  # a batch with failed items: every row is written, the exit code says so
-        print(f"posekit: error: {failed} of {len(study.X)} study runs failed; their rows in runs.csv say why",
+        print(f"posekit: error: {failed} of {len(result.X)} study runs failed; their rows in runs.csv say why",
               file=sys.stderr)
-        return 1
-    return 0
+    return run.exit_code

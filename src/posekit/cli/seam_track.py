@@ -1,10 +1,10 @@
 """``posekit seam track LOGDIR --out DIR``: the filter on a recorded episode (DESIGN.md, seam)."""
 
-import json
 import sys
 
 from ._common import add_overwrite, out_folder, staged
 from ._common import progress as _progress
+from ._config import add_config_arguments
 from ._flags import check_flags
 
 __all__ = ["add_track_parser"]
@@ -22,13 +22,14 @@ def add_track_parser(verbs):
                         "std_deg, ...); '-' for stdout")
     p.add_argument("--out", required=True, help="output folder")
     add_overwrite(p)
+    add_config_arguments(p)
     p.set_defaults(func=run_track)
     return p
 
 
 def run_track(args) -> int:
+    from ..seam.frontend.commands import track_episode
     from ..seam.frontend.logs import read_episode_log
-    from ..seam.frontend.tracker import step_record, track_log, write_track
 
     check_flags(args)
     out_folder(args)
@@ -36,30 +37,10 @@ def run_track(args) -> int:
 
     with layout_notes():
         log = read_episode_log(args.logdir, profile=args.profile)
-    stream = None
-    if args.jsonl == "-":
-        stream = sys.stdout
-    elif args.jsonl:
-        from ..io import open_stream
-
-        stream = open_stream(args.jsonl, flag="--jsonl")  # closed below, flushed per step
-
-    def emit(k, est):
-        stream.write(json.dumps(step_record(k, est)) + "\n")
-        stream.flush()
-
-    try:
-        result = track_log(log, progress=None if stream is sys.stdout else
-                           (lambda it, total, desc: _progress(it, total=total, desc=desc, unit="step")),
-                           on_step=emit if stream is not None else None)
-    except BaseException:
-        if stream is not None and stream is not sys.stdout:
-            stream.close(discard=True)
-        raise
-    if stream is not None and stream is not sys.stdout:
-        stream.close()
     with staged(args) as tmp:
-        m = write_track(tmp, result)
+        run = track_episode(log, tmp, jsonl=args.jsonl,
+                            progress=lambda it, total, desc: _progress(it, total=total, desc=desc, unit="step"))
+    m = run.metrics
     s = len(log.setup.sensors)
     print(f"seam track: {m['steps']} steps ({m['interpolated_steps']} with interpolated joints), "
           f"{log.config.cell.robot.label}, {s} sensor{'s' if s != 1 else ''}, {log.config.filter.particles} particles; "
@@ -78,6 +59,4 @@ def run_track(args) -> int:
                         m["plateau_ratio_max"])
     print(f"wrote {args.out}: estimates.csv, metrics.json, ess.png" + (", errors_time.png" if "rmse_mm" in m else ""))
     sys.stdout.flush()
-    from ..verdict import track_exit_code
-
-    return track_exit_code(read_whole=True)  # read_episode_log read every row (it raises otherwise)
+    return run.exit_code

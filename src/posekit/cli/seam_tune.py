@@ -1,13 +1,14 @@
 """``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth]``: fit a cell's profile."""
 
 import sys
+from pathlib import Path
 
-from ..errors import ConfigError
 from ._flags import bounded_int, seed
 
 __all__ = ["add_tune_parser"]
 
-#: Most episodes ``--simulate`` makes.
+#: Most episodes ``--simulate`` makes (``posekit.seam.frontend.commands_batch.MAX_SIMULATED``; a test keeps
+#: them equal).
 MAX_SIMULATED = 100
 
 
@@ -37,56 +38,21 @@ def add_tune_parser(verbs):
     return p
 
 
-def _command(args) -> list:
-    """The command line that reproduces this run (``--overwrite`` left out), as recorded in the profile."""
-    out = ["posekit", "seam", "tune", *args.logdirs]
-    if args.simulate is not None:
-        out += ["--simulate", args.simulate]
-        out += ["--config", args.config] if args.config else []
-        out += ["--trajectory", args.trajectory] if args.trajectory else []
-        out += ["--seed", args.seed]
-    out += ["--with-truth"] if args.with_truth else []
-    out += ["--share-sensors"] if args.share_sensors else []
-    out += ["--from", args.base] if args.base else []
-    return out + ["--out", args.out]
-
-
 def run_tune(args) -> int:
-    import shlex
-    from pathlib import Path
-
-    from ..seam.frontend.profile import write_profile
-    from ..seam.frontend.tune import tune_profile, tune_report, tune_simulated
+    from ..seam.frontend.commands_batch import tune
     from ._flags import check_flags
     from .seam_simulate import layout_notes
 
     check_flags(args)
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise ConfigError(f"--out {out}: exists; expected a new file (or --overwrite)")
-    if args.simulate is None and not args.logdirs:
-        raise ConfigError("seam tune: expected at least one LOGDIR (or --simulate RUNS)")
-    if args.simulate is not None and args.logdirs:
-        raise ConfigError("seam tune: expected LOGDIRs or --simulate RUNS, not both")
-    if args.simulate is None and (args.config is not None or args.trajectory is not None):
-        raise ConfigError("--config, --trajectory: only with --simulate (a recorded episode's setup.yaml describes "
-                          "its cell)")
-    command = " ".join(shlex.quote(str(a)) for a in _command(args))
     with layout_notes():
-        if args.simulate is None:
-            result = tune_profile(args.logdirs, with_truth=args.with_truth, base=args.base,
-                                  share_sensors=args.share_sensors, command=command)
-        else:
-            kinds = None if args.trajectory is None else [k.strip() for k in args.trajectory.split(",")]
-            result = tune_simulated(args.config, args.simulate, kinds, args.seed, with_truth=args.with_truth,
-                                    base=args.base, share_sensors=args.share_sensors, command=command)
-    header = (f"posekit seam profile, fitted by: {command}\n"
-              f"from {result.episodes} episode(s), {result.steps} samples "
-              f"({'errors against truth.csv' if result.method == 'truth' else 'laser innovations'})")
-    write_profile(out, result.profile, header)
+        result = tune(args.out, args.logdirs, with_truth=args.with_truth, base=args.base,
+                      share_sensors=args.share_sensors, simulate=args.simulate, config=args.config,
+                      trajectory=args.trajectory, seed=args.seed, overwrite=args.overwrite)
+    from ..seam.frontend.tune import tune_report
+
     print(tune_report(result))
     unpinned = len(result.unpinned)
-    print(f"wrote {out}" + (f" ({unpinned} value(s) kept from the base profile: the data do not pin them)"
-                            if unpinned else ""))
+    print(f"wrote {Path(args.out)}" + (f" ({unpinned} value(s) kept from the base profile: the data do not pin them)"
+                                      if unpinned else ""))
     sys.stdout.flush()
     return 0

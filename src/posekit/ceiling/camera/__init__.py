@@ -2,6 +2,7 @@
 homography between the ceiling plane and the image (paper §IV-A), with the grid-corner finder
 that feeds it."""
 
+from .commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files, expand_images
 from .grid import CeilingGrid, find_grid_corners
 from .homography import (
     Calibration,
@@ -32,4 +33,9 @@ __all__ = [
     "write_points_csv",
     "CeilingGrid",
     "find_grid_corners",
+    "PointsCalibration",
+    "calibrate_file",
+    "LensRun",
+    "calibrate_lens_files",
+    "expand_images",
 ]

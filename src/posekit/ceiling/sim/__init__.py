@@ -4,5 +4,7 @@ compression). Uses the models (camera, calibration), never the tracker's interna
 
 from .config import REALISTIC, SceneConfig
 from .render import CeilingScene, iter_frames, render_video, true_homography
+from .simulation import CeilingSimulation, scene_config, scene_effects, simulate, simulation_dots
 
-__all__ = ["REALISTIC", "SceneConfig", "CeilingScene", "iter_frames", "render_video", "true_homography"]
+__all__ = ["REALISTIC", "SceneConfig", "CeilingScene", "iter_frames", "render_video", "true_homography",
+           "CeilingSimulation", "scene_config", "scene_effects", "simulate", "simulation_dots"]

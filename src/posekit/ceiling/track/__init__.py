@@ -2,6 +2,7 @@
 line, the frame sources (files, folders, cameras, streams) and the per-row outputs."""
 
 from .cameras import Camera, MultiCameraTracker
+from .command import TrackPlan, TrackRun, plan_track, track_input
 from .linetrack import LineTracker, LineTrackerConfig
 from .multitrack import MultiRobotTracker, track_robots_frames, track_robots_video
 from .outputs import TrackOutputs
@@ -13,6 +14,10 @@ from .tracker import Tracker
 from .types import STATUSES, TrackerConfig, TrackRow
 
 __all__ = [
+    "TrackPlan",
+    "TrackRun",
+    "plan_track",
+    "track_input",
     "STATUSES",
     "TrackerConfig",
     "TrackRow",

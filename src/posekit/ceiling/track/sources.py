@@ -124,7 +124,7 @@ class FrameSource:
             raise ConfigError(f"--max-frames must be at least 1, got {max_frames}")
         self.max_frames = None if max_frames is None else int(max_frames)
         if fps is not None and not (np.isfinite(fps) and fps > 0):
-            raise ConfigError(f"--fps must be a positive number, got {fps!r}")
+            raise ConfigError(f"--frame-rate-hz must be a positive number, got {fps!r}")
         if not self.path.exists():
             raise InputFileError(f"{self.path}: no such file or folder; expected a video file or a folder of images")
         self.is_folder = self.path.is_dir()

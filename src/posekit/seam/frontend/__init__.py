@@ -4,6 +4,6 @@ simulated and recorded episodes, the online tracker, studies, sensor design, rep
 The public names are exported by :mod:`posekit.seam`; the sub-package lists its modules only.
 """
 
-__all__ = ["compare", "config", "config_cell", "config_legacy", "config_messages", "config_types", "design", "logs",
+__all__ = ["commands", "compare", "config", "config_cell", "config_legacy", "config_messages", "config_types", "design", "logs",
            "logs_setup", "plots", "profile", "report", "simulate", "study", "tracker", "trajectories", "tune",
            "tune_fit", "tune_truth"]
