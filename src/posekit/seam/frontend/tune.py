@@ -4,9 +4,14 @@ Two ways, the same model as the particle filter's (:mod:`posekit.seam.engine.ekf
 
 **From the laser innovations** (default; no reference needed). The particle filter's state-space model run as a
 linearised filter gives the lasers' likelihood by its prediction-error decomposition; the walk per tool axis, the
-laser noise and the latency per sensor maximise it (a coarse scan of the latency, then L-BFGS-B on the log of the
-scales), and the inverse Hessian of the negative log-likelihood gives each value's 1σ. The joint noise comes from
-the encoders (the white part of ``q - q̄``: its second difference has variance ``6 σ²``). The plateau, its tails and
+laser noise and the latency per sensor maximise it (a coarse scan of the latency, then Nelder-Mead on the log of
+the scales and the latencies). The walk's and noise's 1σ come from the full Hessian over every fitted parameter
+(and the episodes' own gradients); each latency's from its 95 % profile-likelihood interval, under the walk as
+fitted and ten times larger, since a robot error that wanders sideways with the seam looks like a latency
+(:mod:`.tune_intervals`). A latency whose interval touches 0, is wider than ±5 ms or moves with the walk is not
+pinned: the base profile's value is kept and that sensor's noise widened by the reading error a latency anywhere
+in the interval would make (the interval's rms about the kept value times the readings' rms rate). The joint noise
+comes from the encoders (the white part of ``q - q̄``: its second difference has variance ``6 σ²``). The plateau, its tails and
 the pose jitter are about the robot's absolute error, which the lasers do not see on every axis: they are kept
 from the base profile (unless the filter's estimates leave that plateau: then it is widened to them and said so).
 
@@ -22,7 +27,8 @@ until the particle filter itself covers 95 % of its errors within 2σ on those e
 factor per axis (at least 1) makes its 2σ cover 90 % of the errors of every one of the episodes (the implementation
 in :mod:`.tune_truth`).
 
-A value the data do not pin (its 1σ above the value itself; for a latency above the sample period; kd when the
+A value the data do not pin (its 1σ above the value itself; for a latency above the sample period (with truth) or
+as above (without); kd when the
 force spans less than 20 % of its largest value; one episode for the tails) keeps the base profile's value, and the
 result says why. :func:`tune_profile` returns a :class:`TuneResult`; :func:`tune_report`
 formats it.
