@@ -77,7 +77,7 @@ def test_tune_without_truth_is_never_confidently_wrong_about_a_latency(tmp_path,
             sig = got[f"sensors[{i}].sigma_mm"]
             assert "widened by" in sig.note and sig.value > cell.laser_sigma_mm[i], sig
         # measured (2 x 100 steps): neither pinned, 95 % intervals 0-50 / 0-37 ms (3 x 400 steps and the 5 ms grid:
-        # 0-22 ms not pinned, 15.6 ms pinned at 12.3-19.4 ms)
+        # 0-21.2 ms not pinned, 15.6 ms pinned at 10.1-17.2 ms: benchmarks/seam_tune_innovations.py)
         assert lo <= true <= hi, v
     assert "[not pinned: 95 % interval" in tune_report(res)
 

@@ -10,6 +10,7 @@ import pytest
 from posekit.seam.frontend.tune_intervals import (
     CHI2_1_95,
     WALK_SCALE,
+    LatencyInterval,
     joint_std,
     latency_interval,
     reading_rate_rms,
@@ -108,3 +109,16 @@ def test_reading_rate_is_the_derivative_s_rms():
     assert reading_rate_rms([_Ep(laser, t)], 1) == pytest.approx(2.0 * got, rel=0.03)
     assert uniform_rms(0.0, 0.02) == pytest.approx(0.02 / math.sqrt(3.0))
     assert uniform_rms(-0.01, 0.01) == pytest.approx(0.02 / math.sqrt(12.0))
+
+
+def test_a_latency_that_moves_with_an_unpinned_one_carries_its_range():
+    """Sensor 2's own interval is 15-16 ms, but along sensor 1's unpinned 0-21 ms it takes 15.3-20 ms: its interval
+    becomes 15-20 ms (still pinned: ±2.5 ms), then 9.5-20 ms is wider than ±5 ms and it is not pinned."""
+    iv = LatencyInterval(
+        {1.0: (0.015, 0.016), WALK_SCALE: (0.0152, 0.0158)}, {}, 0.05)
+    assert iv.pinned
+    assert iv.carry(0.0153, 0.020, "along sensors[0]'s unpinned latency")
+    assert (iv.lo, iv.hi) == (0.015, 0.020) and iv.pinned
+    assert not iv.carry(0.016, 0.019, "inside")
+    assert iv.carry(0.0095, 0.020, "along sensors[0]'s unpinned latency it is 9.5-20 ms")
+    assert not iv.pinned and "wider than ±5 ms" in iv.reason and "it is 9.5-20 ms" in iv.reason

@@ -302,6 +302,18 @@ def _fit_innovations(logs, work: ProfileModel, share: bool, put) -> float:
     lat_idx = list(range(6 + nS, 6 + nS + nl))
     names = [i for i in range(nS) if fit_lat[i]]
     intervals = {i: latency_interval(f, x, lat_idx[names.index(i)], lat_idx, range(6)) for i in names}
+    # a latency that moves with another, unpinned one is only as pinned as the values it takes along that one's
+    # interval (the shadow of their joint region)
+    for _ in range(len(names)):
+        changed = False
+        for i in names:
+            for k in names:
+                band = intervals[k].others.get(lat_idx[names.index(i)])
+                if k != i and not intervals[k].pinned and band is not None:
+                    changed |= intervals[i].carry(*band, f"along sensors[{k}]'s unpinned latency it is "
+                                                         f"{band[0] * 1e3:.1f}-{band[1] * 1e3:.1f} ms")
+        if not changed:
+            break
     kept = prof.sensor_latency_s(S)[:nS]
     for i in range(nS):
         s = sig[i] * std[6 + i]

@@ -124,20 +124,35 @@ class LatencyInterval:
         self.lo = min(v[0] for v in by_walk.values())
         self.hi = max(v[1] for v in by_walk.values())
         self.others = others
+        self.grid_hi = grid_hi
+        self.carried: list = []
+        self._judge()
+
+    def _judge(self) -> None:
         why = []
         if self.lo <= 0.0:
             why.append("touches 0")
-        if self.hi >= grid_hi:
-            why.append(f"reaches the grid's end {grid_hi * 1e3:.0f} ms")
+        if self.hi >= self.grid_hi:
+            why.append(f"reaches the grid's end {self.grid_hi * 1e3:.0f} ms")
         if self.hi - self.lo > 2.0 * LATENCY_HALF_WIDTH_S:
             why.append(f"wider than ±{LATENCY_HALF_WIDTH_S * 1e3:.0f} ms")
-        (l1, h1) = by_walk[1.0]
-        (lk, hk) = by_walk[WALK_SCALE]
+        (l1, h1) = self.by_walk[1.0]
+        (lk, hk) = self.by_walk[WALK_SCALE]
         if max(l1, lk) > min(h1, hk):
             why.append(f"the walk moves it ({l1 * 1e3:.1f}-{h1 * 1e3:.1f} ms as fitted, {lk * 1e3:.1f}-"
                        f"{hk * 1e3:.1f} ms with the walk x{WALK_SCALE:g}): confounded with the lateral and yaw walk")
         self.pinned = not why
-        self.reason = "" if self.pinned else "; ".join(why)
+        self.reason = "; ".join(why + self.carried) if why else ""
+
+    def carry(self, lo: float, hi: float, why: str) -> bool:
+        """Widen the interval to ``[lo, hi]`` (the values this latency takes along another, not pinned latency's
+        interval: the joint region's shadow) and judge again; returns whether it changed."""
+        if lo >= self.lo and hi <= self.hi:
+            return False
+        self.lo, self.hi = min(self.lo, lo), max(self.hi, hi)
+        self.carried.append(why)
+        self._judge()
+        return True
 
     @property
     def std(self) -> float:
