@@ -4,9 +4,14 @@ Two ways, the same model as the particle filter's (:mod:`posekit.seam.engine.ekf
 
 **From the laser innovations** (default; no reference needed). The particle filter's state-space model run as a
 linearised filter gives the lasers' likelihood by its prediction-error decomposition; the walk per tool axis, the
-laser noise and the latency per sensor maximise it (a coarse scan of the latency, then L-BFGS-B on the log of the
-scales), and the inverse Hessian of the negative log-likelihood gives each value's 1σ. The joint noise comes from
-the encoders (the white part of ``q - q̄``: its second difference has variance ``6 σ²``). The plateau, its tails and
+laser noise and the latency per sensor maximise it (a coarse scan of the latency, then Nelder-Mead on the log of
+the scales and the latencies). The walk's and noise's 1σ come from the full Hessian over every fitted parameter
+(and the episodes' own gradients); each latency's from its 95 % profile-likelihood interval, under the walk as
+fitted and ten times larger, since a robot error that wanders sideways with the seam looks like a latency
+(:mod:`.tune_intervals`). A latency whose interval touches 0, is wider than ±5 ms or moves with the walk is not
+pinned: the base profile's value is kept and that sensor's noise widened by the reading error a latency anywhere
+in the interval would make (the interval's rms about the kept value times the readings' rms rate). The joint noise
+comes from the encoders (the white part of ``q - q̄``: its second difference has variance ``6 σ²``). The plateau, its tails and
 the pose jitter are about the robot's absolute error, which the lasers do not see on every axis: they are kept
 from the base profile (unless the filter's estimates leave that plateau: then it is widened to them and said so).
 
@@ -22,7 +27,8 @@ until the particle filter itself covers 95 % of its errors within 2σ on those e
 factor per axis (at least 1) makes its 2σ cover 90 % of the errors of every one of the episodes (the implementation
 in :mod:`.tune_truth`).
 
-A value the data do not pin (its 1σ above the value itself; for a latency above the sample period; kd when the
+A value the data do not pin (its 1σ above the value itself; for a latency above the sample period (with truth) or
+as above (without); kd when the
 force spans less than 20 % of its largest value; one episode for the tails) keeps the base profile's value, and the
 result says why. :func:`tune_profile` returns a :class:`TuneResult`; :func:`tune_report`
 formats it.
@@ -51,12 +57,18 @@ from posekit.seam.frontend.tune_fit import (
     _LAT_GRID_S,
     PINNED,
     _check_same_cell,
-    _curvature_std,
     _joint_sigma,
     _knots,
     _sensor_key,
     episode_arrays,
     local_level_fit,
+)
+from posekit.seam.frontend.tune_intervals import (
+    LATENCY_HALF_WIDTH_S,
+    joint_std,
+    latency_interval,
+    reading_rate_rms,
+    uniform_rms,
 )
 from posekit.seam.frontend.tune_truth import fit_truth
 
@@ -78,6 +90,9 @@ class TunedValue:
         Whether the data pin it (fitted) or the base profile's value was kept.
     note : str
         Why it was kept, or how it was fitted.
+    interval : tuple of float, optional
+        The 95 % interval (``seam tune`` without a reference, latencies: profile likelihood, the fitted value's
+        even when it is not pinned).
     """
 
     key: str
@@ -85,6 +100,7 @@ class TunedValue:
     std: float | None
     pinned: bool
     note: str = ""
+    interval: tuple | None = None
 
 
 @dataclass
@@ -158,7 +174,7 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     base_sensors = [dict(data["sensors"][min(i, len(data["sensors"]) - 1)]) for i in range(max(nS, 1))]
     data["sensors"] = base_sensors
 
-    def put(key: str, value: float, std, pinned: bool, note: str = ""):
+    def put(key: str, value: float, std, pinned: bool, note: str = "", interval=None):
         std = None if std is None or not np.isfinite(std) else float(std)
         node, parts = data, key.replace("]", "").replace("[", ".").split(".")
         for p in parts[:-1]:
@@ -172,7 +188,7 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
             old = node[parts[-1]]
             value = old["value"] if isinstance(old, dict) else old
             node[parts[-1]] = {"value": float(value), "note": note[:300]} if note else value
-        values.append(TunedValue(key, float(value), std, pinned, note))
+        values.append(TunedValue(key, float(value), std, pinned, note, interval))
 
     sj, sj_std = _joint_sigma(logs)
     if np.isfinite(sj) and sj > 0.0:
@@ -270,35 +286,63 @@ def _fit_innovations(logs, work: ProfileModel, share: bool, put) -> float:
     res = minimize(f, x0, method="Nelder-Mead",
                    options={"maxfev": 40 * x0.size, "xatol": 1e-3, "fatol": 1e-2, "adaptive": True})
     x = res.x
-    # 3. 1σ per parameter: the curvature of the likelihood along it, or where the episodes disagree more than it
-    # says (a misspecified model is over-confident), the spread of the episodes' own gradients over it
-    std = _curvature_std(lambda xx: np.array([f(xx, only=j) for j in range(len(eps))]), x,
-                         np.r_[np.full(6 + nS, 0.1), np.full(nl, 1e-3)])
+    # 3. 1σ of the walk and noise from the full Hessian (and the episodes' own gradients); each latency's interval
+    # from its profile likelihood under the walk as fitted and ten times larger (:mod:`.tune_intervals`)
+    steps = np.r_[np.full(6 + nS, 0.1), np.full(nl, 1e-3)]
+    free = [k for k in range(x.size) if x[k] - steps[k] >= lo_b[k] and x[k] + steps[k] <= hi_b[k]]
+    std = joint_std(lambda xx: np.array([f(xx, only=j) for j in range(len(eps))]), x, steps, free)
     walk, sig, lat = unpack(x)
     at_bound = [abs(x[i] - lo) < 1e-3 or abs(x[i] - hi) < 1e-3 for i, (lo, hi) in enumerate(bounds)]
-    h = float(np.median(np.concatenate([e.dt[1:] for e in eps]))) if eps[0].steps > 1 else 0.01
     for a, name in enumerate(AXES):
         value = walk[a] if a < 3 else math.degrees(walk[a])
         s = value * std[a]
         pinned = np.isfinite(s) and s <= PINNED * value and not at_bound[a]
         put(f"walk.{name}", value, s, pinned,
             "" if pinned else "the lasers do not pin it (flat likelihood along this axis): the base profile's")
+    lat_idx = list(range(6 + nS, 6 + nS + nl))
+    names = [i for i in range(nS) if fit_lat[i]]
+    intervals = {i: latency_interval(f, x, lat_idx[names.index(i)], lat_idx, range(6)) for i in names}
+    # a latency that moves with another, unpinned one is only as pinned as the values it takes along that one's
+    # interval (the shadow of their joint region)
+    for _ in range(len(names)):
+        changed = False
+        for i in names:
+            for k in names:
+                band = intervals[k].others.get(lat_idx[names.index(i)])
+                if k != i and not intervals[k].pinned and band is not None:
+                    changed |= intervals[i].carry(*band, f"along sensors[{k}]'s unpinned latency it is "
+                                                         f"{band[0] * 1e3:.1f}-{band[1] * 1e3:.1f} ms")
+        if not changed:
+            break
+    kept = prof.sensor_latency_s(S)[:nS]
     for i in range(nS):
         s = sig[i] * std[6 + i]
         pinned = np.isfinite(s) and s <= PINNED * sig[i]
+        iv = intervals.get(i)
+        if pinned and iv is not None and not iv.pinned:
+            # the kept latency may be off by anything in its interval: a reading then moves by (L - kept) ṁ
+            rms = uniform_rms(iv.lo - kept[i], iv.hi - kept[i]) * reading_rate_rms(eps, None if share else i)
+            put(_sensor_key(i, "sigma_mm"), math.hypot(sig[i], rms), s, True,
+                f"{sig[i]:.4g} mm fitted, widened by {rms:.3g} mm: the latency is not pinned (rms of its interval "
+                f"about the kept value times the reading's rms rate)")
+            continue
         put(_sensor_key(i, "sigma_mm"), sig[i], s, pinned, "" if pinned else "not pinned by the data")
-    j = 0
     for i in range(nS):
         if not fit_lat[i]:
             why = "given by the log's m{k}_t_s stamps" if (stamped[i] if not share else stamped.all()) else \
                 "declared in setup.yaml (it applies)"
             put(_sensor_key(i, "latency_s"), float(lat[i]), None, False, why)
             continue
-        s = std[6 + nS + j]
-        pinned = np.isfinite(s) and s <= PINNED * h and not at_bound[6 + nS + j]
-        put(_sensor_key(i, "latency_s"), float(lat[i]), s, pinned,
-            "" if pinned else f"not pinned: 1σ {s * 1e3:.3g} ms (a straight seam at constant speed cannot show it)")
-        j += 1
+        iv = intervals[i]
+        note = ""
+        if not iv.pinned:
+            moved = [f"sensors[{names[lat_idx.index(k)]}]'s {a * 1e3:.1f}-{b * 1e3:.1f} ms"
+                     for k, (a, b) in iv.others.items() if b - a > LATENCY_HALF_WIDTH_S]
+            note = (f"95 % interval {iv.lo * 1e3:.1f}-{iv.hi * 1e3:.1f} ms (profile likelihood; best {lat[i] * 1e3:.1f}"
+                    f" ms): {iv.reason}" + (f"; it moves with {', '.join(moved)}" if moved else "")
+                    + "; declare it in setup.yaml or fit with --with-truth")
+        put(_sensor_key(i, "latency_s"), float(lat[i]), iv.std if iv.pinned else None, iv.pinned, note,
+            interval=(iv.lo, iv.hi))
     # the plateau stays the base's unless the linearised filter's poses leave it
     _check_plateau(eps, walk, expand(sig), expand(lat), jitter, prof, put)
     for name in AXES:
@@ -336,7 +380,7 @@ def tune_report(result: TuneResult) -> str:
             val = f"{v.value * 1e3:.2f} ms" + (f" ± {v.std * 1e3:.2f}" if v.std is not None else "")
         else:
             val = f"{v.value:.4g}" + (f" ± {v.std:.2g}" if v.std is not None else "")
-        tag = "" if v.pinned else "   [not pinned: " + v.note + "]"
+        tag = ("   [" + v.note + "]" if v.note else "") if v.pinned else "   [not pinned: " + v.note + "]"
         lines.append(f"  {v.key:<28}{val:<24}{tag}")
     return "\n".join(lines)
 
