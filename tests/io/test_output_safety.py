@@ -87,7 +87,7 @@ def test_a_failing_rerun_leaves_the_previous_run_whole(tmp_path, capsys, monkeyp
     argv = ["seam", "simulate", "--steps", "30", "--particles", "20", "--sensors", "0", "--out", tmp_path / "run"]
     assert run(capsys, *argv)[0] == 0
     before = {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()}
-    import posekit.seam.frontend.commands as report          # the seam library's simulate writes through it
+    import posekit.seam.frontend.commands as report  # the seam library's simulate writes through it
 
     real = report.write_simulation
 
