@@ -35,6 +35,9 @@ def pytest_addoption(parser):
 
 
 def pytest_collection_modifyitems(config, items):
+    # The long tests first (a stable sort keeps the order otherwise): with pytest-xdist the suite then
+    # ends on many short tests spread over the workers, not on one long test started last.
+    items.sort(key=lambda item: "slow" not in item.keywords)
     if config.getoption("--full-corpus"):
         return
     skip = pytest.mark.skip(reason="the whole fuzz corpus: run with --full-corpus")

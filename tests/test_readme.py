@@ -78,6 +78,7 @@ def _expand(arg: str, cwd: Path) -> list[str]:
     return [arg]
 
 
+@pytest.mark.slow
 def test_readme_blocks_run_in_order(workdir, monkeypatch, capsys):
     """One test, not one per block: a block uses what the blocks before it wrote (a parametrized
     test per block could run a later block first, on another pytest-xdist worker)."""
