@@ -14,6 +14,7 @@ from posekit.cli.main import main
 from posekit.profiler import NoiseModel, estimate_file, simulate
 from posekit.profiler.sim.simulate import read_truth_csv
 from posekit.verdict import Verdict, batch_exit_code
+from tests.cli.test_cli_library_ceiling_seam import CONFIG_VERBS as CEILING_SEAM_VERBS
 
 CLI = Path(__file__).resolve().parents[2] / "src" / "posekit" / "cli"
 
@@ -77,7 +78,8 @@ def test_help_constants_are_the_librarys():
     assert (HELP_MAX_STEP_MM, HELP_RATE_HZ) == (MAX_STEP_MM, DEFAULT_RATE_HZ)
 
 
-#: Every profiler verb that takes more than a few parameters: its command words and required arguments.
+#: Every verb that takes more than a few parameters (the profiler's here, ceiling's and seam's in their
+#: own test module): its command words and required arguments.
 CONFIG_VERBS = {
     "estimate": (["profiler", "estimate"], ["p.npz", "--gauge", "demo-5"]),
     "simulate": (["profiler", "simulate"], ["--gauge", "demo-5", "--out", "d", "--seed", "7"]),
@@ -88,6 +90,7 @@ CONFIG_VERBS = {
     "demo": (["demo"], ["--axes", "x,z"]),
     "serve": (["profiler", "serve"], ["--gauge", "demo-5", "--listen", "127.0.0.1:0", "--filter", "cv"]),
     "replay": (["profiler", "replay"], ["p.npz", "--to", "127.0.0.1:9"]),
+    **CEILING_SEAM_VERBS,
 }
 
 

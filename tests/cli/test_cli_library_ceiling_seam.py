@@ -13,7 +13,8 @@ from posekit.errors import ConfigError
 from posekit.seam import demo as seam_demo
 from posekit.seam import episode_config, simulate_episodes, track_episode, tune
 
-#: Ceiling and seam verbs whose parameters are their flags: command words and required arguments.
+#: Ceiling and seam verbs whose parameters are their flags: command words and required arguments
+#: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's).
 CONFIG_VERBS = {
     "ceiling track": (["ceiling", "track"], ["v.avi", "--calibration", "a.json", "--input2", "w.avi",
                                              "--calibration", "b.json", "--camera", "lens.json", "--out", "t.csv",
@@ -27,19 +28,6 @@ CONFIG_VERBS = {
     "seam track": (["seam", "track"], ["logs", "--out", "d", "--jsonl", "-"]),
     "seam demo": (["seam", "demo"], ["--steps", "40", "--particles", "20", "--runs", "2"]),
 }
-
-
-@pytest.mark.parametrize("verb", CONFIG_VERBS)
-def test_dump_config_round_trips(verb, tmp_path, capsys):
-    """--dump-config prints YAML that --config reads back to the same parameters."""
-    command, required = CONFIG_VERBS[verb]
-    assert main([*command, *required, "--dump-config"]) == 0
-    dumped = capsys.readouterr().out
-    params = yaml.safe_load(dumped)
-    assert "config" not in params and "dump_config" not in params and "help" not in params
-    (tmp_path / "c.yaml").write_text(dumped)
-    assert main([*command, "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
-    assert capsys.readouterr().out == dumped
 
 
 def test_repeated_and_either_or_flags_in_a_config(tmp_path, capsys):
