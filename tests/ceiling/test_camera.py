@@ -231,9 +231,10 @@ def test_the_command_is_one_library_call(tmp_path, views, capsys):
     seen = []
     run = calibrate_lens_files(argv, BOARD, SQUARE, tmp_path / "lib.json", on_unreadable=lambda n, w: seen.append(n))
     cli, lib = load_camera(tmp_path / "cli.json"), load_camera(tmp_path / "lib.json")
-    # OpenCV's solver is not bit-reproducible across calls (its threads): equal to 1e-9
-    np.testing.assert_allclose(cli.K, lib.K, rtol=1e-9)
-    np.testing.assert_allclose(cli.dist, lib.dist, rtol=1e-9, atol=1e-12)
+    # OpenCV's solver is not bit-reproducible across calls (its threads): a CI run saw 9e-9 relative
+    # on k2, so equal to 1e-6 (a lens model differing there is the same lens to far below a pixel)
+    np.testing.assert_allclose(cli.K, lib.K, rtol=1e-6)
+    np.testing.assert_allclose(cli.dist, lib.dist, rtol=1e-6, atol=1e-9)
     assert seen == [str(tmp_path / "missing.png")] and run.views == 6 and len(run.result.used) == 5
     assert "calibrated the lens from 5 of 6 views" in printed.out
     assert printed.err.count("view skipped") == 1
