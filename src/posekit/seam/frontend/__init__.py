@@ -6,4 +6,4 @@ The public names are exported by :mod:`posekit.seam`; the sub-package lists its 
 
 __all__ = ["commands", "compare", "config", "config_cell", "config_legacy", "config_messages", "config_types", "design", "logs",
            "logs_setup", "plots", "profile", "report", "simulate", "study", "tracker", "trajectories", "tune",
-           "tune_fit", "tune_truth"]
+           "tune_fit", "tune_intervals", "tune_nis", "tune_truth"]
