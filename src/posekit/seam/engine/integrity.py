@@ -315,7 +315,7 @@ class IntegrityMonitor:
 
     def _long_test(self) -> str | None:
         """The reason the long window fails (None: it passes; see ``nis_mean``)."""
-        if self._long_sum is None:
+        if self._long_sum is None or self._long_sum.size == 0:   # no sensor: nothing to test
             return None
         C = self._long_sum.size
         alpha = self.alpha_degraded / C
