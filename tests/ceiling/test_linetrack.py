@@ -154,7 +154,8 @@ def test_rendered_line_clip(phase_s, seconds):
 @pytest.mark.parametrize("method", ["moments", "hough"])
 def test_cli_track_line(capsys, tmp_path, method):
     render = pytest.importorskip("posekit.ceiling.sim.render")
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
     from posekit.ceiling.studies.demo import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=2.0, path_phase_s=12.0)
@@ -180,7 +181,8 @@ def test_cli_track_dotted_line(capsys, tmp_path):
     """§III-C: `track --dots line --line-method dotted` on the dotted line `simulate` renders; the
     solid-line measurement finds no segment in it (so the method must be chosen)."""
     render = pytest.importorskip("posekit.ceiling.sim.render")
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
     from posekit.ceiling.studies.demo import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=4.0, path_phase_s=12.0, line_pattern="dotted")

@@ -287,7 +287,8 @@ def cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def short_render(tmp_path_factory):
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
     render = needs_renderer()
     out = tmp_path_factory.mktemp("render")
     cfg = render.SceneConfig(duration_s=3.0, dots=("red", "green"), path_phase_s=12.0)

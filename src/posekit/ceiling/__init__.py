@@ -9,7 +9,8 @@ renderer) and :mod:`~posekit.ceiling.studies`.
 
 from .camera.commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files
 from .camera.grid import CeilingGrid, find_grid_corners
-from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
+from .camera.homography import Calibration, calibrate, load_calibration
+from .camera.points import read_points_csv, write_points_csv
 from .detect.dots import DotDetector
 from .detect.lines import Line, LineDetector
 from .detect.signature import DotSignature

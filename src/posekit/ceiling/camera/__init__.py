@@ -4,17 +4,10 @@ that feeds it."""
 
 from .commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files, expand_images
 from .grid import CeilingGrid, find_grid_corners
-from .homography import (
-    Calibration,
-    calibrate,
-    load_calibration,
-    point_residuals,
-    radial_pattern,
-    read_points_csv,
-    undistort_calibration_points,
-    write_points_csv,
-)
+from .homography import Calibration, calibrate, load_calibration, point_residuals
 from .lens import CameraModel, LensCalibration, calibrate_camera, find_board, load_camera, save_camera
+from .lens_check import radial_pattern
+from .points import read_points_csv, undistort_calibration_points, write_points_csv
 
 __all__ = [
     "CameraModel",

@@ -99,7 +99,8 @@ def calibrate_rendered_points(render_dir, grid=None, lens=None):
     image_uv : ndarray, shape (N, 2)
         Their pixels as seen (distorted), px.
     """
-    from ..camera.homography import calibrate, read_points_csv, undistort_calibration_points
+    from ..camera.homography import calibrate
+    from ..camera.points import read_points_csv, undistort_calibration_points
 
     render_dir = Path(render_dir)
     pts = read_points_csv(render_dir / "calibration_points.csv")

@@ -44,8 +44,9 @@ HEADER = ("| case | seed | ok | predicted | lost | ok error mean (mm) | p95 | ma
 
 def effect_row(name: str, overrides, use_camera: bool, *, duration_s: float, seed: int, out_dir) -> str:
     """Render, calibrate, track one case; its Markdown table row."""
-    from ..camera.homography import calibrate, read_points_csv, undistort_calibration_points
+    from ..camera.homography import calibrate
     from ..camera.lens import load_camera
+    from ..camera.points import read_points_csv, undistort_calibration_points
     from ..sim.render import REALISTIC, SceneConfig, render_video
     from ..track.pipeline import track_video
     from .demo import compare_with_truth, read_truth_csv
