@@ -135,7 +135,8 @@ def test_cli_from_image_through_the_lens(tmp_path, capsys):
     renderer's calibration points, which are OpenCV-checked in test_render_realistic)."""
     from posekit.ceiling.camera.homography import load_calibration
     from posekit.ceiling.camera.points import read_points_csv
-    from posekit.ceiling.sim.render import SceneConfig, render_video
+    from posekit.ceiling.sim.config import SceneConfig
+    from posekit.ceiling.sim.video import render_video
 
     cfg = SceneConfig(dist=DIST, duration_s=0.2, width_px=432, height_px=240, focal_px=185.0)
     paths = render_video(cfg, tmp_path / "sim")

@@ -181,7 +181,7 @@ def test_bad_dots_and_calibrations(tmp_path):
 def needs_renderer():
     """The renderer and the detector (helper B), or skip the test that needs them."""
     pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
-    return pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
+    return pytest.importorskip("posekit.ceiling.sim", reason="the renderer (posekit.ceiling.sim.render) is missing")
 
 
 def scene_and_camera(cfg):

@@ -3,8 +3,10 @@ on it, with what a real installation adds (lens, bloom, exposure, occluders, str
 compression). Uses the models (camera, calibration), never the tracker's internals."""
 
 from .config import REALISTIC, SceneConfig
-from .render import CeilingScene, iter_frames, render_video, true_homography
+from .render import CeilingScene, iter_frames
+from .scene_geometry import true_homography
 from .simulation import CeilingSimulation, scene_config, scene_effects, simulate, simulation_dots
+from .video import render_video
 
 __all__ = ["REALISTIC", "SceneConfig", "CeilingScene", "iter_frames", "render_video", "true_homography",
            "CeilingSimulation", "scene_config", "scene_effects", "simulate", "simulation_dots"]

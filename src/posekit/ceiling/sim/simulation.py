@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 from ...errors import ConfigError
 from .config import REALISTIC, SceneConfig
-from .render import RenderedVideo, render_video
+from .video import RenderedVideo, render_video
 
 __all__ = ["DOT_CHOICES", "MAX_DURATION_S", "MAX_FRAMES", "CeilingSimulation", "simulation_dots", "scene_config",
            "scene_effects", "simulate"]
@@ -132,7 +132,7 @@ def simulate(out: str | Path, *, frames_png: bool = False, progress: Callable | 
 
     ``options`` are :func:`scene_config`'s (``seed``, ``dots``, ``duration_s``, ``fps``, ``holes``,
     ``noise_grey``, ``realistic``, ``config``, ``distortion`` and the effects). Writes what
-    :func:`~posekit.ceiling.sim.render.render_video` writes (video, truth.csv, calibration_points.csv,
+    :func:`~posekit.ceiling.sim.video.render_video` writes (video, truth.csv, calibration_points.csv,
     reference.png, camera.json, stray_lights.csv; frames/ with ``frames_png``).
     """
     config = scene_config(**options)

@@ -1,6 +1,6 @@
 """The ceiling system end to end on a synthetic video: the paper's §V in one call.
 
-:func:`run_demo` renders a ceiling video (:mod:`posekit.ceiling.render`), calibrates the
+:func:`run_demo` renders a ceiling video (:mod:`posekit.ceiling.sim.video`), calibrates the
 camera from the grid corners of the dot-free ``reference.png`` (the T-bar crossings found
 by :func:`~posekit.ceiling.grid.find_grid_corners` from four roughly "clicked" corners;
 ``calibration_points.csv`` when the reference image is missing), tracks the dot(s)
@@ -82,7 +82,7 @@ def calibrate_rendered_points(render_dir, grid=None, lens=None):
     Parameters
     ----------
     render_dir : path
-        Folder written by :func:`~posekit.ceiling.render.render_video`.
+        Folder written by :func:`~posekit.ceiling.sim.video.render_video`.
     grid : CeilingGrid, optional
         The ceiling lattice (default: the renderer's default tiles).
     lens : CameraModel, optional
@@ -111,7 +111,7 @@ def calibrate_rendered_points(render_dir, grid=None, lens=None):
 
         from ..camera.grid import CeilingGrid, find_grid_corners
         if grid is None:
-            from ..sim.render import SceneConfig
+            from ..sim.config import SceneConfig
             c = SceneConfig()
             grid = CeilingGrid(spacing_mm=c.tile_size_mm, bar_width_mm=c.tbar_width_mm)
         image = cv2.imread(str(ref))
@@ -446,7 +446,8 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
     cv2 = require("cv2", "vision", "posekit ceiling demo")
 
     from ..camera.lens import CameraModel, load_camera
-    from ..sim.render import SceneConfig, render_video
+    from ..sim.config import SceneConfig
+    from ..sim.video import render_video
     from ..track.pipeline import track_video, write_track_csv
     from .accuracy import known_points_assessment, simulate_heading_error
     from .figures import plot_calibration_check, plot_heading_simulation, plot_known_points
@@ -474,7 +475,7 @@ def run_demo(out_dir, *, dots=("red", "green"), seconds: float | None = None, se
         lens_method = f"given ({camera if not isinstance(camera, CameraModel) else 'model'}; rms {lens.rms_px:.3f} px)"
     elif any(cfg.dist):
         from ..camera.lens import save_camera
-        from ..sim.render import lens_camera
+        from ..sim.scene_geometry import lens_camera
         lc = lens_from_chessboards(lens_camera(cfg), out, seed=int(seed))
         lens = lc.camera
         save_camera(lens, out / "camera_calibrated.json")

@@ -3,7 +3,7 @@ for all of them, against the renderer's truth.
 
 Run ``python -m posekit.ceiling.render_study [--duration-s 30] [--seeds 0,1] [--out DIR]``: it
 renders each case (one red dot, the default scene plus one effect of
-:data:`~posekit.ceiling.render.REALISTIC`), calibrates from the exact grid points of
+:data:`~posekit.ceiling.sim.config.REALISTIC`), calibrates from the exact grid points of
 ``calibration_points.csv`` (undistorted with the simulated lens where the case says
 ``--camera``), tracks with :func:`~posekit.ceiling.track.pipeline.track_video` and prints a Markdown
 table: status counts, the error of ``ok`` rows (mm), ``ok`` rows more than 50 mm off (a lamp
@@ -47,7 +47,8 @@ def effect_row(name: str, overrides, use_camera: bool, *, duration_s: float, see
     from ..camera.homography import calibrate
     from ..camera.lens import load_camera
     from ..camera.points import read_points_csv, undistort_calibration_points
-    from ..sim.render import REALISTIC, SceneConfig, render_video
+    from ..sim.config import REALISTIC, SceneConfig
+    from ..sim.video import render_video
     from ..track.pipeline import track_video
     from .demo import compare_with_truth, read_truth_csv
 
