@@ -156,7 +156,7 @@ def test_cli_track_line(capsys, tmp_path, method):
     render = pytest.importorskip("posekit.ceiling.sim")
     from posekit.ceiling.camera.homography import calibrate
     from posekit.ceiling.camera.points import read_points_csv
-    from posekit.ceiling.studies.demo import read_truth_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=2.0, path_phase_s=12.0)
     paths = render.render_video(cfg, tmp_path)
@@ -183,7 +183,7 @@ def test_cli_track_dotted_line(capsys, tmp_path):
     render = pytest.importorskip("posekit.ceiling.sim")
     from posekit.ceiling.camera.homography import calibrate
     from posekit.ceiling.camera.points import read_points_csv
-    from posekit.ceiling.studies.demo import read_truth_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=4.0, path_phase_s=12.0, line_pattern="dotted")
     paths = render.render_video(cfg, tmp_path)

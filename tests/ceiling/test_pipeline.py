@@ -300,7 +300,7 @@ def short_render(tmp_path_factory):
 
 def test_cli_track_video_and_image_folder(capsys, short_render):
     out, paths = short_render
-    from posekit.ceiling.studies.demo import read_truth_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     truth = read_truth_csv(paths.truth)
     for source, extra in ((paths.video, []), (paths.frames_dir, ["--frame-rate-hz", "15"])):
         csv_path = out / f"track_{source.name}.csv"

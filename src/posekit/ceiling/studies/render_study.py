@@ -50,7 +50,7 @@ def effect_row(name: str, overrides, use_camera: bool, *, duration_s: float, see
     from ..sim.config import REALISTIC, SceneConfig
     from ..sim.video import render_video
     from ..track.pipeline import track_video
-    from .demo import compare_with_truth, read_truth_csv
+    from .truth import compare_with_truth, read_truth_csv
 
     kw = dict(REALISTIC) if overrides == "REALISTIC" else {
         k: (REALISTIC[k] if v == "REALISTIC" else v) for k, v in overrides.items()}
