@@ -2,20 +2,25 @@
 ``--config``/``--dump-config`` on the verbs with more than a few parameters (seam's own ``--config``,
 the cell's YAML, kept where it was), one spelling per concept (old spellings work, with one note)."""
 
+import dataclasses
 import json
 
 import pytest
 import yaml
 
-from posekit.ceiling import plan_track, scene_config, simulate
+from posekit.ceiling import SceneConfig, plan_track, scene_config, simulate
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.seam import demo as seam_demo
 from posekit.seam import episode_config, simulate_episodes, track_episode, tune
 
-#: Ceiling and seam verbs whose parameters are their flags: command words and required arguments
-#: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's).
+#: Ceiling and seam verbs with --config/--dump-config: command words and required arguments
+#: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's). Their parameters
+#: are their flags, except ceiling simulate's: its file is the scene (SceneConfig keys).
 CONFIG_VERBS = {
+    "ceiling simulate": (["ceiling", "simulate"], ["--seed", "7", "--duration-s", "2.5", "--frame-rate-hz", "10",
+                                                   "--dots", "red,green", "--no-holes", "--realistic",
+                                                   "--distortion", "0.1,0,0,0", "--occluders", "0", "--out", "d"]),
     "ceiling track": (["ceiling", "track"], ["v.avi", "--calibration", "a.json", "--input2", "w.avi",
                                              "--calibration", "b.json", "--camera", "lens.json", "--out", "t.csv",
                                              "--frame-rate-hz", "12.5", "--max-frames", "9"]),
@@ -121,6 +126,67 @@ def test_the_scene_rules_live_in_the_library(tmp_path):
         scene_config(duration_s=3600, fps=60)
     with pytest.raises(ConfigError, match="^--dots: expected one of red | red,green | red,red | line, got 'blue'$"):
         scene_config(dots="blue")
+
+
+def test_ceiling_simulate_dump_config_is_the_scene_read_back(rendered, tmp_path, capsys):
+    """--dump-config prints every SceneConfig key; --config reads it back to the same scene and the same
+    video (the fixture's, rendered from flags)."""
+    flags = ["--seed", "5", "--duration-s", "1", "--frame-rate-hz", "4", "--noise-grey", "6", "--realistic",
+             "--occluders", "0", "--codec", "mjpg"]
+    assert main(["ceiling", "simulate", *flags, "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    path = tmp_path / "scene.yaml"
+    path.write_text(dumped)
+    assert list(yaml.safe_load(dumped)) == [f.name for f in dataclasses.fields(SceneConfig)]
+    expected = scene_config(seed=5, duration_s=1, fps=4, noise_grey=6, realistic=True, occluders=0, codec="mjpg")
+    assert scene_config(config=path) == expected
+    assert main(["ceiling", "simulate", "--config", str(path), "--out", str(tmp_path / "sim")]) == 0
+    for name in ("truth.csv", "calibration_points.csv", "camera.json", "video.avi"):
+        assert (tmp_path / "sim" / name).read_bytes() == (rendered / name).read_bytes(), name
+
+
+def test_ceiling_simulate_flags_win_over_the_file_and_keep_what_they_do_not_give(tmp_path, capsys):
+    """A flag not given keeps the file's value (it used to be its argparse default); one given wins."""
+    path = tmp_path / "scene.yaml"
+    path.write_text("seed: 4\nduration_s: 5\nfps: 10\ndots: red,green\nholes: false\nbloom: 0.5\n")
+    assert main(["ceiling", "simulate", "--config", str(path), "--seed", "9", "--frame-rate-hz", "12",
+                 "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    p = yaml.safe_load(dumped)
+    assert (p["seed"], p["fps"], p["duration_s"], p["dots"], p["holes"], p["bloom"], p["noise_std"]) == (
+        9, 12.0, 5, ["red", "green"], False, 0.5, 2.0)
+    assert scene_config(config=path, seed=9, fps=12) == SceneConfig(seed=9, fps=12.0, duration_s=5,
+                                                                   dots=("red", "green"), holes=False, bloom=0.5)
+    (tmp_path / "back.yaml").write_text(dumped)
+    assert main(["ceiling", "simulate", "--config", str(tmp_path / "back.yaml"), "--dump-config"]) == 0
+    assert capsys.readouterr().out == dumped
+    assert main(["ceiling", "simulate", "--config", str(tmp_path / "back.yaml"), "--holes", "--dots", "red",
+                 "--dump-config"]) == 0
+    p = yaml.safe_load(capsys.readouterr().out)
+    assert (p["holes"], p["dots"], p["seed"]) == (True, ["red"], 9)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("duration_s: 0\n", "{path}: duration_s: expected a positive number of seconds, got 0"),
+    ("dots: blue\n", "{path}: dots: expected one of red | red,green | red,red | line, got 'blue'"),
+    ("duration_s: 3600\nfps: 60\n", "--duration-s 3600 × --frame-rate-hz 60 = 216000 frames; expected at most 54000"),
+    ("bloom: lots\n", "{path}: must be real number, not str; expected each setting as in SceneConfig (numbers, "
+                      "lists of numbers, names)"),
+    ("seeed: 1\n", "{path}: unknown setting 'seeed'; expected keys of SceneConfig (e.g. dist, bloom, occluders, "
+                    "stray_lights, codec, focal_px)"),
+    ("- 1\n", "{path}: expected a mapping of scene settings (e.g. 'bloom: 1')"),
+])
+def test_ceiling_simulate_bad_scene_file_is_one_line(tmp_path, capsys, text, message):
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    for extra in (["--out", str(tmp_path / "o")], ["--dump-config"]):
+        rc = main(["ceiling", "simulate", "--config", str(path), *extra])
+        out, err = capsys.readouterr()
+        assert (rc, out, err) == (1, "", f"posekit: error: {message.format(path=path)}\n")
+    assert not (tmp_path / "o").exists()
+    rc = main(["ceiling", "simulate"])
+    assert (rc, capsys.readouterr().err) == (1, "posekit: error: --out: an output folder is required (or use "
+                                                "--dump-config)\n")
 
 
 def test_the_track_rules_live_in_the_library(tmp_path):

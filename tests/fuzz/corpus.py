@@ -145,7 +145,8 @@ def _consumers():
 def _readers() -> dict:
     """name -> (reader(path), file name or folder layout, list of seed inputs)."""
     from posekit.ceiling.camera import load_camera
-    from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+    from posekit.ceiling.camera.homography import load_calibration
+    from posekit.ceiling.camera.points import read_points_csv
     from posekit.ceiling.track.sources import open_frames
     from posekit.io import read_image
     from posekit.localcal.registration.formats import read_euroc, read_kitti, read_rosbag, read_tum

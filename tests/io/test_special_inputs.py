@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from posekit.ceiling.camera import load_camera
-from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+from posekit.ceiling.camera.homography import load_calibration
+from posekit.ceiling.camera.points import read_points_csv
 from posekit.ceiling.track.sources import open_frames
 from posekit.errors import PosekitError
 from posekit.io import read_image
