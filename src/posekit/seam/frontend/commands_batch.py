@@ -15,7 +15,8 @@ from pathlib import Path
 from ...errors import ConfigError
 from .design import SensorDesign, design_configurations, distance_grid, sensor_design, write_design
 from .profile import write_profile
-from .study import SeamStudy, make_factors, seam_study, study_base, write_study
+from .study import SeamStudy, seam_study, write_study
+from .study_factors import make_factors, study_base
 from .tune import TuneResult, tune_profile, tune_simulated
 
 __all__ = ["MAX_SIMULATED", "MAX_STUDY_EPISODES", "MAX_DESIGN_EPISODES", "StudyRun", "DesignRun", "tune_command",
