@@ -70,6 +70,7 @@ from .frontend.commands_batch import (
     study,
     tune,
     tune_command,
+    tune_config,
 )
 from .frontend.compare import (
     FIG8_SENSORS,
@@ -182,6 +183,7 @@ __all__ = [
     "StudyRun",
     "DesignRun",
     "tune_command",
+    "tune_config",
     "tune",
     "check_study_size",
     "study",
