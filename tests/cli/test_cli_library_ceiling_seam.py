@@ -12,7 +12,7 @@ from posekit.ceiling import SceneConfig, plan_track, scene_config, simulate
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.seam import demo as seam_demo
-from posekit.seam import episode_config, simulate_episodes, track_episode, tune
+from posekit.seam import dump_profile, episode_config, simulate_episodes, track_episode, tune
 
 #: Ceiling and seam verbs with --config/--dump-config: command words and required arguments
 #: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's). Their parameters
@@ -289,21 +289,95 @@ def test_seam_demo_is_one_library_call(tmp_path, capsys):
         assert f"{s.metrics['rmse_mm']['y']:.3f}" in printed
 
 
-def test_seam_study_and_design_dump_the_cell_configuration_they_read_back(tmp_path, capsys):
-    """seam's --config is the cell's YAML (DESIGN.md); --dump-config prints it with the overrides."""
-    for verb, extra in (("study", ["--steps", "40", "--sensors", "1"]), ("design", ["--particles", "33"])):
-        assert main(["seam", verb, *extra, "--dump-config"]) == 0
-        dumped = capsys.readouterr().out
-        (tmp_path / "c.yaml").write_text(dumped)
-        assert main(["seam", verb, "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
-        assert capsys.readouterr().out == dumped
-        assert main(["seam", "simulate", "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
-        assert capsys.readouterr().out == dumped
-    assert yaml.safe_load(dumped)["filter"]["particles"] == 33
+#: seam verbs whose --config is the cell's YAML (DESIGN.md): the verb's arguments with overrides, the
+#: command that reads the dump back (--config FILE --dump-config appended), and what the dump must hold.
+CELL_CONFIG_VERBS = {
+    "simulate": (["simulate", "--trajectory", "yz", "--seed", "4", "--particles", "33"], ["simulate"],
+                 {("trajectory", "kind"): "yz", ("seed",): 4, ("filter", "particles"): 33}),
+    "study": (["study", "--steps", "40", "--sensors", "1"], ["study"],
+              {("trajectory", "steps"): 40, ("cell", "sensors", "count"): 1}),
+    "design": (["design", "--particles", "33"], ["design"], {("filter", "particles"): 33}),
+    "tune --simulate": (["tune", "--simulate", "2", "--trajectory", "yz", "--seed", "7"], ["tune", "--simulate", "2"],
+                        {("trajectory", "kind"): "yz", ("seed",): 7}),
+    "tune LOGDIR": (["tune", "LOG", "--from", "PRIOR", "--with-truth", "--share-sensors"], ["tune", "--simulate", "1"],
+                    {("seed",): 2834126987, ("cell", "sensors", "count"): 2}),
+}
+
+
+@pytest.mark.parametrize("verb", CELL_CONFIG_VERBS)
+def test_seam_verbs_dump_the_cell_configuration_they_read_back(verb, tmp_path, capsys, request):
+    """seam's --config is the cell's YAML (DESIGN.md); --dump-config prints it with the overrides, and the
+    verb itself and ``seam simulate --config`` read it back to the same configuration."""
+    from posekit.seam import load_profile
+    from posekit.seam.frontend.profile import PRIOR_PROFILE
+
+    argv, readback, holds = CELL_CONFIG_VERBS[verb]
+    if "LOG" in argv:
+        log = request.getfixturevalue("seam_log")
+        capsys.readouterr()                                 # what the fixture's simulate printed
+        argv = [str(log) if a == "LOG" else str(PRIOR_PROFILE) if a == "PRIOR" else a for a in argv]
+    assert main(["seam", *argv, "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    (tmp_path / "c.yaml").write_text(dumped)
+    for again in (readback, ["simulate"]):
+        assert main(["seam", *again, "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
+        assert capsys.readouterr().out == dumped, again
+    data = yaml.safe_load(dumped)
+    for path, value in holds.items():
+        node = data
+        for key in path:
+            node = node[key]
+        assert node == value, path
+    if "--from" in argv:                                    # the profile the tuner starts from
+        assert data["profile"]["walk"] == yaml.safe_load(dump_profile(load_profile(PRIOR_PROFILE)))["walk"]
+
+
+@pytest.fixture(scope="module")
+def seam_log(tmp_path_factory):
+    """A recorded episode (simulate --save-log, seed 2: run 0's episode seed 2834126987)."""
+    root = tmp_path_factory.mktemp("seamlog")
+    assert main(["seam", "simulate", "--steps", "20", "--particles", "20", "--seed", "2", "--out", str(root / "sim"),
+                 "--save-log", str(root / "log")]) == 0
+    return root / "log"
+
+
+def test_seam_tune_dump_config_simulates_the_episodes_tune_fits_on(tmp_path, capsys):
+    """``seam tune --simulate R --config C --trajectory K --seed S --dump-config``, read by ``seam simulate
+    --config``, simulates the very episode the tuner fits on (the tuner's own simulate_episodes, same bytes)."""
+    from posekit.seam.frontend.config import apply_overrides, load_config
+    from posekit.seam.frontend.tune import simulate_episodes as tune_episodes
+
+    (tmp_path / "tiny.yaml").write_text("trajectory: {steps: 25}\nfilter: {particles: 20}\n")
+    assert main(["seam", "tune", "--simulate", "1", "--config", str(tmp_path / "tiny.yaml"), "--trajectory", "bend",
+                 "--seed", "11", "--dump-config"]) == 0
+    (tmp_path / "c.yaml").write_text(capsys.readouterr().out)
+    assert main(["seam", "simulate", "--config", str(tmp_path / "c.yaml"), "--out", str(tmp_path / "sim"),
+                 "--save-log", str(tmp_path / "log")]) == 0
+    cfg = apply_overrides(load_config(tmp_path / "tiny.yaml"), {"trajectory.kind": "bend"})
+    (fitted,) = tune_episodes(cfg, 1, 11, tmp_path / "tune")
+    for name in ("seam.csv", "log.csv", "truth.csv"):
+        assert (fitted / name).read_bytes() == (tmp_path / "log" / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["tune", "--simulate", "2", "--trajectory", "xy,yz"],
+     "--dump-config: --trajectory names 2 kinds (xy, yz); a configuration holds one trajectory.kind: dump one kind at "
+     "a time (the cell is the same)"),
+    (["tune", "--trajectory", "xy"], "seam tune: expected at least one LOGDIR (or --simulate RUNS)"),
+    (["tune", "--simulate", "2", "--trajectory", "zz"], "--trajectory: expected kinds among xy, yz, line, bend, got 'zz'"),
+])
+def test_seam_tune_dump_config_refuses_in_one_line(argv, message, capsys):
+    assert main(["seam", *argv, "--dump-config"]) == 1
+    assert capsys.readouterr().err == f"posekit: error: {message}\n"
+
+
+def test_seam_verbs_need_out_unless_dump_config(capsys):
     rc = main(["seam", "design", "--particles", "33"])
     err = capsys.readouterr().err
     assert rc == 1 and err == "posekit: error: --out: an output folder is required (or use --dump-config)\n"
-
+    rc = main(["seam", "tune", "--simulate", "1"])
+    err = capsys.readouterr().err
+    assert rc == 1 and err == "posekit: error: --out: a profile file is required (or use --dump-config)\n"
 
 
 def test_ceiling_calibrate_is_one_library_call(rendered, tmp_path, capsys):
