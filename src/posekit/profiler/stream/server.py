@@ -100,17 +100,10 @@ from .protocol import MAX_POINTS, Frame
 from .server_options import check_options
 from .server_receiver import SensorReceiver
 from .server_stats import TIMING_KEYS, ServerStats
-from .server_support import (
-    Counts,
-    LogLimiter,
-    check_address,
-    parse_address,
-    read_token_file,
-    token_digest,
-)
-from .server_worker import NAN_STORM, PoseWorker
+from .server_support import Counts, LogLimiter, check_address, token_digest
+from .server_worker import PoseWorker
 
-__all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
+__all__ = ["PoseServer"]
 
 
 class PoseServer(SensorReceiver, PoseWorker, ServerStats):
@@ -153,7 +146,8 @@ class PoseServer(SensorReceiver, PoseWorker, ServerStats):
     token : str or bytes, optional
         Shared secret every sensor must present first (see
         :func:`~posekit.profiler.stream.protocol.encode_hello`); required with ``allow_remote``.
-        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`read_token_file` reads one from a file.
+        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`~posekit.profiler.stream.server_support.read_token_file` reads one
+        from a file.
     idle_timeout_s : float
         A connection that delivers no complete frame for this long is closed, s.
     read_timeout_s : float

@@ -22,7 +22,7 @@ class ServerStats:
     """Counters and per-stage timings of a running :class:`~posekit.profiler.stream.server.PoseServer`."""
 
     def stats(self) -> dict:
-        """Counters since :meth:`start`.
+        """Counters since :meth:`~posekit.profiler.stream.server.PoseServer.start`.
 
         Returns
         -------
