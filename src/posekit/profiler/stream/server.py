@@ -80,7 +80,6 @@ arrived over TCP.
 
 import gc
 import logging
-import socket
 import threading
 import time
 from collections import Counter, deque
@@ -100,7 +99,7 @@ from .protocol import MAX_POINTS, Frame
 from .server_options import check_options
 from .server_receiver import SensorReceiver
 from .server_stats import TIMING_KEYS, ServerStats
-from .server_support import Counts, LogLimiter, check_address, token_digest
+from .server_support import Counts, LogLimiter, check_address, listen_socket, token_digest
 from .server_worker import PoseWorker
 
 __all__ = ["PoseServer"]
@@ -294,16 +293,7 @@ class PoseServer(SensorReceiver, PoseWorker, ServerStats):
         self._warm_up()
         if self.freeze_gc:
             gc.freeze()
-        sock = socket.socket(self._listen_family, socket.SOCK_STREAM)
-        try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            sock.bind(self._listen_addr)
-            sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
-            sock.setblocking(False)
-        except OSError as exc:
-            sock.close()
-            raise ConfigError(f"listen address {self._listen_addr[0]}:{self._listen_addr[1]}: "
-                              f"cannot bind ({exc.strerror or exc})") from None
+        sock = listen_socket(self._listen_family, self._listen_addr)
         self._lsock = sock
         self._address = sock.getsockname()[:2]
         self._stop.clear()
