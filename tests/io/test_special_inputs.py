@@ -21,7 +21,7 @@ from posekit.io import read_image
 from posekit.localcal.registration.formats import read_euroc, read_kitti, read_rosbag, read_tum
 from posekit.profiler.gauge.model import load_gauge
 from posekit.profiler.stream.reading import read_profile_file
-from posekit.profiler.stream.server import read_token_file
+from posekit.profiler.stream.server_support import read_token_file
 from posekit.robots import load_urdf
 from posekit.seam import load_config
 from posekit.seam.frontend.logs import read_episode_log
