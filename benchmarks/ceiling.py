@@ -135,7 +135,8 @@ def _realistic(n_frames):
     blinking red LED, reflections), the camera (true homography on undistorted pixels + the
     lens model) and the truth."""
     from posekit.ceiling.camera.homography import Calibration
-    from posekit.ceiling.sim.render import CeilingScene, SceneConfig
+    from posekit.ceiling.sim.config import SceneConfig
+    from posekit.ceiling.sim.render import CeilingScene
     from posekit.ceiling.track.cameras import Camera
 
     cfg = SceneConfig.realistic(duration_s=n_frames / 15.0, seed=0)
@@ -197,7 +198,7 @@ def _run_realistic(n_frames, verbose):
     frames, and live tracking end to end vs decode + MOG2."""
     import tempfile
 
-    from posekit.ceiling.sim.render import render_video
+    from posekit.ceiling.sim.video import render_video
 
     cfg, scene, camera, truth = _realistic(n_frames)
     frames = list(scene.frames(0, n_frames))
@@ -271,7 +272,8 @@ def run(count=None, verbose=True):
     """Run the benchmark; returns the JSON rows (DESIGN.md ``posekit bench`` contract)."""
     import cv2
 
-    from posekit.ceiling.sim.render import CeilingScene, SceneConfig
+    from posekit.ceiling.sim.config import SceneConfig
+    from posekit.ceiling.sim.render import CeilingScene
 
     cv2.setNumThreads(1)
     n_frames = 600 if count is None else max(int(count), 300)

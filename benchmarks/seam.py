@@ -46,7 +46,7 @@ class Scenario:
     def __init__(self, cfg, steps: int, seed: int = 0):
         from posekit.seam.engine.seamline import SeamLine
         from posekit.seam.engine.step import StepInputs
-        from posekit.seam.frontend.simulate import seam_knots
+        from posekit.seam.frontend.episode import seam_knots
         from posekit.seam.frontend.trajectories import nominal_trajectory
 
         rng = np.random.default_rng(seed)

@@ -59,7 +59,7 @@ def _summary(errors, spreads, statuses) -> dict:
 def own_simulator(episodes: int) -> dict:
     """The default profile on posekit's own simulated episodes."""
     from posekit.seam.frontend.config import apply_overrides, config_from_dict, load_config
-    from posekit.seam.frontend.simulate import run_episode
+    from posekit.seam.frontend.episode import run_episode
 
     ex = ROOT / "examples" / "seam"
     scen = {"xy": apply_overrides(config_from_dict({}), {"trajectory.kind": "xy"}),

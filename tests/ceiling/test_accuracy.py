@@ -122,7 +122,7 @@ def test_36_known_points_on_rendered_frames():
     """§V-B on the renderer: the dot at a 6×6 grid over the robot's rectangle, calibration from
     the grid corners found in the dot-free reference image; three of the points lie in
     air-conditioning vents (no dot: the paper's future work)."""
-    render = pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
+    render = pytest.importorskip("posekit.ceiling.sim", reason="the renderer (posekit.ceiling.sim.render) is missing")
     pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
     from posekit.ceiling.camera.grid import CeilingGrid, find_grid_corners
     from posekit.ceiling.camera.homography import calibrate
@@ -147,15 +147,16 @@ def test_known_points_through_a_lens_and_with_stray_lights():
     """A distorting lens with stray lights and people in the scene: with the lens model the known
     points are as accurate as with a pinhole; without it the dots land centimetres off. The
     calibration is the true homography (undistorted pixels), so only the lens is tested."""
-    render = pytest.importorskip("posekit.ceiling.sim.render")
+    render = pytest.importorskip("posekit.ceiling.sim")
     from posekit.ceiling.camera.homography import Calibration
+    from posekit.ceiling.sim.scene_geometry import lens_camera
     from posekit.ceiling.studies.accuracy import known_points_assessment
 
     cfg = render.SceneConfig(dist=render.REALISTIC["dist"], stray_lights=1, reflections=2, occluders=1,
                              width_px=432, height_px=240, focal_px=185.0, holes=False)
     H = render.true_homography(cfg)
     cal = Calibration(H, np.linalg.inv(H), 0.0, 0.0)
-    lens = render.lens_camera(cfg)
+    lens = lens_camera(cfg)
     good = known_points_assessment(cfg, cal, n=4, camera=lens)
     bad = known_points_assessment(cfg, cal, n=4)
     assert good.n_missed == 0 and good.stats.mean_mm < 3.0 and good.stats.max_mm < 6.0

@@ -8,8 +8,9 @@ import json
 
 import numpy as np
 
-from posekit.ceiling.camera.homography import Calibration, calibrate_points, load_calibration
+from posekit.ceiling.camera.homography import Calibration, load_calibration
 from posekit.ceiling.camera.lens import CameraModel, save_camera
+from posekit.ceiling.camera.lens_check import calibrate_points
 from posekit.ceiling.track.cameras import Camera
 from posekit.ceiling.track.pipeline import track_frames
 from tests.ceiling.test_track_scene import H_IMAGE_WORLD, Scene

@@ -11,13 +11,8 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from posekit.ceiling.camera.grid import CeilingGrid, find_grid_corners
-from posekit.ceiling.camera.homography import (
-    Calibration,
-    calibrate,
-    load_calibration,
-    read_points_csv,
-    write_points_csv,
-)
+from posekit.ceiling.camera.homography import Calibration, calibrate, load_calibration
+from posekit.ceiling.camera.points import read_points_csv, write_points_csv
 from posekit.cli.ceiling_calibrate import add_calibrate_parser
 from posekit.errors import CalibrationError, PosekitError
 from posekit.geometry import apply_homography, normalize_homography

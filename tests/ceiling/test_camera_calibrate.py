@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.camera.homography import calibrate, radial_pattern, undistort_calibration_points
+from posekit.ceiling.camera.homography import calibrate
 from posekit.ceiling.camera.lens import CameraModel, save_camera
+from posekit.ceiling.camera.lens_check import radial_pattern
+from posekit.ceiling.camera.points import undistort_calibration_points
 from posekit.cli.ceiling_calibrate import add_calibrate_parser
 from posekit.errors import CalibrationError
 from tests.ceiling.cli_harness import look_at, run_verb
@@ -131,8 +133,10 @@ def test_cli_from_image_through_the_lens(tmp_path, capsys):
     """--from-image with --camera: the distorted reference image is undistorted before the grid
     finder; every crossing found lies on the lens's projection of its world point (truth of the
     renderer's calibration points, which are OpenCV-checked in test_render_realistic)."""
-    from posekit.ceiling.camera.homography import load_calibration, read_points_csv
-    from posekit.ceiling.sim.render import SceneConfig, render_video
+    from posekit.ceiling.camera.homography import load_calibration
+    from posekit.ceiling.camera.points import read_points_csv
+    from posekit.ceiling.sim.config import SceneConfig
+    from posekit.ceiling.sim.video import render_video
 
     cfg = SceneConfig(dist=DIST, duration_s=0.2, width_px=432, height_px=240, focal_px=185.0)
     paths = render_video(cfg, tmp_path / "sim")

@@ -3,7 +3,7 @@ views (as a user would with ``posekit ceiling camera``), then the grid and the d
 
 import re
 
-from posekit.ceiling.sim.render import REALISTIC, SceneConfig
+from posekit.ceiling.sim.config import REALISTIC, SceneConfig
 from posekit.ceiling.studies.demo import run_demo
 
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from posekit.ceiling.sim.render import CeilingScene, SceneConfig
+from posekit.ceiling.sim.config import SceneConfig
+from posekit.ceiling.sim.render import CeilingScene
 from posekit.ceiling.studies.demo import run_demo
 from posekit.ceiling.track.linetrack import DottedLineDetector, dots_to_line
 

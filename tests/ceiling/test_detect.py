@@ -7,7 +7,9 @@ from numpy.testing import assert_allclose
 from posekit.ceiling.detect.dots import DotDetector
 from posekit.ceiling.detect.lines import LineDetector
 from posekit.ceiling.detect.spots import LASER_COLORS, Dot
-from posekit.ceiling.sim.render import CeilingScene, SceneConfig, robot_path
+from posekit.ceiling.sim.config import SceneConfig
+from posekit.ceiling.sim.render import CeilingScene
+from posekit.ceiling.sim.scene_geometry import robot_path
 from posekit.errors import ConfigError, InputFileError
 
 CLEAN = dict(noise_std=0.0, drift_gain=0.0, drift_offset=0.0, gradient=0.0)

@@ -106,7 +106,7 @@ def test_never_ok_without_a_line_and_heading_forgotten_when_lost():
 # --- rendered video (renderer + LineDetector + calibration) ----------------------------------
 
 def scene_and_camera(cfg):
-    render = pytest.importorskip("posekit.ceiling.sim.render")
+    render = pytest.importorskip("posekit.ceiling.sim")
     from posekit.ceiling.camera.homography import calibrate
     scene = render.CeilingScene(cfg)
     pts = scene.calibration_points()
@@ -130,7 +130,7 @@ class RecordingDetector:
 @pytest.mark.parametrize("phase_s, seconds", [(12.0, 6.0), (0.0, 4.0)])
 def test_rendered_line_clip(phase_s, seconds):
     """12 s: drive, stop, turn 90° on the spot, drive on; 0 s: the line crosses a vent."""
-    render = pytest.importorskip("posekit.ceiling.sim.render")
+    render = pytest.importorskip("posekit.ceiling.sim")
     cfg = render.SceneConfig(dots=("line",), duration_s=seconds, path_phase_s=phase_s, noise_std=2.0)
     scene, cam = scene_and_camera(cfg)
     det = RecordingDetector()
@@ -153,9 +153,10 @@ def test_rendered_line_clip(phase_s, seconds):
 
 @pytest.mark.parametrize("method", ["moments", "hough"])
 def test_cli_track_line(capsys, tmp_path, method):
-    render = pytest.importorskip("posekit.ceiling.sim.render")
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
-    from posekit.ceiling.studies.demo import read_truth_csv
+    render = pytest.importorskip("posekit.ceiling.sim")
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=2.0, path_phase_s=12.0)
     paths = render.render_video(cfg, tmp_path)
@@ -179,9 +180,10 @@ def test_cli_track_line(capsys, tmp_path, method):
 def test_cli_track_dotted_line(capsys, tmp_path):
     """§III-C: `track --dots line --line-method dotted` on the dotted line `simulate` renders; the
     solid-line measurement finds no segment in it (so the method must be chosen)."""
-    render = pytest.importorskip("posekit.ceiling.sim.render")
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
-    from posekit.ceiling.studies.demo import read_truth_csv
+    render = pytest.importorskip("posekit.ceiling.sim")
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     from posekit.cli.ceiling_track import add_track_parser
     cfg = render.SceneConfig(dots=("line",), duration_s=4.0, path_phase_s=12.0, line_pattern="dotted")
     paths = render.render_video(cfg, tmp_path)

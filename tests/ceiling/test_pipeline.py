@@ -181,7 +181,7 @@ def test_bad_dots_and_calibrations(tmp_path):
 def needs_renderer():
     """The renderer and the detector (helper B), or skip the test that needs them."""
     pytest.importorskip("posekit.ceiling.detect.dots", reason="the dot detector (posekit.ceiling.detect.dots) is missing")
-    return pytest.importorskip("posekit.ceiling.sim.render", reason="the renderer (posekit.ceiling.sim.render) is missing")
+    return pytest.importorskip("posekit.ceiling.sim", reason="the renderer (posekit.ceiling.sim.render) is missing")
 
 
 def scene_and_camera(cfg):
@@ -287,7 +287,8 @@ def cli(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def short_render(tmp_path_factory):
-    from posekit.ceiling.camera.homography import calibrate, read_points_csv
+    from posekit.ceiling.camera.homography import calibrate
+    from posekit.ceiling.camera.points import read_points_csv
     render = needs_renderer()
     out = tmp_path_factory.mktemp("render")
     cfg = render.SceneConfig(duration_s=3.0, dots=("red", "green"), path_phase_s=12.0)
@@ -299,7 +300,7 @@ def short_render(tmp_path_factory):
 
 def test_cli_track_video_and_image_folder(capsys, short_render):
     out, paths = short_render
-    from posekit.ceiling.studies.demo import read_truth_csv
+    from posekit.ceiling.studies.truth import read_truth_csv
     truth = read_truth_csv(paths.truth)
     for source, extra in ((paths.video, []), (paths.frames_dir, ["--frame-rate-hz", "15"])):
         csv_path = out / f"track_{source.name}.csv"

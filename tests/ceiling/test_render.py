@@ -9,15 +9,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from posekit.ceiling.sim.render import (
-    TRUTH_HEADER,
-    CeilingScene,
-    SceneConfig,
-    iter_frames,
-    render_video,
-    robot_path,
-    true_homography,
-)
+from posekit.ceiling.sim.config import SceneConfig
+from posekit.ceiling.sim.render import CeilingScene, iter_frames
+from posekit.ceiling.sim.scene_geometry import robot_path, true_homography
+from posekit.ceiling.sim.video import TRUTH_HEADER, render_video
 from posekit.cli.ceiling_simulate import add_simulate_parser
 from posekit.errors import ConfigError
 from tests.ceiling.cli_harness import run_verb
@@ -88,7 +83,7 @@ def test_homography_maps_calibration_points(video):
 
 
 def test_homography_is_the_pinhole_camera_on_the_ceiling_plane():
-    from posekit.ceiling.sim.render import _camera
+    from posekit.ceiling.sim.scene_geometry import _camera
 
     config = SceneConfig()
     K, R, t = _camera(config)

@@ -12,8 +12,11 @@ import pytest
 from numpy.testing import assert_allclose
 
 from posekit.ceiling.camera.lens import load_camera
-from posekit.ceiling.sim.render import REALISTIC, CeilingScene, SceneConfig, lens_camera, render_video, true_homography
-from posekit.ceiling.sim.render import _camera as scene_camera
+from posekit.ceiling.sim.config import REALISTIC, SceneConfig
+from posekit.ceiling.sim.render import CeilingScene
+from posekit.ceiling.sim.scene_geometry import _camera as scene_camera
+from posekit.ceiling.sim.scene_geometry import lens_camera, true_homography
+from posekit.ceiling.sim.video import render_video
 from posekit.cli.ceiling_simulate import add_simulate_parser
 from posekit.errors import ConfigError
 from tests.ceiling.cli_harness import run_verb

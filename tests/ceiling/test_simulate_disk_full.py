@@ -12,12 +12,12 @@ from tests.cli_helpers import assert_one_line_error, run_cli
 
 
 def test_injected_enospc_is_one_line_and_nothing_installed(capsys, tmp_path, monkeypatch):
-    import posekit.ceiling.sim.render as render
+    import posekit.ceiling.sim.video as video
 
     def full(path, *a, **k):
         raise OSError(errno.ENOSPC, "No space left on device", str(path))
 
-    monkeypatch.setattr(render, "write_truth_csv", full)
+    monkeypatch.setattr(video, "write_truth_csv", full)
     out = tmp_path / "sim"
     rc, stdout, err = run_cli(capsys, "ceiling", "simulate", "--duration-s", "1", "--out", out)
     assert_one_line_error(rc, stdout, err, "truth.csv", "no space left on device")

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-render = pytest.importorskip("posekit.ceiling.sim.render")
+render = pytest.importorskip("posekit.ceiling.sim")
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,8 @@ import argparse
 import numpy as np
 import pytest
 
-from posekit.ceiling.camera.homography import MAX_POINTS, calibrate, read_points_csv
+from posekit.ceiling.camera.homography import calibrate
+from posekit.ceiling.camera.points import MAX_POINTS, read_points_csv
 from posekit.cli._flags import bounded_float, bounded_int, check_flags, check_range
 from posekit.cli.main import build_parser
 from posekit.errors import CalibrationError, ConfigError

@@ -2,20 +2,25 @@
 ``--config``/``--dump-config`` on the verbs with more than a few parameters (seam's own ``--config``,
 the cell's YAML, kept where it was), one spelling per concept (old spellings work, with one note)."""
 
+import dataclasses
 import json
 
 import pytest
 import yaml
 
-from posekit.ceiling import plan_track, scene_config, simulate
+from posekit.ceiling import SceneConfig, plan_track, scene_config, simulate
 from posekit.cli.main import main
 from posekit.errors import ConfigError
 from posekit.seam import demo as seam_demo
-from posekit.seam import episode_config, simulate_episodes, track_episode, tune
+from posekit.seam import dump_profile, episode_config, simulate_episodes, track_episode, tune
 
-#: Ceiling and seam verbs whose parameters are their flags: command words and required arguments
-#: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's).
+#: Ceiling and seam verbs with --config/--dump-config: command words and required arguments
+#: (test_cli_library.py's test_dump_config_round_trips runs them with the profiler's). Their parameters
+#: are their flags, except ceiling simulate's: its file is the scene (SceneConfig keys).
 CONFIG_VERBS = {
+    "ceiling simulate": (["ceiling", "simulate"], ["--seed", "7", "--duration-s", "2.5", "--frame-rate-hz", "10",
+                                                   "--dots", "red,green", "--no-holes", "--realistic",
+                                                   "--distortion", "0.1,0,0,0", "--occluders", "0", "--out", "d"]),
     "ceiling track": (["ceiling", "track"], ["v.avi", "--calibration", "a.json", "--input2", "w.avi",
                                              "--calibration", "b.json", "--camera", "lens.json", "--out", "t.csv",
                                              "--frame-rate-hz", "12.5", "--max-frames", "9"]),
@@ -123,6 +128,67 @@ def test_the_scene_rules_live_in_the_library(tmp_path):
         scene_config(dots="blue")
 
 
+def test_ceiling_simulate_dump_config_is_the_scene_read_back(rendered, tmp_path, capsys):
+    """--dump-config prints every SceneConfig key; --config reads it back to the same scene and the same
+    video (the fixture's, rendered from flags)."""
+    flags = ["--seed", "5", "--duration-s", "1", "--frame-rate-hz", "4", "--noise-grey", "6", "--realistic",
+             "--occluders", "0", "--codec", "mjpg"]
+    assert main(["ceiling", "simulate", *flags, "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    path = tmp_path / "scene.yaml"
+    path.write_text(dumped)
+    assert list(yaml.safe_load(dumped)) == [f.name for f in dataclasses.fields(SceneConfig)]
+    expected = scene_config(seed=5, duration_s=1, fps=4, noise_grey=6, realistic=True, occluders=0, codec="mjpg")
+    assert scene_config(config=path) == expected
+    assert main(["ceiling", "simulate", "--config", str(path), "--out", str(tmp_path / "sim")]) == 0
+    for name in ("truth.csv", "calibration_points.csv", "camera.json", "video.avi"):
+        assert (tmp_path / "sim" / name).read_bytes() == (rendered / name).read_bytes(), name
+
+
+def test_ceiling_simulate_flags_win_over_the_file_and_keep_what_they_do_not_give(tmp_path, capsys):
+    """A flag not given keeps the file's value (it used to be its argparse default); one given wins."""
+    path = tmp_path / "scene.yaml"
+    path.write_text("seed: 4\nduration_s: 5\nfps: 10\ndots: red,green\nholes: false\nbloom: 0.5\n")
+    assert main(["ceiling", "simulate", "--config", str(path), "--seed", "9", "--frame-rate-hz", "12",
+                 "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    p = yaml.safe_load(dumped)
+    assert (p["seed"], p["fps"], p["duration_s"], p["dots"], p["holes"], p["bloom"], p["noise_std"]) == (
+        9, 12.0, 5, ["red", "green"], False, 0.5, 2.0)
+    assert scene_config(config=path, seed=9, fps=12) == SceneConfig(seed=9, fps=12.0, duration_s=5,
+                                                                   dots=("red", "green"), holes=False, bloom=0.5)
+    (tmp_path / "back.yaml").write_text(dumped)
+    assert main(["ceiling", "simulate", "--config", str(tmp_path / "back.yaml"), "--dump-config"]) == 0
+    assert capsys.readouterr().out == dumped
+    assert main(["ceiling", "simulate", "--config", str(tmp_path / "back.yaml"), "--holes", "--dots", "red",
+                 "--dump-config"]) == 0
+    p = yaml.safe_load(capsys.readouterr().out)
+    assert (p["holes"], p["dots"], p["seed"]) == (True, ["red"], 9)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("duration_s: 0\n", "{path}: duration_s: expected a positive number of seconds, got 0"),
+    ("dots: blue\n", "{path}: dots: expected one of red | red,green | red,red | line, got 'blue'"),
+    ("duration_s: 3600\nfps: 60\n", "--duration-s 3600 × --frame-rate-hz 60 = 216000 frames; expected at most 54000"),
+    ("bloom: lots\n", "{path}: must be real number, not str; expected each setting as in SceneConfig (numbers, "
+                      "lists of numbers, names)"),
+    ("seeed: 1\n", "{path}: unknown setting 'seeed'; expected keys of SceneConfig (e.g. dist, bloom, occluders, "
+                    "stray_lights, codec, focal_px)"),
+    ("- 1\n", "{path}: expected a mapping of scene settings (e.g. 'bloom: 1')"),
+])
+def test_ceiling_simulate_bad_scene_file_is_one_line(tmp_path, capsys, text, message):
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    for extra in (["--out", str(tmp_path / "o")], ["--dump-config"]):
+        rc = main(["ceiling", "simulate", "--config", str(path), *extra])
+        out, err = capsys.readouterr()
+        assert (rc, out, err) == (1, "", f"posekit: error: {message.format(path=path)}\n")
+    assert not (tmp_path / "o").exists()
+    rc = main(["ceiling", "simulate"])
+    assert (rc, capsys.readouterr().err) == (1, "posekit: error: --out: an output folder is required (or use "
+                                                "--dump-config)\n")
+
+
 def test_the_track_rules_live_in_the_library(tmp_path):
     plan = plan_track("v.avi", "c.json", dots="red,red", out=tmp_path / "t.csv")
     assert (plan.robots, plan.dots, plan.inputs) == (2, ("red",), ("v.avi",))
@@ -223,21 +289,95 @@ def test_seam_demo_is_one_library_call(tmp_path, capsys):
         assert f"{s.metrics['rmse_mm']['y']:.3f}" in printed
 
 
-def test_seam_study_and_design_dump_the_cell_configuration_they_read_back(tmp_path, capsys):
-    """seam's --config is the cell's YAML (DESIGN.md); --dump-config prints it with the overrides."""
-    for verb, extra in (("study", ["--steps", "40", "--sensors", "1"]), ("design", ["--particles", "33"])):
-        assert main(["seam", verb, *extra, "--dump-config"]) == 0
-        dumped = capsys.readouterr().out
-        (tmp_path / "c.yaml").write_text(dumped)
-        assert main(["seam", verb, "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
-        assert capsys.readouterr().out == dumped
-        assert main(["seam", "simulate", "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
-        assert capsys.readouterr().out == dumped
-    assert yaml.safe_load(dumped)["filter"]["particles"] == 33
+#: seam verbs whose --config is the cell's YAML (DESIGN.md): the verb's arguments with overrides, the
+#: command that reads the dump back (--config FILE --dump-config appended), and what the dump must hold.
+CELL_CONFIG_VERBS = {
+    "simulate": (["simulate", "--trajectory", "yz", "--seed", "4", "--particles", "33"], ["simulate"],
+                 {("trajectory", "kind"): "yz", ("seed",): 4, ("filter", "particles"): 33}),
+    "study": (["study", "--steps", "40", "--sensors", "1"], ["study"],
+              {("trajectory", "steps"): 40, ("cell", "sensors", "count"): 1}),
+    "design": (["design", "--particles", "33"], ["design"], {("filter", "particles"): 33}),
+    "tune --simulate": (["tune", "--simulate", "2", "--trajectory", "yz", "--seed", "7"], ["tune", "--simulate", "2"],
+                        {("trajectory", "kind"): "yz", ("seed",): 7}),
+    "tune LOGDIR": (["tune", "LOG", "--from", "PRIOR", "--with-truth", "--share-sensors"], ["tune", "--simulate", "1"],
+                    {("seed",): 2834126987, ("cell", "sensors", "count"): 2}),
+}
+
+
+@pytest.mark.parametrize("verb", CELL_CONFIG_VERBS)
+def test_seam_verbs_dump_the_cell_configuration_they_read_back(verb, tmp_path, capsys, request):
+    """seam's --config is the cell's YAML (DESIGN.md); --dump-config prints it with the overrides, and the
+    verb itself and ``seam simulate --config`` read it back to the same configuration."""
+    from posekit.seam import load_profile
+    from posekit.seam.frontend.profile import PRIOR_PROFILE
+
+    argv, readback, holds = CELL_CONFIG_VERBS[verb]
+    if "LOG" in argv:
+        log = request.getfixturevalue("seam_log")
+        capsys.readouterr()                                 # what the fixture's simulate printed
+        argv = [str(log) if a == "LOG" else str(PRIOR_PROFILE) if a == "PRIOR" else a for a in argv]
+    assert main(["seam", *argv, "--dump-config"]) == 0
+    dumped = capsys.readouterr().out
+    (tmp_path / "c.yaml").write_text(dumped)
+    for again in (readback, ["simulate"]):
+        assert main(["seam", *again, "--config", str(tmp_path / "c.yaml"), "--dump-config"]) == 0
+        assert capsys.readouterr().out == dumped, again
+    data = yaml.safe_load(dumped)
+    for path, value in holds.items():
+        node = data
+        for key in path:
+            node = node[key]
+        assert node == value, path
+    if "--from" in argv:                                    # the profile the tuner starts from
+        assert data["profile"]["walk"] == yaml.safe_load(dump_profile(load_profile(PRIOR_PROFILE)))["walk"]
+
+
+@pytest.fixture(scope="module")
+def seam_log(tmp_path_factory):
+    """A recorded episode (simulate --save-log, seed 2: run 0's episode seed 2834126987)."""
+    root = tmp_path_factory.mktemp("seamlog")
+    assert main(["seam", "simulate", "--steps", "20", "--particles", "20", "--seed", "2", "--out", str(root / "sim"),
+                 "--save-log", str(root / "log")]) == 0
+    return root / "log"
+
+
+def test_seam_tune_dump_config_simulates_the_episodes_tune_fits_on(tmp_path, capsys):
+    """``seam tune --simulate R --config C --trajectory K --seed S --dump-config``, read by ``seam simulate
+    --config``, simulates the very episode the tuner fits on (the tuner's own simulate_episodes, same bytes)."""
+    from posekit.seam.frontend.config import apply_overrides, load_config
+    from posekit.seam.frontend.tune import simulate_episodes as tune_episodes
+
+    (tmp_path / "tiny.yaml").write_text("trajectory: {steps: 25}\nfilter: {particles: 20}\n")
+    assert main(["seam", "tune", "--simulate", "1", "--config", str(tmp_path / "tiny.yaml"), "--trajectory", "bend",
+                 "--seed", "11", "--dump-config"]) == 0
+    (tmp_path / "c.yaml").write_text(capsys.readouterr().out)
+    assert main(["seam", "simulate", "--config", str(tmp_path / "c.yaml"), "--out", str(tmp_path / "sim"),
+                 "--save-log", str(tmp_path / "log")]) == 0
+    cfg = apply_overrides(load_config(tmp_path / "tiny.yaml"), {"trajectory.kind": "bend"})
+    (fitted,) = tune_episodes(cfg, 1, 11, tmp_path / "tune")
+    for name in ("seam.csv", "log.csv", "truth.csv"):
+        assert (fitted / name).read_bytes() == (tmp_path / "log" / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["tune", "--simulate", "2", "--trajectory", "xy,yz"],
+     "--dump-config: --trajectory names 2 kinds (xy, yz); a configuration holds one trajectory.kind: dump one kind at "
+     "a time (the cell is the same)"),
+    (["tune", "--trajectory", "xy"], "seam tune: expected at least one LOGDIR (or --simulate RUNS)"),
+    (["tune", "--simulate", "2", "--trajectory", "zz"], "--trajectory: expected kinds among xy, yz, line, bend, got 'zz'"),
+])
+def test_seam_tune_dump_config_refuses_in_one_line(argv, message, capsys):
+    assert main(["seam", *argv, "--dump-config"]) == 1
+    assert capsys.readouterr().err == f"posekit: error: {message}\n"
+
+
+def test_seam_verbs_need_out_unless_dump_config(capsys):
     rc = main(["seam", "design", "--particles", "33"])
     err = capsys.readouterr().err
     assert rc == 1 and err == "posekit: error: --out: an output folder is required (or use --dump-config)\n"
-
+    rc = main(["seam", "tune", "--simulate", "1"])
+    err = capsys.readouterr().err
+    assert rc == 1 and err == "posekit: error: --out: a profile file is required (or use --dump-config)\n"
 
 
 def test_ceiling_calibrate_is_one_library_call(rendered, tmp_path, capsys):

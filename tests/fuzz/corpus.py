@@ -145,13 +145,14 @@ def _consumers():
 def _readers() -> dict:
     """name -> (reader(path), file name or folder layout, list of seed inputs)."""
     from posekit.ceiling.camera import load_camera
-    from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+    from posekit.ceiling.camera.homography import load_calibration
+    from posekit.ceiling.camera.points import read_points_csv
     from posekit.ceiling.track.sources import open_frames
     from posekit.io import read_image
     from posekit.localcal.registration.formats import read_euroc, read_kitti, read_rosbag, read_tum
     from posekit.profiler.gauge.model import load_gauge
     from posekit.profiler.stream.reading import read_profile_file
-    from posekit.profiler.stream.server import read_token_file
+    from posekit.profiler.stream.server_support import read_token_file
     from posekit.robots import load_urdf
     from posekit.seam import load_config
     from posekit.seam.frontend.logs import read_episode_log

@@ -15,7 +15,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+from posekit.ceiling.camera.homography import load_calibration
+from posekit.ceiling.camera.points import read_points_csv
 from posekit.errors import PosekitError
 from posekit.localcal.registration.formats.tum import read_tum
 from posekit.profiler.gauge.model import bundled_gauge_path, load_gauge

@@ -5,7 +5,8 @@ escaped; every message is one line of at most 300 characters."""
 import pytest
 
 from posekit.ceiling.camera import load_camera
-from posekit.ceiling.camera.homography import load_calibration, read_points_csv
+from posekit.ceiling.camera.homography import load_calibration
+from posekit.ceiling.camera.points import read_points_csv
 from posekit.errors import MAX_MESSAGE, ConfigError, GaugeError, InputFileError, PosekitError, one_line
 from posekit.io import number_array, parse_int, parse_number, parse_yaml
 from posekit.localcal.registration.formats import read_euroc, read_kitti, read_tum

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from posekit.ceiling.camera.homography import read_points_csv
+from posekit.ceiling.camera.points import read_points_csv
 from posekit.errors import CalibrationError, GaugeError, InputFileError
 from posekit.io import get_limits, set_limits
 from posekit.localcal.registration.formats import read_euroc, read_kitti, read_tum
@@ -79,7 +79,7 @@ def test_a_profile_csv_is_bounded_by_its_points(tmp_path, monkeypatch):
 
 
 def test_calibration_points_are_bounded_by_lines(tmp_path, monkeypatch):
-    import posekit.ceiling.camera.homography as cal
+    import posekit.ceiling.camera.points as cal
 
     monkeypatch.setattr(cal, "MAX_POINTS", 10)
     path = tmp_path / "pts.csv"

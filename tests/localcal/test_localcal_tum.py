@@ -58,6 +58,8 @@ def test_comments_blank_lines_and_commas_are_accepted(tmp_path):
      "bad.tum:2: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', found 7 fields"),
     ("# c\n0 0 0 0 0 0 0 1\n1 0 zero 0 0 0 0 1\n",
      "bad.tum:3: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', found 'zero'"),
+    ("0 0 0 0 0 0 0 1\n1 0 " + "x" * 60 + " 0 0 0 0 1\n",      # a long field shortened, as every reader does
+     r"bad.tum:2: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', found 'x{37}\.\.\.'$"),
     ("0 0 0 0 0 0 0 1\n1 0 nan 0 0 0 0 1\n", "bad.tum:2: expected finite numbers, found NaN or infinity"),
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 2\n",
      "bad.tum:2: expected a unit quaternion qx qy qz qw, found norm 2"),

@@ -21,7 +21,8 @@ from posekit.errors import ConfigError
 from posekit.profiler import NoiseModel, bundled_gauge, estimate_pose, render_profiles
 from posekit.profiler.sim.poses import loop_poses, sample_poses, visible_mask
 from posekit.profiler.stream.protocol import MAGIC, MAX_POINTS, encode_frame
-from posekit.profiler.stream.server import PoseServer, check_address, parse_address
+from posekit.profiler.stream.server import PoseServer
+from posekit.profiler.stream.server_support import check_address, parse_address
 from posekit.profiler.stream.stream_client import SensorClient
 from posekit.profiler.studies.evaluate import pose_errors
 from tests.profiler.server_helpers import wait_until

@@ -27,7 +27,8 @@ from posekit.profiler.stream.protocol import (
     encode_frame,
     encode_hello,
 )
-from posekit.profiler.stream.server import PoseServer, read_token_file
+from posekit.profiler.stream.server import PoseServer
+from posekit.profiler.stream.server_support import read_token_file
 from posekit.profiler.stream.stream_client import SensorClient
 from tests.profiler.server_helpers import wait_until
 

@@ -261,3 +261,15 @@ def test_socket_source_is_loopback_only_without_allow_remote():
         SocketSource(("10.1.2.3", 0))
     with pytest.raises(ConfigError, match="allow_remote=True needs a token"):
         SocketSource(("0.0.0.0", 0), allow_remote=True)
+
+
+def test_socket_source_on_a_taken_port_says_so_in_one_line():
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        with pytest.raises(ConfigError) as exc:
+            SocketSource(("127.0.0.1", port)).start()
+    assert str(exc.value) == f"listen address 127.0.0.1:{port}: cannot bind (Address already in use)"

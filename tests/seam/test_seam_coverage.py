@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from posekit.seam.frontend.config import apply_overrides, config_from_dict, load_config
-from posekit.seam.frontend.simulate import (
+from posekit.seam.frontend.episode import run_episode
+from posekit.seam.frontend.episode_metrics import (
     STATUS_COLUMNS,
     confident_wrong_fraction,
     integrity_summary,
     metrics,
-    run_episode,
     status_columns,
 )
 from tests.seam.helpers import coverage_band, effective_samples

@@ -11,7 +11,7 @@ from posekit.errors import ConfigError
 from posekit.seam.frontend.compare import episode_seeds
 from posekit.seam.frontend.config import config_from_dict
 from posekit.seam.frontend.design import design_configurations, distance_grid, sensor_design
-from posekit.seam.frontend.simulate import run_episode
+from posekit.seam.frontend.episode import run_episode
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 

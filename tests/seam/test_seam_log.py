@@ -10,8 +10,9 @@ import pytest
 from posekit.errors import ConfigError, InputFileError
 from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam.frontend.config import apply_overrides, config_from_dict
+from posekit.seam.frontend.episode import run_episode
 from posekit.seam.frontend.logs import log_columns, read_episode_log, write_episode_log
-from posekit.seam.frontend.simulate import run_episode, simulate_data
+from posekit.seam.frontend.simulate import simulate_data
 from posekit.seam.frontend.tracker import track_log, track_metrics
 
 

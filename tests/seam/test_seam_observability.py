@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.simulate import run_episode
+from posekit.seam.frontend.episode import run_episode
 
 STEPS = 200
 SEEDS = (1, 2)

@@ -13,7 +13,8 @@ from posekit.cli.main import main
 from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam import config_from_dict, load_config
 from posekit.seam.frontend.config import apply_overrides
-from posekit.seam.frontend.simulate import metrics, plateau_ratio, run_episode
+from posekit.seam.frontend.episode import plateau_ratio, run_episode
+from posekit.seam.frontend.episode_metrics import metrics
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "seam"
 

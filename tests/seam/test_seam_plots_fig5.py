@@ -7,13 +7,13 @@ import numpy as np
 
 from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam.frontend.config import config_from_dict
+from posekit.seam.frontend.episode import measurement_hypotheses, run_episode
 from posekit.seam.frontend.plots import (
     plot_design_ranking,
     plot_ess,
     plot_measurement_hypotheses,
     plot_tracking_errors,
 )
-from posekit.seam.frontend.simulate import measurement_hypotheses, run_episode
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

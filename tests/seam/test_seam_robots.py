@@ -21,7 +21,8 @@ def _episodes(config, sensors):
     """``metrics.json`` of what ``_simulate`` runs, by the library (no figures)."""
     from posekit.seam.frontend.compare import episode_seeds
     from posekit.seam.frontend.config import apply_overrides
-    from posekit.seam.frontend.simulate import metrics, run_episode
+    from posekit.seam.frontend.episode import run_episode
+    from posekit.seam.frontend.episode_metrics import metrics
 
     cfg = apply_overrides(load_config(config), {"cell.sensors.count": sensors, "trajectory.steps": 150,
                                                  "filter.particles": 200})

@@ -6,7 +6,9 @@ import pytest
 
 from posekit.seam.engine.seamline import SeamLine
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.simulate import metrics, run_episode, seam_knots, simulate_data
+from posekit.seam.frontend.episode import run_episode, seam_knots
+from posekit.seam.frontend.episode_metrics import metrics
+from posekit.seam.frontend.simulate import simulate_data
 from posekit.seam.frontend.trajectories import nominal_trajectory
 
 SMALL = {"steps": 100}

@@ -8,16 +8,8 @@ import pytest
 from scipy import stats
 
 from posekit.errors import ConfigError, EstimationError
-from posekit.seam.frontend.study import (
-    ERROR_NAMES,
-    RANKED_COLUMNS,
-    Factor,
-    fit_parameter_effects,
-    get_dotted,
-    make_factors,
-    rank_parameters,
-    set_dotted,
-)
+from posekit.seam.frontend.study_effects import ERROR_NAMES, RANKED_COLUMNS, fit_parameter_effects, rank_parameters
+from posekit.seam.frontend.study_factors import Factor, get_dotted, make_factors, set_dotted
 
 PARAMS = ("strong", "weak", "none_a", "none_b")
 
@@ -121,7 +113,8 @@ def test_study_same_table_serial_and_cluster(tmp_path, capsys):
 
     from posekit.cli.main import main
     from posekit.seam.frontend.config import config_from_dict
-    from posekit.seam.frontend.study import seam_study, study_base, write_study
+    from posekit.seam.frontend.study import seam_study, write_study
+    from posekit.seam.frontend.study_factors import study_base
     from tests.seam.test_seam_plots import png_size
 
     cfg = tmp_path / "tiny.yaml"
@@ -168,9 +161,9 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
     import yaml
 
     from posekit.cli.main import main
-    from posekit.seam.frontend import simulate
+    from posekit.seam.frontend import episode
 
-    real = simulate.run_episode
+    real = episode.run_episode
     calls = []
 
     def flaky(cfg, seed=None, **kw):
@@ -179,7 +172,7 @@ def test_a_failed_run_keeps_its_row(tmp_path, capsys, monkeypatch):
             raise ZeroDivisionError("float division by zero")
         return real(cfg, seed, **kw)
 
-    monkeypatch.setattr(simulate, "run_episode", flaky)
+    monkeypatch.setattr(episode, "run_episode", flaky)
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump(TINY))
     rc = main(["seam", "study", "--config", str(cfg), "--runs", "5", "--scheduler", "serial",

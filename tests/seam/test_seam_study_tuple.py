@@ -5,7 +5,8 @@ import pytest
 
 from posekit.errors import ConfigError
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.study import factor_value, get_dotted, make_factors, seam_study, set_dotted, study_base
+from posekit.seam.frontend.study import seam_study
+from posekit.seam.frontend.study_factors import factor_value, get_dotted, make_factors, set_dotted, study_base
 from tests.cli_helpers import assert_one_line_error, run_cli
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from posekit.geometry import se3_exp
 from posekit.seam.frontend.config import config_from_dict
-from posekit.seam.frontend.simulate import seam_frame_errors
+from posekit.seam.frontend.seam_frame import seam_frame_errors
 from posekit.seam.frontend.tracker import SeamTracker
 from posekit.seam.frontend.trajectories import nominal_trajectory
 

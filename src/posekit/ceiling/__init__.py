@@ -9,14 +9,17 @@ renderer) and :mod:`~posekit.ceiling.studies`.
 
 from .camera.commands import LensRun, PointsCalibration, calibrate_file, calibrate_lens_files
 from .camera.grid import CeilingGrid, find_grid_corners
-from .camera.homography import Calibration, calibrate, load_calibration, read_points_csv, write_points_csv
+from .camera.homography import Calibration, calibrate, load_calibration
+from .camera.points import read_points_csv, write_points_csv
 from .detect.dots import DotDetector
 from .detect.lines import Line, LineDetector
 from .detect.signature import DotSignature
 from .detect.spots import Dot
 from .sim.config import SceneConfig
-from .sim.render import CeilingScene, iter_frames, render_video, true_homography
+from .sim.render import CeilingScene, iter_frames
+from .sim.scene_geometry import true_homography
 from .sim.simulation import CeilingSimulation, scene_config, scene_effects, simulate, simulation_dots
+from .sim.video import render_video
 from .studies.accuracy import heading_std_closed_form, known_points_assessment, simulate_heading_error
 from .studies.demo import run_demo
 from .studies.demo_command import check_demo_lens, demo

@@ -29,19 +29,20 @@ def add_simulate_parser(verbs):
                     "K, dist) and stray_lights.csv. --realistic turns on what a real camera sees: lens "
                     "distortion k1=-0.2, a blooming dot, auto-exposure steps, MPEG-4 compression, a person "
                     "and shadows crossing the view, a steady and a blinking red LED, two reflections; each "
-                    "flag below overrides one effect (0 turns it off).")
-    s.add_argument("--out", required=True, help="output folder")
+                    "flag below overrides one effect (0 turns it off). Precedence: defaults < --realistic < "
+                    "--config SCENE.yaml < flags; --dump-config prints the effective scene.")
+    s.add_argument("--out", default=None, help="output folder (required unless --dump-config)")
     add_overwrite(s)
-    s.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same video; default 0)")
-    s.add_argument("--dots", default="red", help="lasers: red (case A), red,green or red,red (case B, "
-                                                 "40 cm apart), line (case C); default red")
-    s.add_argument("--duration-s", type=bounded_float(0.0, MAX_DURATION_S, "s", lo_open=True), default=60.0,
+    s.add_argument("--seed", type=seed, default=None, help="random seed (same seed, same video; default 0)")
+    s.add_argument("--dots", default=None, help="lasers: red (case A), red,green or red,red (case B, "
+                                                "40 cm apart), line (case C); default red")
+    s.add_argument("--duration-s", type=bounded_float(0.0, MAX_DURATION_S, "s", lo_open=True), default=None,
                    help="video length, (0, 3600] s, at most 54,000 frames (default 60)")
     add_deprecated(s, "--fps", "--frame-rate-hz", "fps", _FPS)
-    s.add_argument("--frame-rate-hz", dest="fps", type=_FPS, default=15.0, help="frame rate, 1..120 Hz (default 15)")
-    s.add_argument("--holes", action="store_true", default=True,
+    s.add_argument("--frame-rate-hz", dest="fps", type=_FPS, default=None, help="frame rate, 1..120 Hz (default 15)")
+    s.add_argument("--holes", action="store_true", default=None,
                    help="air-conditioning vents where a dot vanishes (default)")
-    s.add_argument("--no-holes", dest="holes", action="store_false", help="a ceiling without vents")
+    s.add_argument("--no-holes", dest="holes", action="store_false", default=None, help="a ceiling without vents")
     add_deprecated(s, "--noise-std", "--noise-grey", "noise_grey", _NOISE)
     s.add_argument("--noise-grey", type=_NOISE, default=None,
                    help="sensor noise, 0..255 grey levels (default 2; 3 with --realistic)")
@@ -50,7 +51,10 @@ def add_simulate_parser(verbs):
     r.add_argument("--realistic", action="store_true", help="turn on the realistic set of effects below")
     r.add_argument("--config", metavar="SCENE.yaml",
                    help="YAML mapping of scene settings (keys of SceneConfig, e.g. dist, bloom, occluders, "
-                        "stray_lights, codec, focal_px); flags given on the command line win")
+                        "stray_lights, codec, focal_px, seed, duration_s, fps); flags given on the command line "
+                        "win, a flag not given keeps the file's value")
+    r.add_argument("--dump-config", action="store_true",
+                   help="print the effective scene as YAML (every SceneConfig key; loadable by --config) and exit")
     r.add_argument("--distortion", metavar="K1,K2,P1,P2,K3",
                    help="lens distortion (OpenCV model, about the image centre) [-0.2,0.04,0.0008,-0.0006,0]")
     r.add_argument("--bloom", type=bounded_float(0.0, 5.0), help="blooming of the saturated dot, 0..5 [1]")
@@ -114,13 +118,20 @@ def simulate_options(args) -> dict:
 
 
 def run_simulate(args) -> int:
-    from ..ceiling.sim.simulation import scene_effects, simulate, simulation_dots
+    from ..ceiling.sim.simulation import dump_scene_config, scene_config, scene_effects, simulate, simulation_dots
 
-    simulation_dots(args.dots)
-    if not args.duration_s > 0:
+    if args.dots is not None:
+        simulation_dots(args.dots)
+    if args.duration_s is not None and not args.duration_s > 0:
         raise ConfigError(f"--duration-s: expected a positive number of seconds, got {args.duration_s}")
     check_flags(args)
     options = simulate_options(args)
+    scene = scene_config(**{k: v for k, v in options.items() if k != "frames_png"})    # every check, before output
+    if args.dump_config:
+        sys.stdout.write(dump_scene_config(scene))
+        return 0
+    if not args.out:
+        raise ConfigError("--out: an output folder is required (or use --dump-config)")
     out_folder(args)
     with staged(args) as tmp:
         config, paths = simulate(tmp, progress=_progress, **options)

@@ -223,7 +223,7 @@ def _describe(args, controller, pose_filter) -> str:
 def run_serve(args) -> int:
     from ..errors import ConfigError
     from ..profiler.stream.serve import serve
-    from ..profiler.stream.server import parse_address
+    from ..profiler.stream.server_support import parse_address
 
     check_flags(args)
     listen = parse_address(args.listen, "--listen")

@@ -1,4 +1,5 @@
-"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth]``: fit a cell's profile."""
+"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth]``: fit a cell's profile
+(``--dump-config``: the cell configuration it works with)."""
 
 import sys
 from pathlib import Path
@@ -27,23 +28,41 @@ def add_tune_parser(verbs):
     p.add_argument("--simulate", type=bounded_int(1, MAX_SIMULATED), default=None, metavar="RUNS",
                    help=f"fit on RUNS episodes simulated now (1..{MAX_SIMULATED}; with --config, --seed), "
                         "written to a temporary folder; how the shipped default profile is made")
-    p.add_argument("--config", default=None, help="configuration of the simulated episodes (--simulate)")
+    p.add_argument("--config", default=None,
+                   help="configuration of the simulated episodes (--simulate; default: the paper's setup)")
     p.add_argument("--trajectory", default=None, metavar="KINDS",
                    help="--simulate: RUNS episodes of each comma-separated trajectory kind (xy,yz,line,bend; default "
                         "the configuration's)")
-    p.add_argument("--seed", type=seed, default=0, help="seed of the simulated episodes (--simulate; default 0)")
-    p.add_argument("--out", required=True, metavar="PROFILE.yaml", help="the profile file to write")
+    p.add_argument("--seed", type=seed, default=None,
+                   help="seed of the simulated episodes (--simulate; default the configuration's, 0)")
+    p.add_argument("--dump-config", action="store_true",
+                   help="print the cell configuration it works with (--simulate: the simulated one, with "
+                        "--trajectory KIND and --seed; else the recorded episodes' setup; --from as its profile), "
+                        "loadable by --config of every seam verb, and exit")
+    p.add_argument("--out", default=None, metavar="PROFILE.yaml",
+                   help="the profile file to write (required unless --dump-config)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     p.set_defaults(func=run_tune)
     return p
 
 
 def run_tune(args) -> int:
-    from ..seam.frontend.commands_batch import tune
+    from ..errors import ConfigError
+    from ..seam.frontend.commands_batch import tune, tune_config
     from ._flags import check_flags
     from .seam_simulate import layout_notes
 
     check_flags(args)
+    if args.dump_config:
+        from ..seam.frontend.config import dump_config
+
+        with layout_notes():
+            cfg = tune_config(args.logdirs, base=args.base, simulate=args.simulate, config=args.config,
+                              trajectory=args.trajectory, seed=args.seed)
+        sys.stdout.write(dump_config(cfg))
+        return 0
+    if not args.out:
+        raise ConfigError("--out: a profile file is required (or use --dump-config)")
     with layout_notes():
         result = tune(args.out, args.logdirs, with_truth=args.with_truth, base=args.base,
                       share_sensors=args.share_sensors, simulate=args.simulate, config=args.config,

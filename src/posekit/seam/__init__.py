@@ -8,10 +8,12 @@ laser-plane/seam intersection (``seamline``), the particle filter (``filter``), 
 (``integrity``), the spread the data support (``spread_bound``) and the linearised filter whose
 likelihood the tuner maximises (``ekf``). Front end (:mod:`.frontend`): configuration (``config``), the
 profile file (``profile``), the tuner (``tune``, ``posekit seam tune``), seams and robot programs
-(``trajectories``), simulated episodes and their metrics (``simulate``), recorded episodes (``logs``),
-the online tracker (``tracker``: :class:`SeamTracker`, ``posekit seam track``), the sensor-placement
-design (``design``), comparisons (``compare``), the Monte-Carlo study (``study``), figures (``plots``)
-and report files (``report``).
+(``trajectories``), the simulated world (``simulate``), the filter over a simulated episode
+(``episode``) and the episodes' metrics (``episode_metrics``) with errors in the seam frame
+(``seam_frame``), recorded episodes (``logs``), the online tracker (``tracker``: :class:`SeamTracker`,
+``posekit seam track``), the sensor-placement design (``design``), comparisons (``compare``), the
+Monte-Carlo study (``study``, its factors ``study_factors`` and effects ``study_effects``), figures
+(``plots``) and report files (``report``).
 
 Frames and units: mm and rad inside; ``T_base_tool`` poses of the TCP in the robot base frame;
 the tool's y axis points along the travel, z along the tool axis; errors are reported in the
@@ -68,6 +70,7 @@ from .frontend.commands_batch import (
     study,
     tune,
     tune_command,
+    tune_config,
 )
 from .frontend.compare import (
     FIG8_SENSORS,
@@ -101,6 +104,8 @@ from .frontend.design import (
     sensor_design,
     write_design,
 )
+from .frontend.episode import EpisodeResult, measurement_hypotheses, run_episode, seam_knots
+from .frontend.episode_metrics import metrics
 from .frontend.logs import EpisodeLog, log_columns, read_episode_log, write_episode_log
 from .frontend.logs_setup import LogSetup
 from .frontend.plots import (
@@ -133,36 +138,17 @@ from .frontend.report import (
     write_estimates_csv,
     write_simulation,
 )
-from .frontend.simulate import (
-    AXES,
-    EpisodeResult,
-    SimulatedData,
-    measurement_hypotheses,
-    metrics,
-    pose_coords,
-    run_episode,
-    seam_frame_errors,
-    seam_knots,
-    simulate_data,
-)
-from .frontend.study import (
-    DEFAULT_FACTORS,
+from .frontend.seam_frame import AXES, pose_coords, seam_frame_errors
+from .frontend.simulate import SimulatedData, simulate_data
+from .frontend.study import RUN_COLUMNS, SeamStudy, seam_study, study_task, write_study
+from .frontend.study_effects import (
     ERROR_NAMES,
     RANKED_COLUMNS,
-    RUN_COLUMNS,
-    Factor,
     ParameterEffects,
-    SeamStudy,
-    factor_value,
     fit_parameter_effects,
-    get_dotted,
-    make_factors,
     rank_parameters,
-    seam_study,
-    set_dotted,
-    study_task,
-    write_study,
 )
+from .frontend.study_factors import DEFAULT_FACTORS, Factor, factor_value, get_dotted, make_factors, set_dotted
 from .frontend.tracker import SeamTracker, SeamTrackResult, TrackEstimate, track_log, track_metrics, write_track
 from .frontend.trajectories import (
     NominalTrajectory,
@@ -197,6 +183,7 @@ __all__ = [
     "StudyRun",
     "DesignRun",
     "tune_command",
+    "tune_config",
     "tune",
     "check_study_size",
     "study",

@@ -15,15 +15,10 @@ import numpy as np
 from ..._extras import require
 from ...errors import CalibrationError, ConfigError, InputFileError
 from .grid import CeilingGrid, find_grid_corners
-from .homography import (
-    Calibration,
-    calibrate_points,
-    point_residuals,
-    read_points_csv,
-    undistort_calibration_points,
-    write_points_csv,
-)
+from .homography import Calibration, point_residuals
 from .lens import LensCalibration, calibrate_camera, load_camera, save_camera
+from .lens_check import calibrate_points
+from .points import read_points_csv, undistort_calibration_points, write_points_csv
 
 __all__ = ["MAX_VIEWS", "LOW_COVERAGE", "PointsCalibration", "calibrate_file", "LensRun", "expand_images",
            "calibrate_lens_files"]

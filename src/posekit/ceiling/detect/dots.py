@@ -5,7 +5,7 @@ connected components gated by area and shape, and a sub-pixel intensity-weighted
 Pixel convention: ``(u, v)`` in px, u to the right (column), v down (row), **pixel-centre
 convention** -- the centre of the top-left pixel is (0, 0), so pixel ``[row, col]`` is at
 ``(u, v) = (col, row)``. This is the convention of OpenCV's point functions
-(``cv2.perspectiveTransform``, ``cv2.findHomography``) and of :mod:`posekit.ceiling.render`.
+(``cv2.perspectiveTransform``, ``cv2.findHomography``) and of :mod:`posekit.ceiling.sim.render`.
 
 How a frame is processed (``DotDetector.detect``):
 

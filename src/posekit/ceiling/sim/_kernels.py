@@ -1,7 +1,7 @@
 """Compiled kernels of the ceiling renderer: the ceiling's albedo (tiles, T-bars, vents, fibre
 texture) at world points, its supersampled image, and the per-frame composition with noise.
 
-World points ``X, Y`` are in mm on the ceiling plane (frame W of :mod:`posekit.ceiling.render`).
+World points ``X, Y`` are in mm on the ceiling plane (frame W of :mod:`posekit.ceiling.sim.render`).
 """
 
 import functools
@@ -22,7 +22,7 @@ NOISE_LUT_BITS = 16
 
 
 def albedo_params(config) -> tuple[np.ndarray, np.ndarray, np.uint32]:
-    """Ceiling parameters of a :class:`~posekit.ceiling.render.SceneConfig` as kernel arguments:
+    """Ceiling parameters of a :class:`~posekit.ceiling.sim.config.SceneConfig` as kernel arguments:
     sizes and albedos (8,), vent openings (n, 4) in mm, texture seed."""
     p = np.array([*config.ceiling_size_mm, *config.tile_size_mm, config.tbar_width_mm / 2.0,
                   config.tile_albedo, config.tile_albedo_spread, config.tbar_albedo], np.float64)

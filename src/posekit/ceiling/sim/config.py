@@ -1,6 +1,6 @@
 """Configuration of a synthetic ceiling video (:class:`SceneConfig`): the room, the camera and its
-lens, the robot's lasers and the realistic effects (:data:`REALISTIC`); re-exported by
-:mod:`posekit.ceiling.render`, which documents every field."""
+lens, the robot's lasers and the realistic effects (:data:`REALISTIC`); every field is documented
+in :mod:`posekit.ceiling.sim.render`."""
 
 from __future__ import annotations
 

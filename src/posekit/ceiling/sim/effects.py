@@ -1,8 +1,8 @@
 """What a real ceiling camera sees besides the laser: stray lights, reflections, people, shadows,
-auto-exposure — the "realistic" effects of :mod:`posekit.ceiling.render`.
+auto-exposure — the "realistic" effects of :mod:`posekit.ceiling.sim.render`.
 
 Every effect is drawn from the scene's seed (``np.random.default_rng([seed, tag])``), so the same
-:class:`~posekit.ceiling.render.SceneConfig` gives the same video.
+:class:`~posekit.ceiling.sim.config.SceneConfig` gives the same video.
 
 * **Stray lights** (:class:`StrayLight`): red indicator LEDs (also at chosen points:
   ``stray_light_xy_mm``) (smoke detectors, exit signs, a

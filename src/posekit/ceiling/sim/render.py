@@ -30,8 +30,8 @@ Realism (all off by default; :data:`REALISTIC`, ``SceneConfig.realistic()`` and
 ``dist``               lens distortion ``[k1, k2, p1, p2, k3]`` (OpenCV's model, K of ``focal_px``,
                        principal point at the image centre) [-0.2, 0.04, 0.0008, -0.0006, 0]. Every
                        pixel of the ceiling, every dot and every calibration point goes through the
-                       lens; ``H_image_world`` (:func:`true_homography`) maps *undistorted* pixels;
-                       ``camera.json`` (:func:`lens_camera`) holds the lens. Pixels no ray reaches
+                       lens; ``H_image_world`` (:func:`~.scene_geometry.true_homography`) maps *undistorted*
+                       pixels; ``camera.json`` (:func:`~.scene_geometry.lens_camera`) holds the lens. Pixels no ray reaches
                        (beyond the polynomial's fold) are black.
 ``bloom``              a saturated dot bleeding: a wider white core and a halo of the laser's colour
                        of ``bloom_sigma_px`` [1]
@@ -51,25 +51,24 @@ Realism (all off by default; :data:`REALISTIC`, ``SceneConfig.realistic()`` and
 =====================  ============================================================================
 
 Stray lights stay at least 250 mm from the robot's path; ``stray_lights.csv`` lists them
-(``kind,x,y,u,v,period_s,phase_s``). Effects are drawn from ``seed`` (:mod:`posekit.ceiling.render_effects`).
+(``kind,x,y,u,v,period_s,phase_s``). Effects are drawn from ``seed`` (:mod:`posekit.ceiling.sim.effects`).
 The dotted line of §III-C is ``dots=("line",)`` with ``line_pattern="dotted"``: ``line_dots``
 dots spread over ``line_length_mm``.
+
+The camera and the robot's path are :mod:`~posekit.ceiling.sim.scene_geometry`; the video file and
+its truth, calibration-points and stray-light files are written by :mod:`~posekit.ceiling.sim.video`.
 """
+
 
 from __future__ import annotations
 
-import csv
 import functools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from ..._extras import require
-from ...errors import ConfigError, InputFileError
-from ..camera.lens import CameraModel
 from ._kernels import (
     NOISE_LUT_BITS,
     albedo_params,
@@ -79,24 +78,11 @@ from ._kernels import (
     render_albedo,
 )
 from ._kernels import ceiling_albedo as _ceiling_albedo
-from .config import CODECS, DEFAULT_HOLES_MM, NOMINAL_TILE_ALBEDO, REALISTIC, SceneConfig
+from .config import NOMINAL_TILE_ALBEDO, SceneConfig
 from .effects import LIGHT_APPEARANCE, exposure_at, exposure_levels, occluders, shadows, stray_lights
+from .scene_geometry import _apply_h, _camera, lens_camera, robot_path, true_homography
 
-__all__ = [
-    "SceneConfig",
-    "REALISTIC",
-    "CODECS",
-    "CeilingScene",
-    "lens_camera",
-    "SceneTruth",
-    "RenderedVideo",
-    "true_homography",
-    "robot_path",
-    "iter_frames",
-    "render_video",
-    "DEFAULT_HOLES_MM",
-    "TRUTH_HEADER",
-]
+__all__ = ["LASER_APPEARANCE", "CeilingScene", "SceneTruth", "iter_frames"]
 
 #: Laser appearance per colour: (core amplitude B, G, R), (glow amplitude B, G, R), in grey
 #: levels on a tile of the nominal albedo. The core saturates all channels (a laser dot looks
@@ -106,9 +92,6 @@ LASER_APPEARANCE = {
     "green": ((200.0, 500.0, 150.0), (40.0, 130.0, 15.0)),
 }
 
-TRUTH_HEADER = ("frame", "time_s", "x", "y", "heading_deg", "red_visible", "green_visible",
-                "red_u", "red_v", "green_x", "green_y", "green_u", "green_v")
-
 _NOMINAL_TILE_ALBEDO = NOMINAL_TILE_ALBEDO
 _EXPOSURE_LEVEL = 205.0            # grey level of albedo 1 at gain 1
 _CEILING_TINT_BGR = (0.95, 1.0, 1.03)
@@ -116,82 +99,7 @@ _SUPERSAMPLE = 4
 _SPRITE_HALF_PX = 10               # half-size of the window a dot sprite is drawn in
 _BLUR_SUBSAMPLES = 5
 
-# --- geometry ---------------------------------------------------------------------------------
-
-def _camera(config: SceneConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """K (3, 3) in px, R_cam_world (3, 3), t_cam_world (3,) in mm (camera: x right, y down, z forward)."""
-    C = np.asarray(config.camera_position_mm, float)
-    forward = np.array([*config.camera_target_mm, 0.0]) - C
-    forward /= np.linalg.norm(forward)
-    x = np.cross(forward, [0.0, 0.0, 1.0])
-    if np.linalg.norm(x) < 1e-9:                       # looking straight up: image x along world X
-        x = np.array([1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(forward, x)
-    R = np.stack([x, y, forward])
-    r = math.radians(config.camera_roll_deg)
-    R = np.array([[math.cos(r), -math.sin(r), 0.0], [math.sin(r), math.cos(r), 0.0], [0.0, 0.0, 1.0]]) @ R
-    K = np.array([[config.focal_px, 0.0, (config.width_px - 1) / 2.0],
-                  [0.0, config.focal_px, (config.height_px - 1) / 2.0],
-                  [0.0, 0.0, 1.0]])
-    return K, R, -R @ C
-
-
-def lens_camera(config: SceneConfig) -> CameraModel:
-    """The simulated camera's lens: ``K`` (focal_px, principal point at the image centre) and
-    ``dist`` of ``config`` (written as ``camera.json`` beside each rendered video)."""
-    K, _, _ = _camera(config)
-    return CameraModel(K=K, dist=np.asarray(config.dist, float), image_size=(config.width_px, config.height_px),
-                       rms_px=0.0)
-
-
-def true_homography(config: SceneConfig) -> np.ndarray:
-    """H_image_world, shape (3, 3): ceiling point ``(X, Y, 1)`` in mm → image ``(u, v, 1)`` in px
-    (pixel-centre convention), normalised so that ``H[2, 2] == 1``. With lens distortion these
-    are *undistorted* pixels (same K); :func:`lens_camera` maps them to the distorted image."""
-    K, R, t = _camera(config)
-    H = K @ np.column_stack([R[:, 0], R[:, 1], t])
-    return H / H[2, 2]
-
-
-def _apply_h(H: np.ndarray, p: np.ndarray) -> np.ndarray:
-    p = np.asarray(p, float)
-    q = p @ H[:, :2].T + H[:, 2]
-    return q[..., :2] / q[..., 2:3]
-
-
-def robot_path(config: SceneConfig, t_s) -> tuple[np.ndarray, np.ndarray]:
-    """Pose of the robot at times ``t_s`` (shape (N,), s) on the rectangle, counter-clockwise.
-
-    The robot drives each side at ``speed_mm_s`` and turns on the spot by +90° at each corner
-    at ``turn_rate_deg_s``, starting at corner (x0, y0) heading +X (at ``path_phase_s``).
-
-    Returns
-    -------
-    xy : ndarray, shape (N, 2)
-        Position of the robot's reference point (the red laser) in W, mm.
-    heading : ndarray, shape (N,)
-        Heading in rad, counter-clockwise from +X seen from above, unwrapped (continuous).
-    """
-    t = np.asarray(t_s, float) + config.path_phase_s
-    x0, y0, x1, y1 = config.path_rect_mm
-    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
-    lengths = np.array([x1 - x0, y1 - y0, x1 - x0, y1 - y0])
-    t_drive = lengths / config.speed_mm_s
-    t_turn = (math.pi / 2) / math.radians(config.turn_rate_deg_s)
-    durations = np.ravel(np.column_stack([t_drive, np.full(4, t_turn)]))    # drive, turn, ...
-    starts = np.concatenate([[0.0], np.cumsum(durations)])
-    lap = starts[-1]
-    laps, tau = np.divmod(t, lap)
-    phase = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, 7)
-    side = phase // 2
-    frac = np.clip((tau - starts[phase]) / durations[phase], 0.0, 1.0)
-    driving = phase % 2 == 0
-    a, b = corners[side], corners[(side + 1) % 4]
-    xy = np.where(driving[:, None], a + (b - a) * frac[:, None], b)
-    heading = (laps * 4 + side + np.where(driving, 0.0, frac)) * (math.pi / 2)
-    return xy, heading
-
+# --- the ceiling ------------------------------------------------------------------------------
 
 def _background(config: SceneConfig) -> np.ndarray:
     """Linear radiance of the ceiling at gain 1, shape (H, W, 3) float32, grey levels (BGR)."""
@@ -239,20 +147,6 @@ class SceneTruth:
     uv_green: np.ndarray
     heading_rad: np.ndarray
     visible: np.ndarray
-
-
-@dataclass(frozen=True)
-class RenderedVideo:
-    """Paths written by :func:`render_video`."""
-
-    video: Path
-    truth: Path
-    calibration_points: Path
-    reference: Path
-    frames_dir: Path | None
-    n_frames: int
-    camera: Path | None = None
-    stray_lights: Path | None = None
 
 
 class CeilingScene:
@@ -531,158 +425,3 @@ def _pixel_gauss(centres: np.ndarray, mu: float, sigma: float) -> np.ndarray:
 def iter_frames(config: SceneConfig, start: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
     """Frames of the video in memory: uint8 arrays (H, W, 3) BGR, one per 1 / fps."""
     return CeilingScene(config).frames(start, stop)
-
-
-# --- files ------------------------------------------------------------------------------------
-
-def write_truth_csv(path: Path, truth: SceneTruth) -> None:
-    """``truth.csv``: the columns of :data:`TRUTH_HEADER`; x, y, green_x, green_y in mm,
-    heading_deg from the first to the second dot (the robot's heading with one dot), u, v in px;
-    ``green_*`` empty when there is no second dot."""
-    two = not np.all(np.isnan(truth.xy_green))
-
-    def fmt(value, spec):
-        return "" if not np.isfinite(value) else format(value, spec)
-
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(TRUTH_HEADER)
-        for k in range(len(truth.frame)):
-            x, y = truth.xy_red[k]
-            gx, gy = truth.xy_green[k]
-            w.writerow([int(truth.frame[k]), f"{truth.time_s[k]:.6f}", f"{x:.3f}", f"{y:.3f}",
-                        f"{math.degrees(truth.heading_rad[k]):.4f}", int(truth.visible[k, 0]),
-                        int(truth.visible[k, 1]) if two else "",
-                        f"{truth.uv_red[k, 0]:.4f}", f"{truth.uv_red[k, 1]:.4f}",
-                        fmt(gx, ".3f"), fmt(gy, ".3f"), fmt(truth.uv_green[k, 0], ".4f"),
-                        fmt(truth.uv_green[k, 1], ".4f")])
-
-
-def write_calibration_csv(path: Path, points: np.ndarray) -> None:
-    """``X,Y,u,v`` per line (the calibration-points CSV of :mod:`posekit.ceiling.camera.homography`), mm and px."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["X", "Y", "u", "v"])
-        for X, Y, u, v in points:
-            w.writerow([f"{X:.3f}", f"{Y:.3f}", f"{u:.4f}", f"{v:.4f}"])
-
-
-def write_lights_csv(path: Path, lights) -> None:
-    """``stray_lights.csv``: ``kind,x,y,u,v,period_s,phase_s`` per stray light (mm, px, s); a
-    blinking light is on during ``[phase_s + k·period_s, phase_s + (k + ½)·period_s)``."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["kind", "x", "y", "u", "v", "period_s", "phase_s"])
-        for light in lights:
-            w.writerow([light.kind, f"{light.xy[0]:.3f}", f"{light.xy[1]:.3f}", f"{light.uv[0]:.4f}",
-                        f"{light.uv[1]:.4f}", f"{light.period_s:g}", f"{light.phase_s:.6f}"])
-
-
-def _can_write(cv2, codec, folder: Path) -> bool:
-    fourcc, suffix = codec
-    probe = folder / f".codec-probe{suffix}"
-    w = cv2.VideoWriter(str(probe), cv2.VideoWriter_fourcc(*fourcc), 15.0, (64, 64))
-    ok = w.isOpened()
-    w.release()
-    probe.unlink(missing_ok=True)
-    return ok
-
-
-def render_video(config: SceneConfig, out_dir, *, frames_png: bool = False,
-                 progress: Callable | None = None) -> RenderedVideo:
-    """Render the video of ``config`` into ``out_dir`` (created if needed).
-
-    Writes ``video.avi`` (``fps`` frames per second; Motion-JPEG, or the ``codec`` of the config:
-    ``video.mp4`` for mp4v/h264), ``truth.csv``, ``calibration_points.csv`` (every grid corner in
-    view, at least 18, where the real lens shows it), ``reference.png`` (the ceiling without dots,
-    lights or people), ``camera.json`` (the simulated lens, :func:`lens_camera`),
-    ``stray_lights.csv`` (``kind,x,y,u,v,period_s,phase_s``, mm, px, s; header only without lights) and,
-    with ``frames_png``, ``frames/000000.png`` ... (lossless).
-    ``progress`` wraps the frame iterator (a progress bar), if given.
-    """
-    cv2 = require("cv2", "vision", "the ceiling video renderer")
-
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputFileError(f"{out}: cannot create the output folder ({exc.strerror})") from None
-    scene = CeilingScene(config)
-    points = scene.calibration_points()
-    if len(points) < 18:
-        raise ConfigError(f"camera sees only {len(points)} grid corners (calibration needs at least 18): "
-                          "widen the view (focal_px) or move the camera")
-    fourcc, suffix = CODECS[config.codec]
-    paths = RenderedVideo(video=out / f"video{suffix}", truth=out / "truth.csv",
-                          calibration_points=out / "calibration_points.csv", reference=out / "reference.png",
-                          frames_dir=(out / "frames") if frames_png else None, n_frames=scene.n_frames,
-                          camera=out / "camera.json", stray_lights=out / "stray_lights.csv")
-    writer = cv2.VideoWriter(str(paths.video), cv2.VideoWriter_fourcc(*fourcc), config.fps,
-                             (config.width_px, config.height_px))
-    if not writer.isOpened():
-        writer.release()
-        can = [k for k in CODECS if k != config.codec and _can_write(cv2, CODECS[k], out)]
-        raise ConfigError(f"codec {config.codec}: OpenCV here cannot write {fourcc} video; "
-                          f"expected one of {', '.join(can) or 'none'}")
-    if config.codec == "mjpg":
-        writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 95)
-    try:
-        write_calibration_csv(paths.calibration_points, points)
-        write_truth_csv(paths.truth, scene.truth())
-        write_lights_csv(paths.stray_lights, scene.lights)
-        from ..camera.lens import save_camera
-        save_camera(scene.camera, paths.camera)
-        _imwrite(cv2, paths.reference, scene.reference_image())
-        if paths.frames_dir is not None:
-            paths.frames_dir.mkdir(exist_ok=True)
-        try:
-            frames = scene.frames()
-            for k, frame in enumerate(progress(frames, total=scene.n_frames) if progress else frames):
-                writer.write(frame)
-                if paths.frames_dir is not None:
-                    _imwrite(cv2, paths.frames_dir / f"{k:06d}.png", frame)
-        finally:
-            writer.release()
-    except OSError as exc:
-        raise InputFileError(_write_failure(out, getattr(exc, "filename", None) or out, exc)) from None
-    _check_video(cv2, paths.video, scene.n_frames, out)
-    return paths
-
-
-def _write_failure(out: Path, name, exc: OSError | None = None, need_bytes: int = 1 << 20) -> str:
-    """One line: what could not be written, and why (no space left when that is the cause: the
-    error says so, or less than ``need_bytes`` is free where it was written — OpenCV's writers
-    give no reason and remove what they could not finish)."""
-    import errno
-    import os
-    full = exc is not None and exc.errno == errno.ENOSPC
-    if not full:
-        try:
-            st = os.statvfs(out)
-            full = st.f_bavail * st.f_frsize < need_bytes
-        except OSError:
-            pass
-    why = "no space left on device" if full else (getattr(exc, "strerror", None) or "the write failed")
-    return f"{name}: cannot write ({why}); nothing was installed at the output folder"
-
-
-def _imwrite(cv2, path: Path, image) -> None:
-    """``cv2.imwrite`` that fails loudly (OpenCV returns False on a full disk)."""
-    if not cv2.imwrite(str(path), image):
-        raise InputFileError(_write_failure(path.parent, path, need_bytes=max(image.nbytes, 1 << 20)))
-
-
-def _check_video(cv2, path: Path, n_frames: int, out: Path) -> None:
-    """The written video holds ``n_frames`` readable frames (``cv2.VideoWriter`` says nothing when
-    the disk fills up: the container comes out short or without its index)."""
-    cap = cv2.VideoCapture(str(path))
-    try:
-        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0) if cap.isOpened() else 0
-        ok = n == n_frames
-        if ok and n_frames > 0:
-            cap.set(cv2.CAP_PROP_POS_FRAMES, n_frames - 1)
-            ok, _ = cap.read()
-    finally:
-        cap.release()
-    if not ok:
-        raise InputFileError(_write_failure(out, path) + f" (the video holds {n} of {n_frames} frames)")

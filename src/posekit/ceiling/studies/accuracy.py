@@ -351,7 +351,7 @@ def known_points_assessment(config, calibration, *, n: int = 6, rect_mm=None, in
 
     Parameters
     ----------
-    config : posekit.ceiling.render.SceneConfig
+    config : posekit.ceiling.sim.config.SceneConfig
         The scene (camera, ceiling, noise). Its dots and path are replaced.
     calibration : Calibration
         ``image_to_world`` of the camera (e.g. from the grid corners of ``reference.png``).

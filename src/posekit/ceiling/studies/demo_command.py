@@ -9,7 +9,8 @@ from ...errors import ConfigError
 from ..camera.lens import load_camera
 from ..sim.config import SceneConfig
 from ..track.pipeline import parse_dots
-from .demo import DemoReport, run_demo
+from .demo import run_demo
+from .demo_report import DemoReport
 
 __all__ = ["check_demo_lens", "demo"]
 
@@ -32,7 +33,7 @@ def demo(out: str | Path, *, dots: str | tuple = "red,green", duration_s: float 
 
     Parameters are the command's flags by the same names (``dots``: ``'red'``, ``'red,green'`` or
     ``'line'``; ``duration_s``: video length, s, default the renderer's; ``camera``: a lens model
-    file to calibrate and track with). Returns the :class:`~posekit.ceiling.studies.demo.DemoReport`
+    file to calibrate and track with). Returns the :class:`~posekit.ceiling.studies.demo_report.DemoReport`
     whose ``summary()`` the command prints; the files are :func:`run_demo`'s.
     """
     dots = parse_dots(dots) if isinstance(dots, str) else tuple(dots)

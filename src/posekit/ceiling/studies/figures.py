@@ -1,7 +1,6 @@
 """The paper's figures of the ceiling system (§V): Fig. 5 (calibration check), Fig. 6 (accuracy at
-known points) and Fig. 7 (heading accuracy from two dots), as PNG files via :mod:`posekit.report`.
-
-Fig. 8 and 9 (the trajectories) are drawn by :func:`posekit.ceiling.demo.plot_trajectories`.
+known points), Fig. 7 (heading accuracy from two dots) and Fig. 8 and 9 (a track's trajectory in the
+image and on the ceiling, with the truth), as PNG files via :mod:`posekit.report`.
 World points in mm on the ceiling plane; image points in px of the real (distorted) image.
 """
 
@@ -10,8 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from .accuracy import HeadingSimulation, KnownPointsResult, sample_position_errors
+from .truth import SceneTruthTable
 
-__all__ = ["plot_calibration_check", "plot_known_points", "plot_heading_simulation"]
+__all__ = ["plot_calibration_check", "plot_known_points", "plot_heading_simulation", "plot_trajectories"]
 
 
 def plot_calibration_check(reference_bgr, world_xy, image_uv, calibration, path, *, lens=None,
@@ -122,3 +122,50 @@ def plot_heading_simulation(sim: HeadingSimulation, path, *, n_lines: int = 60, 
     ax2.set_ylabel("density")
     ax2.set_title(f"std {sim.std_deg:.2f}° (closed form {sim.closed_form_deg:.2f}°; paper 2.00°)")
     return save_figure(fig, Path(path), dpi=120)
+
+
+def plot_trajectories(result, truth: SceneTruthTable, calibration, reference_bgr, out_dir,
+                      holes_mm=(), corners_uv=None) -> list[Path]:
+    """Fig. 8 (trajectory in the image over the reference image) and Fig. 9 (on the ceiling
+    plane, mm), each with the truth; PNG files in ``out_dir``."""
+    from matplotlib.patches import Rectangle
+
+    from ...report import pyplot, save_figure
+    plt = pyplot()
+
+    out_dir = Path(out_dir)
+    n = min(len(result.rows), len(truth.frame))
+    status = result.status()[:n]
+    xy = result.xy()[:n]
+    paths = []
+
+    fig, ax = plt.subplots(figsize=(9, 5.4))
+    if reference_bgr is not None:
+        ax.imshow(reference_bgr[..., ::-1], alpha=0.8)
+    uv = result.image_uv[:n]
+    ax.plot(uv[:, 0], uv[:, 1], "r.", ms=3, label="detected laser dot")
+    tuv = truth.uv[:n]
+    if np.isfinite(tuv).any():
+        ax.plot(tuv[:, 0], tuv[:, 1], "-", color="k", lw=0.6, label="truth", zorder=3)
+    if corners_uv is not None:
+        ax.plot(corners_uv[:, 0], corners_uv[:, 1], "k+", ms=8, label="calibration corners")
+    ax.set_xlabel("u (px)")
+    ax.set_ylabel("v (px)")
+    ax.set_title("Trajectory of the laser dot in the image plane (cf. Fig. 8)")
+    ax.legend(loc="upper right", fontsize=8)
+    paths.append(save_figure(fig, out_dir / "fig8_image_trajectory.png", dpi=120))
+
+    fig, ax = plt.subplots(figsize=(9, 5.4))
+    for x0, y0, x1, y1 in holes_mm:
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color="0.85", zorder=0))
+    for s, style, label in (("ok", "r.", "tracked (ok)"), ("predicted", "bx", "predicted (no dot)")):
+        m = status == s
+        ax.plot(xy[m, 0], xy[m, 1], style, ms=3, label=label)
+    ax.plot(truth.xy[:n, 0], truth.xy[:n, 1], "-", color="k", lw=0.6, label="truth", zorder=3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel("Y (mm)")
+    ax.set_title("Trajectory on the ceiling plane (cf. Fig. 9); grey: air-conditioning vents")
+    ax.legend(loc="best", fontsize=8)
+    paths.append(save_figure(fig, out_dir / "fig9_world_trajectory.png", dpi=120))
+    return paths

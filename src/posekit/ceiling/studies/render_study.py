@@ -3,7 +3,7 @@ for all of them, against the renderer's truth.
 
 Run ``python -m posekit.ceiling.render_study [--duration-s 30] [--seeds 0,1] [--out DIR]``: it
 renders each case (one red dot, the default scene plus one effect of
-:data:`~posekit.ceiling.render.REALISTIC`), calibrates from the exact grid points of
+:data:`~posekit.ceiling.sim.config.REALISTIC`), calibrates from the exact grid points of
 ``calibration_points.csv`` (undistorted with the simulated lens where the case says
 ``--camera``), tracks with :func:`~posekit.ceiling.track.pipeline.track_video` and prints a Markdown
 table: status counts, the error of ``ok`` rows (mm), ``ok`` rows more than 50 mm off (a lamp
@@ -44,11 +44,13 @@ HEADER = ("| case | seed | ok | predicted | lost | ok error mean (mm) | p95 | ma
 
 def effect_row(name: str, overrides, use_camera: bool, *, duration_s: float, seed: int, out_dir) -> str:
     """Render, calibrate, track one case; its Markdown table row."""
-    from ..camera.homography import calibrate, read_points_csv, undistort_calibration_points
+    from ..camera.homography import calibrate
     from ..camera.lens import load_camera
-    from ..sim.render import REALISTIC, SceneConfig, render_video
+    from ..camera.points import read_points_csv, undistort_calibration_points
+    from ..sim.config import REALISTIC, SceneConfig
+    from ..sim.video import render_video
     from ..track.pipeline import track_video
-    from .demo import compare_with_truth, read_truth_csv
+    from .truth import compare_with_truth, read_truth_csv
 
     kw = dict(REALISTIC) if overrides == "REALISTIC" else {
         k: (REALISTIC[k] if v == "REALISTIC" else v) for k, v in overrides.items()}

@@ -80,41 +80,32 @@ arrived over TCP.
 
 import gc
 import logging
-import socket
 import threading
 import time
 from collections import Counter, deque
 
 import numpy as np
 
-from ...errors import ConfigError, PosekitError, ProfileError
+from ...errors import ConfigError, ProfileError
 from ...geometry import quaternion_from_matrix
-from ..estimate.consistency import DEFAULT_SIGNIFICANCE, check_noise
+from ..estimate.consistency import DEFAULT_SIGNIFICANCE
 from ..estimate.corner_params import CornerParams
 from ..estimate.corners import gauge_turns
 from ..estimate.fast import warm_gate
 from ..estimate.pipeline import DEFAULT_NOISE
 from ..estimate.solve import METHODS
 from ..gauge.model import MOUNTINGS, Gauge
-from .protocol import MAX_POINTS, Frame, encode_hello
+from .protocol import MAX_POINTS, Frame
+from .server_options import check_options
 from .server_receiver import SensorReceiver
-from .server_support import (
-    Counts,
-    LogLimiter,
-    check_address,
-    parse_address,
-    read_token_file,
-    token_digest,
-)
-from .server_worker import NAN_STORM, PoseWorker
+from .server_stats import TIMING_KEYS, ServerStats
+from .server_support import Counts, LogLimiter, check_address, listen_socket, token_digest
+from .server_worker import PoseWorker
 
-__all__ = ["PoseServer", "parse_address", "check_address", "read_token_file", "NAN_STORM"]
-
-_TIMING_KEYS = ("DT", "QW", "CD", "PC")
-_SECONDS_RANGE = (0.05, 86_400.0)   # accepted timeouts, s
+__all__ = ["PoseServer"]
 
 
-class PoseServer(SensorReceiver, PoseWorker):
+class PoseServer(SensorReceiver, PoseWorker, ServerStats):
     """Streams profile frames in, sends one pose record per frame to the robot.
 
     Parameters
@@ -154,7 +145,8 @@ class PoseServer(SensorReceiver, PoseWorker):
     token : str or bytes, optional
         Shared secret every sensor must present first (see
         :func:`~posekit.profiler.stream.protocol.encode_hello`); required with ``allow_remote``.
-        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`read_token_file` reads one from a file.
+        1 to ``MAX_TOKEN_BYTES`` bytes; :func:`~posekit.profiler.stream.server_support.read_token_file` reads one
+        from a file.
     idle_timeout_s : float
         A connection that delivers no complete frame for this long is closed, s.
     read_timeout_s : float
@@ -215,56 +207,13 @@ class PoseServer(SensorReceiver, PoseWorker):
                  max_connections: int = 16, pose_filter=None, record_sink=None, noise=DEFAULT_NOISE,
                  significance: float = DEFAULT_SIGNIFICANCE, max_pending: int = 64, hello_timeout_s: float = 2.0,
                  max_rate_hz: float = 4000.0, rate_burst: int = 64, max_accept_hz: float = 100.0):
-        if not isinstance(gauge, Gauge):
-            raise ConfigError(f"PoseServer: gauge must be a posekit Gauge, got {type(gauge).__name__}")
-        if method not in METHODS:
-            raise ConfigError(f"PoseServer: unknown method '{method}'; expected one of {', '.join(METHODS)}")
-        if mounting not in MOUNTINGS:
-            raise ConfigError(f"PoseServer: unknown mounting '{mounting}'; expected one of {', '.join(MOUNTINGS)}")
-        if mounting == "auto" and getattr(gauge, "ambiguity", None):
-            raise ConfigError(f"PoseServer: gauge '{gauge.name}' is ambiguous ({gauge.ambiguity}); give the "
-                              "mounting ('normal' or 'reversed')")
-        if not (isinstance(significance, float | int) and 0 < significance < 1):
-            raise ConfigError(f"PoseServer: significance must be a number in (0, 1), got {significance!r}")
-        try:
-            check_noise(noise)
-        except PosekitError as exc:
-            raise ConfigError(f"PoseServer: {exc}") from None
-        if method == "cf" and gauge.n_corners < 5:
-            raise ConfigError(f"PoseServer: method 'cf' needs a gauge with >= 5 corners; "
-                              f"'{gauge.name}' has {gauge.n_corners} (use 'mle')")
-        if not (isinstance(queue_size, int) and queue_size >= 1):
-            raise ConfigError(f"PoseServer: queue_size must be an integer >= 1, got {queue_size!r}")
-        if not (isinstance(history, int) and history >= 1):
-            raise ConfigError(f"PoseServer: history must be an integer >= 1, got {history!r}")
-        if not 0.0 <= nan_storm_fraction < 1.0:
-            raise ConfigError(f"PoseServer: nan_storm_fraction must be in [0, 1), got {nan_storm_fraction}")
-        if controller is not None and not callable(controller):
-            raise ConfigError("PoseServer: controller must be callable(seq, t_s, T_G_F, cov) -> dict | None")
-        if pose_filter is not None and not callable(getattr(pose_filter, "update", None)):
-            raise ConfigError("PoseServer: pose_filter must have update(t_s, T_G_F, cov) -> FilteredPose")
-        if pose_filter is not None and method == "cf":
-            raise ConfigError("PoseServer: a pose filter needs method 'mle' (the closed form 'cf' gives no "
-                              "covariance to filter with)")
-        if record_sink is not None and not callable(getattr(record_sink, "put", None)):
-            raise ConfigError("PoseServer: record_sink must have put(record)")
-        lo, hi = _SECONDS_RANGE
-        for name, value in (("idle_timeout_s", idle_timeout_s), ("read_timeout_s", read_timeout_s),
-                            ("max_dt_s", max_dt_s), ("hello_timeout_s", hello_timeout_s)):
-            if not (isinstance(value, int | float) and not isinstance(value, bool) and lo <= value <= hi):
-                raise ConfigError(f"PoseServer: {name} must be a number of seconds in [{lo:g}, {hi:g}], got {value!r}")
-        for name, value in (("max_connections", max_connections), ("max_pending", max_pending),
-                            ("rate_burst", rate_burst)):
-            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
-                raise ConfigError(f"PoseServer: {name} must be an integer >= 1, got {value!r}")
-        for name, value in (("max_rate_hz", max_rate_hz), ("max_accept_hz", max_accept_hz)):
-            if not (isinstance(value, int | float) and not isinstance(value, bool) and 1 <= value <= 1e6):
-                raise ConfigError(f"PoseServer: {name} must be a number in [1, 1e6] Hz, got {value!r}")
-        if allow_remote and token is None:
-            raise ConfigError("PoseServer: allow_remote=True (--allow-remote) needs a token (--token-file FILE) "
-                              "that every sensor must present; refusing to accept remote sensors without one")
-        if token is not None:
-            encode_hello(token)              # validates it: str or bytes, 1..MAX_TOKEN_BYTES
+        check_options(gauge, method=method, mounting=mounting, significance=significance, noise=noise,
+                      queue_size=queue_size, history=history, nan_storm_fraction=nan_storm_fraction,
+                      controller=controller, pose_filter=pose_filter, record_sink=record_sink,
+                      idle_timeout_s=idle_timeout_s, read_timeout_s=read_timeout_s, max_dt_s=max_dt_s,
+                      hello_timeout_s=hello_timeout_s, max_connections=max_connections, max_pending=max_pending,
+                      rate_burst=rate_burst, max_rate_hz=max_rate_hz, max_accept_hz=max_accept_hz,
+                      allow_remote=allow_remote, token=token)
         self._digest = None if token is None else token_digest(token)
         self.gauge = gauge
         self.method = method
@@ -305,7 +254,7 @@ class PoseServer(SensorReceiver, PoseWorker):
         self._stats_lock = threading.Lock()
         self._counts = Counts()
         self._reasons: Counter = Counter()
-        self._tim = np.zeros((history, len(_TIMING_KEYS)))
+        self._tim = np.zeros((history, len(TIMING_KEYS)))
         self._tim_n = 0
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -344,16 +293,7 @@ class PoseServer(SensorReceiver, PoseWorker):
         self._warm_up()
         if self.freeze_gc:
             gc.freeze()
-        sock = socket.socket(self._listen_family, socket.SOCK_STREAM)
-        try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            sock.bind(self._listen_addr)
-            sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
-            sock.setblocking(False)
-        except OSError as exc:
-            sock.close()
-            raise ConfigError(f"listen address {self._listen_addr[0]}:{self._listen_addr[1]}: "
-                              f"cannot bind ({exc.strerror or exc})") from None
+        sock = listen_socket(self._listen_family, self._listen_addr)
         self._lsock = sock
         self._address = sock.getsockname()[:2]
         self._stop.clear()
@@ -411,65 +351,6 @@ class PoseServer(SensorReceiver, PoseWorker):
 
     def __exit__(self, *exc):
         self.stop()
-
-    # ------------------------------------------------------------------ statistics
-
-    def stats(self) -> dict:
-        """Counters since :meth:`start`.
-
-        Returns
-        -------
-        dict
-            ``received`` (well-formed frames decoded), ``processed`` (frames that went
-            through detection and pose, ok or not), ``ok`` and ``suspect`` (processed frames
-            with a pose and that verdict), ``errors`` (processed frames whose profile or
-            controller failed; ``processed == ok + suspect + errors``), ``dropped`` (oldest frames pushed out of
-            the full buffer), ``rejected`` (malformed stretches of the stream and NaN
-            storms) with ``reasons`` (a :class:`collections.Counter` by reason),
-            ``disconnects`` (every close, by either side), ``connections`` (accepted),
-            ``connected`` (sensors open now: connections that proved themselves),
-            ``timeouts`` (closed by the hello, idle or read timeout),
-            ``auth_failures`` (closed for a missing, malformed or wrong hello),
-            ``evictions`` (sensors closed for a new one, see ``max_connections``), ``shed``
-            (connections that had not proved themselves closed for newer ones, or sent too much
-            without doing so, and sensors refused because all places were taken by streaming
-            ones), ``rate_limited`` (times a sensor was read more slowly for its rate),
-            ``accept_limited`` (times new connections were left waiting, see ``max_accept_hz``), ``bad_stamps``
-            (frames whose sensor stamp was not believed: DT unknown), ``cold_restarts``
-            (warm starts that fell back to the closed form), ``sent``/``unsent`` records and
-            ``robot_connects``/``robot_failures``, and ``queued``. Once idle, ``received ==
-            processed + dropped + reasons['nan_storm']``.
-        """
-        with self._stats_lock:
-            c = self._counts
-            out = dict(vars(c))
-            out["reasons"] = Counter(self._reasons)
-            out["connected"] = self._n_conns
-            out["suspect"] = self._n_suspect
-        with self._cond:
-            out["queued"] = sum(len(q) for q in self._queues.values())
-        return out
-
-    def timings(self) -> dict:
-        """Per-stage times of the processed frames (the most recent ``history``), ms.
-
-        Returns
-        -------
-        dict of str to ndarray, shape (k,)
-            ``DT`` (sensor stamp → last byte received; NaN where the stamp was not
-            believed, see ``max_dt_s``), ``QW`` (wait in the buffer),
-            ``CD`` (NaN check + corner detection), ``PC`` (pose + covariance +
-            controller), oldest first.
-        """
-        with self._stats_lock:
-            h = self._tim.shape[0]
-            n = self._tim_n
-            if n <= h:
-                arr = self._tim[:n].copy()
-            else:
-                i = n % h
-                arr = np.concatenate([self._tim[i:], self._tim[:i]])
-        return {k: arr[:, j] for j, k in enumerate(_TIMING_KEYS)}
 
     # ------------------------------------------------------------------ frames from this process
 

@@ -1,5 +1,5 @@
-"""Plumbing of the pose server: addresses, the token, one sensor connection, rate-limited
-logging, counters, the robot link."""
+"""Plumbing of the pose server: addresses and the listening socket, the token, one sensor
+connection, rate-limited logging, counters, the robot link."""
 
 import hashlib
 import hmac
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from ...errors import ConfigError, InputFileError
 from .protocol import MAX_TOKEN_BYTES, NO_HELLO, TRUNCATED, FrameDecoder, FrameError, decode_hello
 
-__all__ = ["parse_address", "check_address", "read_token_file", "token_digest", "SensorConnection",
+__all__ = ["parse_address", "check_address", "listen_socket", "read_token_file", "token_digest", "SensorConnection",
            "LogLimiter", "Counts", "RobotLink"]
 
 _LOG_INTERVAL_S = 1.0          # at most one log line per kind of event per interval
@@ -85,6 +85,27 @@ def check_address(address, what: str = "address", allow_remote: bool = False):
                 raise ConfigError(f"{what} {host}:{port} is not a loopback address (127.0.0.0/8, ::1); "
                                   "allow_remote=True (--allow-remote, with a token: --token-file) permits other hosts")
     return infos[0][0], infos[0][4]
+
+
+def listen_socket(family: int, sockaddr) -> socket.socket:
+    """A non-blocking TCP socket bound to ``sockaddr`` (from :func:`check_address`) and listening.
+
+    Raises
+    ------
+    ConfigError
+        ``listen address HOST:PORT: cannot bind (REASON)``.
+    """
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(sockaddr)
+        sock.listen(64)         # a small backlog drops SYNs of quick reconnects (1 s retries)
+        sock.setblocking(False)
+    except OSError as exc:
+        sock.close()
+        raise ConfigError(f"listen address {sockaddr[0]}:{sockaddr[1]}: "
+                          f"cannot bind ({exc.strerror or exc})") from None
+    return sock
 
 
 # --------------------------------------------------------------------------- the token

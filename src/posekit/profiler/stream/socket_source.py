@@ -8,7 +8,6 @@ read and idle timeouts, resynchronisation) and yields their profiles to whoever 
 
 import logging
 import selectors
-import socket
 import time
 from collections.abc import Iterator
 
@@ -16,7 +15,7 @@ import numpy as np
 
 from ...errors import ConfigError
 from .protocol import MAX_FRAME_BYTES, Frame
-from .server_support import LogLimiter, SensorConnection, check_address, token_digest
+from .server_support import LogLimiter, SensorConnection, check_address, listen_socket, token_digest
 
 __all__ = ["SocketSource"]
 
@@ -73,16 +72,7 @@ class SocketSource:
     def start(self) -> tuple[str, int]:
         """Bind and listen; returns ``(host, port)``."""
         if self._lsock is None:
-            sock = socket.socket(self._family, socket.SOCK_STREAM)
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                sock.bind(self._addr)
-                sock.listen(64)
-                sock.setblocking(False)
-            except OSError as exc:
-                sock.close()
-                raise ConfigError(f"listen address {self._addr[0]}:{self._addr[1]}: cannot bind "
-                                  f"({exc.strerror or exc})") from None
+            sock = listen_socket(self._family, self._addr)
             self._lsock = sock
             self.address = sock.getsockname()[:2]
         return self.address

@@ -17,10 +17,11 @@ from pathlib import Path
 from ...errors import ConfigError
 from .compare import compare_configurations, run_episodes, with_sensors
 from .config import SeamConfig, apply_overrides, config_from_dict, dump_config, load_config
+from .episode_metrics import metrics
 from .logs import EpisodeLog, read_episode_log, write_episode_log
 from .profile import load_profile
 from .report import write_simulation
-from .simulate import metrics, simulate_data
+from .simulate import simulate_data
 from .tracker import step_record, track_log, write_track
 
 __all__ = ["DEMO_PARTICLES", "DEMO_STEPS", "MAX_KEPT_STEPS", "MAX_RECORDED", "RECORD_DEFAULT", "SeamSimulation",

@@ -13,13 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import ConfigError
+from .config import SeamConfig
 from .design import SensorDesign, design_configurations, distance_grid, sensor_design, write_design
 from .profile import write_profile
-from .study import SeamStudy, make_factors, seam_study, study_base, write_study
+from .study import SeamStudy, seam_study, write_study
+from .study_factors import make_factors, study_base
 from .tune import TuneResult, tune_profile, tune_simulated
 
 __all__ = ["MAX_SIMULATED", "MAX_STUDY_EPISODES", "MAX_DESIGN_EPISODES", "StudyRun", "DesignRun", "tune_command",
-           "tune", "check_study_size", "study", "check_design_size", "design"]
+           "tune_config", "tune", "check_study_size", "study", "check_design_size", "design"]
 
 #: Most episodes ``tune(simulate=RUNS)`` makes.
 MAX_SIMULATED = 100
@@ -36,35 +38,22 @@ def _kinds(trajectory) -> list | None:
 
 
 def tune_command(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, share_sensors: bool = False,
-                 simulate: int | None = None, config=None, trajectory=None, seed: int = 0) -> str:
+                 simulate: int | None = None, config=None, trajectory=None, seed: int | None = None) -> str:
     """The command line that reproduces a :func:`tune` run, as the profile file records it."""
     words = ["posekit", "seam", "tune", *logdirs]
     if simulate is not None:
         words += ["--simulate", simulate]
         words += ["--config", config] if config else []
         words += ["--trajectory", trajectory if isinstance(trajectory, str) else ",".join(trajectory)] if trajectory else []
-        words += ["--seed", seed]
+        words += ["--seed", seed] if seed is not None else []
     words += ["--with-truth"] if with_truth else []
     words += ["--share-sensors"] if share_sensors else []
     words += ["--from", base] if base else []
     return " ".join(shlex.quote(str(a)) for a in words + ["--out", out])
 
 
-def tune(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, share_sensors: bool = False,
-         simulate: int | None = None, config=None, trajectory=None, seed: int = 0,
-         overwrite: bool = False) -> TuneResult:
-    """``posekit seam tune``: fit a cell's profile and write it to the file ``out``.
-
-    From the recorded episodes ``logdirs``, or from ``simulate`` episodes simulated now (of the
-    configuration file ``config``, ``simulate`` episodes of each trajectory kind of ``trajectory``:
-    ``'xy,yz'`` or a list; ``seed``). ``with_truth``: fit from the errors against each episode's
-    truth.csv; ``base``: the profile whose values are kept where the data do not pin them;
-    ``share_sensors``: one laser noise and one latency for every sensor. The file's header records
-    :func:`tune_command`. Returns the :class:`~posekit.seam.frontend.tune.TuneResult`.
-    """
-    given, out = out, Path(out)
-    if out.exists() and not overwrite:
-        raise ConfigError(f"--out {out}: exists; expected a new file (or --overwrite)")
+def _check_tune_sources(logdirs, simulate, config, trajectory) -> None:
+    """Recorded episodes or ``simulate`` episodes, not both; ``config``/``trajectory`` only with ``simulate``."""
     if simulate is None and not logdirs:
         raise ConfigError("seam tune: expected at least one LOGDIR (or --simulate RUNS)")
     if simulate is not None and logdirs:
@@ -72,6 +61,73 @@ def tune(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, sh
     if simulate is None and (config is not None or trajectory is not None):
         raise ConfigError("--config, --trajectory: only with --simulate (a recorded episode's setup.yaml describes "
                           "its cell)")
+
+
+def tune_config(logdirs: Sequence = (), *, base=None, simulate: int | None = None, config=None, trajectory=None,
+                seed: int | None = None) -> SeamConfig:
+    """The cell configuration ``posekit seam tune`` works with (``seam tune --dump-config``), loadable by
+    ``--config`` of every seam verb.
+
+    With ``simulate``: the configuration its episodes are simulated with (the file ``config`` or the
+    defaults, ``trajectory.kind`` set to ``trajectory`` (one kind), ``seed`` to ``seed`` when given):
+    ``posekit seam simulate --config FILE --runs RUNS`` then simulates the very episodes the tuner fits
+    on. Otherwise the configuration the recorded episodes ``logdirs`` are tracked with while tuning
+    (the first ``setup.yaml``'s; every episode must be of that cell). ``base`` (``--from``), when
+    given, is its profile: the one the tuner starts from.
+
+    Raises
+    ------
+    ConfigError
+        The sources as :func:`tune` says; several trajectory kinds (one configuration holds one).
+    """
+    from .config import TRAJECTORY_KINDS, apply_overrides, config_from_dict, load_config
+
+    _check_tune_sources(logdirs, simulate, config, trajectory)
+    if simulate is not None:
+        cfg = load_config(config) if config else config_from_dict({}, "defaults")
+        kinds = _kinds(trajectory)
+        if kinds is not None and len(kinds) != 1:
+            raise ConfigError(f"--dump-config: --trajectory names {len(kinds)} kinds ({', '.join(kinds)}); a "
+                              f"configuration holds one trajectory.kind: dump one kind at a time (the cell is the "
+                              f"same)")
+        if kinds is not None and kinds[0] not in TRAJECTORY_KINDS:
+            raise ConfigError(f"--trajectory: expected kinds among {', '.join(TRAJECTORY_KINDS)}, got '{kinds[0]}'")
+        if seed is not None and int(seed) < 0:
+            raise ConfigError(f"--seed: expected an integer >= 0, got {seed}")
+        cfg = apply_overrides(cfg, {"trajectory.kind": None if kinds is None else kinds[0], "seed": seed})
+    else:
+        from .logs import read_episode_log
+        from .tune_fit import _check_same_cell
+
+        logs = [read_episode_log(d) for d in logdirs]
+        _check_same_cell(logs)
+        cfg = logs[0].config
+    if base is None:
+        return cfg
+    from .profile import resolve_profile
+
+    data = cfg.model_dump(mode="python")
+    data["profile"] = resolve_profile(base, None, "--from").model_dump(mode="python", exclude_none=True)
+    return config_from_dict(data, "--from")
+
+
+def tune(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, share_sensors: bool = False,
+         simulate: int | None = None, config=None, trajectory=None, seed: int | None = None,
+         overwrite: bool = False) -> TuneResult:
+    """``posekit seam tune``: fit a cell's profile and write it to the file ``out``.
+
+    From the recorded episodes ``logdirs``, or from ``simulate`` episodes simulated now (of the
+    configuration file ``config``, ``simulate`` episodes of each trajectory kind of ``trajectory``:
+    ``'xy,yz'`` or a list; ``seed``, default the configuration's). ``with_truth``: fit from the errors
+    against each episode's truth.csv; ``base``: the profile whose values are kept where the data do not
+    pin them; ``share_sensors``: one laser noise and one latency for every sensor. The file's header
+    records :func:`tune_command`. Returns the :class:`~posekit.seam.frontend.tune.TuneResult`.
+    :func:`tune_config` is the cell configuration it works with.
+    """
+    given, out = out, Path(out)
+    if out.exists() and not overwrite:
+        raise ConfigError(f"--out {out}: exists; expected a new file (or --overwrite)")
+    _check_tune_sources(logdirs, simulate, config, trajectory)
     command = tune_command(given, logdirs, with_truth=with_truth, base=base, share_sensors=share_sensors,
                            simulate=simulate, config=config, trajectory=trajectory, seed=seed)
     if simulate is None:

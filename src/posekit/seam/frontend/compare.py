@@ -86,7 +86,7 @@ def run_episodes(cfg, runs: int, *, seed: int | None = None, record_particles: i
     -------
     list of EpisodeResult
     """
-    from posekit.seam.frontend.simulate import run_episode
+    from posekit.seam.frontend.episode import run_episode
 
     seeds = episode_seeds(cfg.seed if seed is None else seed, runs)
     it = range(len(seeds)) if progress is None else progress(range(len(seeds)), total=len(seeds), desc=desc)
@@ -125,7 +125,7 @@ def compare_configurations(cfg, runs: int, *, trajectories: Sequence[str] = FIG8
     Returns one :class:`ConfigurationSet` per combination, trajectories outermost.
     """
     from posekit.seam.frontend.config import apply_overrides
-    from posekit.seam.frontend.simulate import metrics
+    from posekit.seam.frontend.episode_metrics import metrics
 
     out = []
     for kind in trajectories:

@@ -164,7 +164,7 @@ def design_task(task: dict) -> dict:
     is recorded (``status='error'``), never raised.
     """
     from posekit.seam.frontend.config import config_from_dict
-    from posekit.seam.frontend.simulate import run_episode
+    from posekit.seam.frontend.episode import run_episode
 
     try:
         cfg = config_from_dict(task["config"], f"design configuration {task['index']}")

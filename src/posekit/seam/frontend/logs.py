@@ -155,7 +155,7 @@ def write_episode_log(folder, cfg: SeamConfig, data, seed: int) -> Path:
         :func:`~posekit.seam.frontend.simulate.simulate_data` of ``(cfg, seed)``.
     seed : int
         The episode seed (the filter of :func:`posekit.seam.frontend.tracker.track_log` then
-        draws the same numbers as :func:`~posekit.seam.frontend.simulate.run_episode`).
+        draws the same numbers as :func:`~posekit.seam.frontend.episode.run_episode`).
 
     Returns
     -------

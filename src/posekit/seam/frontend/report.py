@@ -78,7 +78,8 @@ def write_estimates_csv(path, results: Sequence) -> Path:
     pathlib.Path
         ``path``. Columns: :data:`ESTIMATE_COLUMNS`; numbers with 10 significant digits.
     """
-    from posekit.seam.frontend.simulate import STATUS_COLUMNS, status_columns, to_degrees
+    from posekit.seam.frontend.episode_metrics import STATUS_COLUMNS, status_columns
+    from posekit.seam.frontend.seam_frame import to_degrees
 
     path = Path(path)
     with path.open("w", newline="") as f:
@@ -158,7 +159,7 @@ def write_simulation(out, results: Sequence, metrics: Mapping, config_yaml: str 
     results : sequence of EpisodeResult
         The episodes of the main configuration (run 0 may carry recorded particles).
     metrics : mapping
-        ``posekit.seam.frontend.simulate.metrics(results)`` (the metrics.json contract); written as is,
+        ``posekit.seam.frontend.episode_metrics.metrics(results)`` (the metrics.json contract); written as is,
         plus ``comparison`` (label -> RMSE per axis) when ``comparison`` is given.
     config_yaml : str
         The effective configuration, shown in the report and written to ``config.yaml``.

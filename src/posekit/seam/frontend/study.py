@@ -3,27 +3,24 @@
 Each *run* of the study draws a random perturbation of the chosen filter parameters (the
 *factors*), simulates ``episodes`` episodes with them and records the RMSE of the six
 tool-pose errors ``x, y, z`` (mm) and ``rx, ry, rz`` (rad; the tables and the linear models use
-degrees). A linear model (statsmodels OLS,
-with an intercept) of each RMSE on the factor values then gives one p-value per factor and
-error; :func:`rank_parameters` orders the factors by their smallest p-value. An integer
-parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
-
-A factor is a dotted key of the configuration (:func:`study_base`: the profile's values as bare numbers): a
-number (drawn in ``[low, high]``), an item of a tuple key (``simulation.force_n[2]``,
-``cell.sensors.distances_mm[1]``) or a whole tuple key (``cell.sensors.distances_mm``,
-``simulation.force_n``), whose draw is a scale applied to every item (``[low, high]`` default
-``1 ± spread``): the sensors move out together, the force grows.
+degrees). A linear model (statsmodels OLS, with an intercept) of each RMSE on the factor values
+then gives one p-value per factor and error;
+:func:`~posekit.seam.frontend.study_effects.rank_parameters` orders the factors by their smallest
+p-value. An integer parameter (``filter.particles``, ``filter.anneal_stages``) takes its draw rounded.
 
 Reproducibility: run ``i`` draws its factor values from ``task_seed(seed, i, 0)`` and the
 seed of its episode ``j`` from ``task_seed(seed, i, 1, j)``; the draws are made before the
 tasks are sent out and nothing depends on the worker, so the same seed gives the same table
 in a single process (``scheduler='serial'``), on a local cluster or on a remote one, and the
 first R runs of a larger study are the R runs of a smaller one.
+
+The factors: :mod:`posekit.seam.frontend.study_factors`; the linear models and the ranking:
+:mod:`posekit.seam.frontend.study_effects`.
 """
 
 import copy
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,282 +29,18 @@ import numpy as np
 from posekit._extras import require
 from posekit.errors import ConfigError, EstimationError, PosekitError
 from posekit.seam.frontend.report import ERROR_AXES
+from posekit.seam.frontend.study_effects import (
+    ALPHA,
+    ERROR_NAMES,
+    RANKED_COLUMNS,
+    ParameterEffects,
+    fit_parameter_effects,
+    rank_parameters,
+)
+from posekit.seam.frontend.study_factors import Factor, factor_value, get_dotted, make_factors, set_dotted, study_base
 from posekit.sweep import run_tasks, task_seed
 
-__all__ = [
-    "DEFAULT_FACTORS",
-    "ERROR_NAMES",
-    "RANKED_COLUMNS",
-    "RUN_COLUMNS",
-    "Factor",
-    "ParameterEffects",
-    "SeamStudy",
-    "factor_value",
-    "fit_parameter_effects",
-    "get_dotted",
-    "is_tuple_factor",
-    "make_factors",
-    "rank_parameters",
-    "seam_study",
-    "set_dotted",
-    "study_base",
-    "study_task",
-    "write_study",
-]
-
-#: The filter parameters perturbed by default (dotted keys of :class:`~posekit.seam.frontend.config.SeamConfig`).
-DEFAULT_FACTORS = ("profile.walk.x_mm", "profile.walk.y_mm", "profile.walk.z_mm", "profile.walk.rx_deg",
-                   "profile.walk.ry_deg", "profile.walk.rz_deg", "profile.plateau.d0_mm",
-                   "profile.plateau.kd_mm_per_n", "profile.plateau.d0_deg", "profile.plateau.kd_deg_per_n",
-                   "filter.regularize_h", "filter.ess_threshold")
-#: Names of the six responses (RMSE over all steps of a run's episodes).
-ERROR_NAMES = tuple(f"rmse_{a}_{'mm' if i < 3 else 'deg'}" for i, a in enumerate(ERROR_AXES))
-#: Significance level of the ``significant`` column (before the Bonferroni correction over errors).
-ALPHA = 0.05
-
-
-@dataclass(frozen=True)
-class Factor:
-    """One perturbed parameter: a dotted config key drawn uniformly from ``[low, high]`` (its unit)."""
-
-    name: str
-    low: float
-    high: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.low < self.high):
-            raise ConfigError(f"study factor '{self.name}': expected a range low < high, "
-                              f"got [{self.low:g}, {self.high:g}]")
-
-
-def _split_index(key: str) -> tuple[str, int | None]:
-    """``'simulation.force_n[2]'`` → ``('simulation.force_n', 2)``; ``'a.b'`` → ``('a.b', None)``."""
-    if key.endswith("]") and "[" in key:
-        name, _, idx = key[:-1].rpartition("[")
-        try:
-            return name, int(idx)
-        except ValueError:
-            raise ConfigError(f"study factor '{key}': expected KEY[INDEX] with an integer index") from None
-    return key, None
-
-
-def get_dotted(data: Mapping, key: str):
-    """``data['a']['b']`` for ``key='a.b'`` (``'a.b[i]'``: item i of a tuple key); ConfigError naming
-    the key when it does not exist."""
-    name, idx = _split_index(key)
-    node = data
-    for part in name.split("."):
-        if not isinstance(node, Mapping) or part not in node:
-            raise ConfigError(f"study factor '{key}': no such configuration key")
-        node = node[part]
-    if idx is not None:
-        if not isinstance(node, (list, tuple)) or not -len(node) <= idx < len(node):
-            size = len(node) if isinstance(node, (list, tuple)) else "no"
-            raise ConfigError(f"study factor '{key}': '{name}' has {size} items; expected an index within them")
-        node = node[idx]
-    return node
-
-
-def set_dotted(data: dict, key: str, value) -> None:
-    """Set ``data['a']['b'] = value`` for ``key='a.b'`` in place (the key must exist); ``'a.b[i]'``
-    sets item i of a tuple key."""
-    get_dotted(data, key)
-    name, idx = _split_index(key)
-    *path, last = name.split(".")
-    node = data
-    for part in path:
-        node = node[part]
-    if idx is None:
-        node[last] = value
-    else:
-        items = list(node[last])
-        items[idx] = value
-        node[last] = items
-
-
-def is_tuple_factor(base: Mapping, name: str) -> bool:
-    """Whether ``name`` is a whole tuple key (``cell.sensors.distances_mm``, ``simulation.force_n``): its
-    factor value is a scale applied to every item."""
-    value = get_dotted(base, name)
-    return isinstance(value, (list, tuple))
-
-
-def factor_value(base: Mapping, name: str, x: float):
-    """The configuration value of factor ``name`` drawn as ``x``: ``x`` itself (rounded for an
-    integer key), or for a whole tuple key the base items scaled by ``x``."""
-    value = get_dotted(base, name)
-    if isinstance(value, (list, tuple)):
-        return [float(v) * float(x) for v in value]
-    return int(round(x)) if type(value) is int else float(x)
-
-
-def make_factors(base: Mapping, names: Sequence[str] | None = None, *, spread: float = 0.5,
-                 ranges: Mapping[str, tuple[float, float]] | None = None) -> tuple[Factor, ...]:
-    """Factors around a base configuration.
-
-    Parameters
-    ----------
-    base : mapping
-        The base configuration as a dict (:func:`study_base`).
-    names : sequence of str, optional
-        Dotted keys to perturb (default :data:`DEFAULT_FACTORS`, less those whose base value
-        is 0 and that have no explicit range).
-    spread : float
-        Relative half-range: a factor is drawn from ``[v (1 - spread), v (1 + spread)]`` around
-        its base value v; 0 < spread < 1.
-    ranges : mapping of str to (low, high), optional
-        Explicit ranges that replace the relative one (for parameters whose base is 0).
-
-    Returns
-    -------
-    tuple of Factor
-    """
-    if not 0.0 < spread < 1.0:
-        raise ConfigError(f"study spread: expected a fraction 0 < spread < 1, got {spread:g}")
-    ranges = dict(ranges or {})
-    explicit = names is not None
-    names = list(names if explicit else DEFAULT_FACTORS)
-    for k in ranges:
-        if k not in names:
-            names.append(k)
-    factors = []
-    for name in names:
-        value = get_dotted(base, name)
-        if name in ranges:
-            lo, hi = ranges[name]
-            factors.append(Factor(name, float(lo), float(hi)))
-            continue
-        if isinstance(value, (list, tuple)):  # a tuple key: one scale for all of its items
-            if not value or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-                raise ConfigError(f"study factor '{name}': expected a tuple of numbers, got {value!r}")
-            factors.append(Factor(name, 1.0 - spread, 1.0 + spread))
-            continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"study factor '{name}': expected a numeric parameter, got {value!r}")
-        if value == 0:
-            if explicit:
-                raise ConfigError(f"study factor '{name}': its base value is 0, so a relative range is empty; "
-                                  f"give an explicit range {name}=LOW:HIGH")
-            continue
-        a, b = sorted((value * (1 - spread), value * (1 + spread)))
-        factors.append(Factor(name, float(a), float(b)))
-    if not factors:
-        raise ConfigError("study: no factor to perturb")
-    return tuple(factors)
-
-
-@dataclass
-class ParameterEffects:
-    """Linear models (OLS with intercept) of each error on the factors.
-
-    Attributes
-    ----------
-    parameters : tuple of str, length P
-    errors : tuple of str, length E
-    coef : ndarray, shape (E, P)
-        Slopes: change of the error (its unit) per unit of the factor.
-    pvalues : ndarray, shape (E, P)
-        Two-sided t-test p-values of the slopes.
-    rsquared : ndarray, shape (E,)
-    n : int
-        Runs used in the fit.
-    """
-
-    parameters: tuple
-    errors: tuple
-    coef: np.ndarray
-    pvalues: np.ndarray
-    rsquared: np.ndarray
-    n: int
-
-    @property
-    def log10_p(self) -> np.ndarray:
-        """(E, P) log10 of the p-values (p = 0 is clipped to 1e-300)."""
-        return np.log10(np.clip(self.pvalues, 1e-300, 1.0))
-
-
-def fit_parameter_effects(X: np.ndarray, Y: np.ndarray, parameters: Sequence[str],
-                          errors: Sequence[str] = ERROR_NAMES) -> ParameterEffects:
-    """OLS of each column of ``Y`` on the columns of ``X`` (plus an intercept).
-
-    Parameters
-    ----------
-    X : ndarray, shape (R, P)
-        Factor values of each run (their config units).
-    Y : ndarray, shape (R, E)
-        Responses of each run (e.g. RMSE per error axis). Rows with a non-finite value in X
-        or Y are left out of every model.
-    parameters, errors : sequence of str
-        Names of the P factors and E responses.
-
-    Returns
-    -------
-    ParameterEffects
-
-    Raises
-    ------
-    EstimationError
-        Fewer than P + 2 usable runs, or a factor that does not vary.
-    """
-    sm = require("statsmodels.api", "studies", "the seam study's parameter effects (OLS)")
-
-    X = np.asarray(X, dtype=float)
-    Y = np.asarray(Y, dtype=float)
-    if X.ndim != 2 or Y.ndim != 2 or len(X) != len(Y) or X.shape[1] != len(parameters) or \
-            Y.shape[1] != len(errors):
-        raise ConfigError(f"parameter effects: expected X (R, {len(parameters)}) and Y (R, {len(errors)}), "
-                          f"got {X.shape} and {Y.shape}")
-    ok = np.all(np.isfinite(X), axis=1) & np.all(np.isfinite(Y), axis=1)
-    n, p = int(ok.sum()), X.shape[1]
-    if n < p + 2:
-        raise EstimationError(f"parameter effects: {n} usable runs for {p} factors; need at least {p + 2} "
-                              f"(raise --runs)")
-    Xo = X[ok]
-    flat = [parameters[j] for j in range(p) if np.ptp(Xo[:, j]) == 0]
-    if flat:
-        raise EstimationError(f"parameter effects: factor(s) {', '.join(flat)} do not vary over the runs")
-    design = sm.add_constant(Xo, has_constant="add")
-    coef = np.empty((Y.shape[1], p))
-    pv = np.empty((Y.shape[1], p))
-    r2 = np.empty(Y.shape[1])
-    for e in range(Y.shape[1]):
-        fit = sm.OLS(Y[ok, e], design).fit()
-        coef[e] = fit.params[1:]
-        pv[e] = fit.pvalues[1:]
-        r2[e] = fit.rsquared
-    return ParameterEffects(tuple(parameters), tuple(errors), coef, pv, r2, n)
-
-
-RANKED_COLUMNS = ("rank", "parameter", "low", "high", "min_log10_p", "most_affected", "significant",
-                  *(f"log10_p_{a}" for a in ERROR_AXES),
-                  *(f"range_effect_{a}_{'mm' if i < 3 else 'deg'}" for i, a in enumerate(ERROR_AXES)))
-
-
-def rank_parameters(effects: ParameterEffects, factors: Sequence[Factor]) -> list[dict]:
-    """Factors ordered by their smallest p-value over the errors (most significant first).
-
-    Each row: ``rank`` (1 = matters most), ``parameter``, its range, ``min_log10_p``, the error
-    it affects most (``most_affected``), ``significant`` (smallest p < 0.05 / E, Bonferroni
-    over the E errors), the log10 p-value per error, and ``range_effect_*``: the change of each
-    error's RMSE predicted over the factor's whole range (slope × (high - low)).
-    """
-    lp = effects.log10_p
-    n_err = len(effects.errors)
-    rows = []
-    for j, f in enumerate(factors):
-        col = lp[:, j]
-        e = int(np.nanargmin(col)) if np.any(np.isfinite(col)) else 0
-        row = {"parameter": f.name, "low": f.low, "high": f.high, "min_log10_p": float(col[e]),
-               "most_affected": effects.errors[e],
-               "significant": "yes" if col[e] < np.log10(ALPHA / n_err) else "no"}
-        for i, a in enumerate(ERROR_AXES[:n_err]):
-            row[f"log10_p_{a}"] = float(col[i])
-            row[f"range_effect_{a}_{'mm' if i < 3 else 'deg'}"] = float(effects.coef[i, j] * (f.high - f.low))
-        rows.append(row)
-    rows.sort(key=lambda r: (r["min_log10_p"], r["parameter"]))
-    for k, r in enumerate(rows, 1):
-        r["rank"] = k
-    return rows
+__all__ = ["RUN_COLUMNS", "SeamStudy", "seam_study", "study_task", "write_study"]
 
 
 RUN_COLUMNS = ("run", "status", *ERROR_NAMES, "error")
@@ -369,14 +102,6 @@ def _rmse_deg(rmse: np.ndarray) -> np.ndarray:
     return out
 
 
-def study_base(config) -> dict:
-    """The configuration as the mapping a study perturbs: ``SeamConfig.model_dump`` with the profile's values as
-    bare numbers (``profile.walk.z_mm``, ``profile.plateau.d0_mm`` are factors like any other key)."""
-    base = config.model_dump(mode="json")
-    base["profile"] = config.profile.plain()
-    return base
-
-
 def _episode_seed(seed: int, run: int, episode: int) -> int:
     return int(task_seed(seed, run, 1, episode).generate_state(1)[0])
 
@@ -390,7 +115,7 @@ def study_task(task: dict) -> dict:
     one line, never an exception: one bad run must not cancel the study.
     """
     from posekit.seam.frontend.config import config_from_dict
-    from posekit.seam.frontend.simulate import run_episode
+    from posekit.seam.frontend.episode import run_episode
 
     t0 = time.process_time()
     try:

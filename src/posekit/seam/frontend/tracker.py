@@ -305,9 +305,11 @@ def track_metrics(result: SeamTrackResult) -> dict:
     ``confident_wrong`` (fraction of steps ``tracking`` and beyond 3 × the spread on some axis),
     ``plateau_ratio_max`` and ``outside_plateau_steps`` (the truth's largest offset from the
     kinematic pose in radii of the filter's robot plateau, and the fraction of steps outside it:
-    :func:`posekit.seam.frontend.simulate.plateau_ratio`; outside, the filter's ``d0``/``kd`` do not
+    :func:`posekit.seam.frontend.episode.plateau_ratio`; outside, the filter's ``d0``/``kd`` do not
     describe the robot, paper eq. 7))."""
-    from posekit.seam.frontend.simulate import AXES, confident_wrong_share, plateau_ratio, seam_frame_errors
+    from posekit.seam.frontend.episode import plateau_ratio
+    from posekit.seam.frontend.episode_metrics import confident_wrong_share
+    from posekit.seam.frontend.seam_frame import AXES, seam_frame_errors
 
     def fl(v):
         return float(round(float(v), 6))
@@ -364,7 +366,7 @@ def write_track(folder, result: SeamTrackResult) -> dict:
 
     from posekit.report import write_json
     from posekit.seam.frontend.report import _poses
-    from posekit.seam.frontend.simulate import seam_frame_errors
+    from posekit.seam.frontend.seam_frame import seam_frame_errors
 
     folder = Path(folder)
     m = track_metrics(result)

@@ -393,7 +393,7 @@ def tune_report(result: TuneResult) -> str:
     return "\n".join(lines)
 
 
-def tune_simulated(config, runs: int, kinds=None, seed: int = 0, **kw) -> TuneResult:
+def tune_simulated(config, runs: int, kinds=None, seed: int | None = None, **kw) -> TuneResult:
     """:func:`tune_profile` on ``runs`` episodes of each trajectory kind simulated now (``posekit seam tune
     --simulate``: how the shipped default profile is made).
 
@@ -405,8 +405,8 @@ def tune_simulated(config, runs: int, kinds=None, seed: int = 0, **kw) -> TuneRe
         Episodes per kind.
     kinds : list of str, optional
         Trajectory kinds (default the configuration's).
-    seed : int
-        Seed of the episodes (:func:`simulate_episodes`).
+    seed : int, optional
+        Seed of the episodes (:func:`simulate_episodes`; default the configuration's ``seed``).
     **kw
         Passed to :func:`tune_profile`.
     """
@@ -416,6 +416,7 @@ def tune_simulated(config, runs: int, kinds=None, seed: int = 0, **kw) -> TuneRe
 
     cfg = load_config(config) if config else config_from_dict({}, "defaults")
     kinds = [cfg.trajectory.kind] if kinds is None else list(kinds)
+    seed = cfg.seed if seed is None else int(seed)
     for k in kinds:
         if k not in TRAJECTORY_KINDS:
             raise ConfigError(f"--trajectory: expected kinds among {', '.join(TRAJECTORY_KINDS)}, got '{k}'")

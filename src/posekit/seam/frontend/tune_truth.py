@@ -262,7 +262,7 @@ def _coverage_ratio(z: list) -> np.ndarray:
 def _particle_z(logs, profile) -> list:
     """Per episode ``e / s`` (T, 6): ``e`` the particle filter's error against the truth in the seam frame, ``s``
     its reported spread, run with ``profile`` (each episode's own filter settings and seed)."""
-    from posekit.seam.frontend.simulate import seam_frame_errors
+    from posekit.seam.frontend.seam_frame import seam_frame_errors
     from posekit.seam.frontend.tracker import SeamTracker
 
     z2 = []

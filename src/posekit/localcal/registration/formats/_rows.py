@@ -1,5 +1,7 @@
-"""Checks shared by the trajectory readers: finite values, unit quaternions, and the conversion of
-metres and ``[w, x, y, z]`` quaternions into a millimetre :class:`Trajectory`."""
+"""What the trajectory readers share: numeric rows parsed with the malformed line named, the
+tolerances (:data:`QUATERNION_NORM_TOL`, :data:`MAX_POSITION_M`), the record checks (finite values,
+unit quaternions, plausible positions, time order) and the conversion of metres and
+``[w, x, y, z]`` quaternions into a millimetre :class:`Trajectory`."""
 
 import numpy as np
 
@@ -8,9 +10,14 @@ from posekit.geometry import transform_from_quaternion
 from posekit.io import check_rows, parse_number
 from posekit.localcal.model.trajectory import Trajectory
 
-from .tum import QUATERNION_NORM_TOL, _is_float
+__all__ = ["QUATERNION_NORM_TOL", "MAX_POSITION_M", "parse_numbers", "parse_lines", "trajectory_from_rows"]
 
-__all__ = ["parse_numbers", "trajectory_from_rows"]
+#: Largest accepted deviation of a file quaternion's norm from 1 (files keep 4-9 decimals).
+QUATERNION_NORM_TOL = 1e-2
+
+#: Largest position a trajectory file may hold, m (beyond it the numbers are not metres, and
+#: squaring them overflows).
+MAX_POSITION_M = 1e9
 
 
 def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool = False,
@@ -45,6 +52,27 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
     fast = _parse_fast(text, n_fields, at_least, separator)
     if fast is not None:
         return fast
+    return parse_lines(path, text, n_fields, what, at_least=at_least, separator=separator)
+
+
+def parse_lines(path, text: str, n_fields: int, what: str, *, at_least: bool = False,
+                separator: str | None = None, field_hints: dict[int, str] | None = None,
+                expected_lines: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`parse_numbers` line by line in Python, naming the first malformed line.
+
+    For a reader that tried a fast path of its own first
+    (:func:`~posekit.localcal.registration.formats.tum.read_tum`). The parameters and results are
+    those of :func:`parse_numbers` (without its line-count bound), and:
+
+    Parameters
+    ----------
+    field_hints : dict of int to str, optional
+        Text appended to the message of a row with that many fields (e.g. that 12 numbers look
+        like a KITTI file).
+    expected_lines : str, optional
+        What the lines should hold, in the message of a text without rows; default
+        ``"of " + what``.
+    """
     rows, lines = [], []
     for number, raw in enumerate(text.splitlines(), start=1):
         s = raw.strip()
@@ -53,7 +81,8 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
         fields = ([f.strip() for f in s.split(separator)] if separator
                   else s.replace(",", " ").split())
         if len(fields) < n_fields or (not at_least and len(fields) != n_fields):
-            raise InputFileError(f"{path}:{number}: expected {what}, found {len(fields)} fields")
+            hint = (field_hints or {}).get(len(fields), "")
+            raise InputFileError(f"{path}:{number}: expected {what}, found {len(fields)} fields{hint}")
         try:
             rows.append([parse_number(f) for f in fields[:n_fields]])
         except ValueError:
@@ -62,8 +91,17 @@ def parse_numbers(path, text: str, n_fields: int, what: str, *, at_least: bool =
             raise InputFileError(f"{path}:{number}: expected {what}, found '{shown}'") from None
         lines.append(number)
     if not rows:
-        raise InputFileError(f"{path}: no poses found (expected lines of {what})")
+        expected = f"of {what}" if expected_lines is None else expected_lines
+        raise InputFileError(f"{path}: no poses found (expected lines {expected})")
     return np.asarray(rows, dtype=np.float64), np.asarray(lines)
+
+
+def _is_float(text: str) -> bool:
+    try:
+        parse_number(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _parse_fast(text: str, n_fields: int, at_least: bool, separator: str | None):
@@ -126,7 +164,7 @@ def trajectory_from_rows(path, t_s, p_m, q_wxyz, records: list[str] | np.ndarray
     finite = np.isfinite(t_s) & np.isfinite(p_m).all(axis=1) & np.isfinite(q).all(axis=1)
     if not finite.all():
         raise fail(int(np.flatnonzero(~finite)[0]), "expected finite numbers, found NaN or infinity")
-    big = np.abs(p_m).max(axis=1) > 1e9
+    big = np.abs(p_m).max(axis=1) > MAX_POSITION_M
     if big.any():
         k = int(np.flatnonzero(big)[0])
         raise fail(k, f"position {np.abs(p_m[k]).max():.3g} m is implausible; expected metres")

@@ -11,7 +11,7 @@ from posekit.geometry import nearest_rotation, transform_from
 from posekit.io import read_text
 from posekit.localcal.model.trajectory import Trajectory
 
-from ._rows import parse_numbers
+from ._rows import MAX_POSITION_M, parse_numbers
 
 __all__ = ["ROTATION_TOL", "read_kitti", "write_kitti"]
 
@@ -58,7 +58,7 @@ def read_kitti(path, rate_hz: float, *, t0_s: float = 0.0) -> Trajectory:
         k = int(np.flatnonzero(bad)[0])
         raise InputFileError(f"{path}:{lines[k]}: expected finite numbers, found NaN or infinity")
     M = rows.reshape(-1, 3, 4)
-    big = np.abs(M[:, :, 3]).max(axis=1) > 1e9
+    big = np.abs(M[:, :, 3]).max(axis=1) > MAX_POSITION_M
     if big.any():
         k = int(np.flatnonzero(big)[0])
         raise InputFileError(f"{path}:{lines[k]}: position {np.abs(M[k, :, 3]).max():.3g} m is implausible; "

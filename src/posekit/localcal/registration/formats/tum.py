@@ -13,18 +13,15 @@ import numpy as np
 
 from posekit.errors import InputFileError
 from posekit.geometry import quaternion_from_matrix, transform_from_quaternion
-from posekit.io import check_rows, parse_number, read_text
+from posekit.io import check_rows, read_text
 from posekit.localcal.model.trajectory import Trajectory
+
+from ._rows import MAX_POSITION_M, QUATERNION_NORM_TOL, parse_lines
 
 __all__ = ["read_tum", "write_tum"]
 
-#: Largest accepted deviation of a file quaternion's norm from 1 (files keep 4-9 decimals).
-QUATERNION_NORM_TOL = 1e-2
-
-
-#: Largest position a trajectory file may hold, m (as the other formats' readers: beyond it the
-#: numbers are not metres, and squaring them overflows).
-MAX_POSITION_M = 1e9
+_LAYOUT = "8 numbers 'timestamp tx ty tz qx qy qz qw'"
+_FIELD_HINTS = {12: "; 12 numbers per line look like a KITTI pose file: give --format kitti --rate-hz HZ"}
 
 
 def _fail(path, line: int, what: str) -> InputFileError:
@@ -48,9 +45,8 @@ def read_tum(path) -> Trajectory:
     ------
     InputFileError
         If the file is missing or unreadable, has no pose, or a row is malformed: not 8 numbers,
-        a NaN or infinite value, a quaternion whose norm is not 1, a position beyond
-        :data:`MAX_POSITION_M`, or a timestamp earlier than the previous one. The message names
-        ``file:line``.
+        a NaN or infinite value, a quaternion whose norm is not 1, a position beyond 1e9 m, or a
+        timestamp earlier than the previous one. The message names ``file:line``.
     """
     path = Path(path)
     text = read_text(path, expected="a TUM trajectory file ('timestamp tx ty tz qx qy qz qw' per line)")
@@ -58,28 +54,8 @@ def read_tum(path) -> Trajectory:
     fast = _read_tum_fast(text)
     if fast is not None:
         return fast
-    rows, lines = [], []
-    for number, raw in enumerate(text.splitlines(), start=1):
-        s = raw.strip()
-        if not s or s.startswith("#"):
-            continue
-        fields = s.replace(",", " ").split()
-        if len(fields) != 8:
-            hint = ("; 12 numbers per line look like a KITTI pose file: give --format kitti --rate-hz HZ"
-                    if len(fields) == 12 else "")
-            raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
-                                      f"found {len(fields)} fields{hint}")
-        try:
-            rows.append([parse_number(f) for f in fields])
-        except ValueError:
-            bad = next(f for f in fields if not _is_float(f))
-            raise _fail(path, number, f"expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
-                                      f"found '{bad}'") from None
-        lines.append(number)
-    if not rows:
-        raise InputFileError(f"{path}: no poses found (expected lines 'timestamp tx ty tz qx qy qz qw')")
-    a = np.asarray(rows)
-    lines = np.asarray(lines)
+    a, lines = parse_lines(path, text, 8, _LAYOUT, field_hints=_FIELD_HINTS,
+                           expected_lines="'timestamp tx ty tz qx qy qz qw'")
     bad = ~np.isfinite(a).all(axis=1)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
@@ -123,14 +99,6 @@ def _read_tum_fast(text: str):
             or np.any(np.diff(a[:, 0]) < 0) or np.any(np.abs(a[:, 1:4]) > MAX_POSITION_M)):
         return None
     return Trajectory(a[:, 0], transform_from_quaternion(a[:, [7, 4, 5, 6]], a[:, 1:4] * 1000.0))
-
-
-def _is_float(text: str) -> bool:
-    try:
-        parse_number(text)
-    except ValueError:
-        return False
-    return True
 
 
 def write_tum(path, traj: Trajectory) -> None:
