@@ -49,6 +49,14 @@ def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
     # and the laser noise to within a half of the generator's (0.03 / 0.04 mm plus the jitter the sensors see)
     for i, noise in enumerate(cell.laser_sigma_mm):
         assert noise < got[f"sensors[{i}].sigma_mm"].value < 1.5 * noise
+    # the integrity test's calibration, from the filter run with all of it: every component pinned with a 1σ, its
+    # mean within a factor 2 of the model's own 1 (measured on 3 x 400 steps: 0.79-0.93) and its degrees of freedom
+    # per reading at most ~1 (correlated steps are worth less; measured 0.82-0.96)
+    for i in range(len(cell.mounts)):
+        for a in "xz":
+            c, rho = got[f"sensors[{i}].nis_mean_{a}"], got[f"sensors[{i}].nis_dof_{a}"]
+            assert c.pinned and rho.pinned and 0.5 < c.value < 2.0 and 0.0 < c.std < 0.2 * c.value, (c, rho)
+            assert 0.2 < rho.value < 1.3, rho
 
 
 def test_tune_without_truth_is_never_confidently_wrong_about_a_latency(tmp_path, monkeypatch):
