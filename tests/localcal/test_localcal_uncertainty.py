@@ -13,12 +13,9 @@ import pytest
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
+from posekit._autocorr import autocorrelation_time
 from posekit.localcal.registration.alignment import umeyama
-from posekit.localcal.registration.uncertainty import (
-    autocorrelation_time,
-    path_tangents,
-    registration_covariance,
-)
+from posekit.localcal.registration.uncertainty import path_tangents, registration_covariance
 from tests.localcal.test_localcal_verdict import good_cases, run_case
 
 

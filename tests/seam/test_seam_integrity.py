@@ -135,19 +135,57 @@ def test_monitor_a_force_beyond_the_plateau_s_measured_range_is_degraded_but_not
 
 
 def test_a_small_inconsistency_that_persists_is_degraded_by_the_long_window_without_widening_the_walk():
-    # NIS per dof 1.3 on every step: no 10-step window fails (chi2(40) at 1e-3 is 73.4 > 52), the 300-step one does
-    # (chi2(1200) at 1e-3 is ~1352 < 1560 at the end); the walk reacts to the short tests only
-    mon, short = _mon(window=10, window_long=300), _mon(window=10)
-    got = [mon.update(1.3 * 4, 4, 0.0, 0.0, 400.0) for _ in range(300)]
-    assert all(short.update(1.3 * 4, 4, 0.0, 0.0, 400.0).status == "tracking" for _ in range(300))
+    # sensor 2's x component 1.5 x its fitted mean on every step, the others at their mean: no 10-step window fails
+    # (chi2(40) at 1e-3 is 73.4 > 54), the long window tests each component against chi2(rho n) / rho at 1e-3 / 4
+    # (Bonferroni over the 4 components), scipy's quantile; the walk reacts to the short tests only
+    c, rho = np.array([0.8, 0.9, 0.7, 0.85]), np.array([0.8, 0.95, 0.6, 0.9])
+    mon = IntegrityMonitor(500, 10, 1e-3, 1e-7, 0.002, 0, 0.0, 300, nis_mean=c, nis_dof=rho)
+    short = _mon(window=10)
+    u = c * np.array([1.0, 1.0, 1.5, 1.0])
+    got = [mon.update(float(u.sum()), 4, 0.0, 0.0, 400.0, components=u) for _ in range(300)]
+    assert all(short.update(float(u.sum()), 4, 0.0, 0.0, 400.0).status == "tracking" for _ in range(300))
     first = next(i for i, r in enumerate(got) if r.status == "degraded")
-    q = [chi2.isf(1e-3, 4 * (k + 1)) for k in range(300)]
-    assert first == next(k for k in range(300) if 1.3 * 4 * (k + 1) > q[k] and k + 1 > 10)
+    limit = [chi2.isf(1e-3 / 4, rho[2] * n) / (rho[2] * n) for n in range(1, 301)]
+    assert first == next(k for k in range(300) if 1.5 > limit[k] and k + 1 > 10)
     assert all(r.status == "degraded" for r in got[first:]) and all(r.tests_status == "tracking" for r in got)
-    assert got[-1].reason == f"laser NIS {1.3 * 1200:.4g} > {q[-1]:.4g} over the last 300 steps (dof 1200)"
-    # consistent data (NIS per dof 1) never trip it: the long window forgets what left it
-    assert all(mon.update(4.0, 4, 0.0, 0.0, 400.0).status in ("tracking", "degraded") for _ in range(300))
-    assert mon.update(4.0, 4, 0.0, 0.0, 400.0).status == "tracking"
+    assert got[-1].reason == (f"sensor 2's x innovations over the last 300 readings 1.5 x the profile's nis_mean_x "
+                              f"(> {limit[-1]:.3g})")
+    # the components at their fitted means never trip it, and the long window forgets what left it
+    for _ in range(300):
+        mon.update(float(c.sum()), 4, 0.0, 0.0, 400.0, components=c)
+    assert mon.update(float(c.sum()), 4, 0.0, 0.0, 400.0, components=c).status == "tracking"
+    # without a calibration the components are tested against the textbook chi2_1 (mean 1, 1 dof per reading)
+    plain = _mon(window=10, window_long=300)
+    for _ in range(299):
+        plain.update(4.0, 4, 0.0, 0.0, 400.0, components=np.array([1.0, 1.0, 1.0, 1.0]))
+    assert plain.update(4.0, 4, 0.0, 0.0, 400.0, components=np.ones(4)).status == "tracking"
+    # a missing reading (NaN) is not counted: sensor 2 read on every other step only
+    sparse = _mon(window=10, window_long=300)
+    for k in range(300):
+        sparse.update(4.0, 4, 0.0, 0.0, 400.0, components=np.array([1.0, 1.0, np.nan, np.nan]) if k % 2 else
+                      np.array([1.0, 1.0, 1.6, 1.0]))
+    assert sparse._long_n.tolist() == [300, 300, 150, 150]
+    assert sparse.update(4.0, 4, 0.0, 0.0, 400.0, components=np.ones(4)).reason.startswith(
+        "sensor 2's x innovations over the last 150 readings 1.6 x")   # (one of 1.6 left the window, a 1 came)
+
+
+def test_innovation_components_are_each_reading_s_own_normalised_square():
+    rng = np.random.default_rng(4)
+    e = rng.normal(0.02, 0.03, (200, 4))
+    e[5, 2:] = np.nan                             # a particle whose second plane misses the seam
+    w = rng.random(200)
+    w /= w.sum()
+    nis, dof, u = innovation_nis(e, w, np.array([1e-3, 2e-3, 1e-3, 4e-3]), per_component=True)
+    assert (nis, dof) == innovation_nis(e, w, np.array([1e-3, 2e-3, 1e-3, 4e-3]))
+    ok = np.isfinite(e).all(axis=1)
+    wk = w[ok] / w[ok].sum()
+    mean = wk @ e[ok]
+    var = wk @ (e[ok] - mean) ** 2 + np.array([1e-3, 2e-3, 1e-3, 4e-3])
+    np.testing.assert_allclose(u, mean ** 2 / var, rtol=1e-10)
+    # a reading no particle places on the seam: NaN, the others kept
+    e[:, 2:] = np.nan
+    _, dof, u = innovation_nis(e, w, 1e-3, per_component=True)
+    assert dof == 2 and np.isnan(u[2:]).all() and np.isfinite(u[:2]).all()
 
 
 def _numpy_plane_errors(T, m, M, P):

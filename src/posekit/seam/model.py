@@ -123,6 +123,10 @@ class Profile:
     spread_scale : ndarray, shape (6,)
         Factor per tool axis on the filter's spread (cloud or bound, before the jitter is added): fitted so that
         the particle filter's 2σ covers 95 % of its errors on episodes with a reference (1: none fitted).
+    nis_mean, nis_dof : ndarray, shape (S, 2) or (1, 2)
+        Per sensor, its x and z reading's mean normalised squared innovation on the training episodes and the
+        effective χ² degrees of freedom per reading (:mod:`posekit.seam.engine.integrity`'s long window; 1: as
+        the model says, none fitted).
     """
 
     walk: np.ndarray
@@ -139,6 +143,8 @@ class Profile:
     joint_sigma_rad: float
     max_force_n: float
     spread_scale: np.ndarray = field(default_factory=lambda: np.ones(6))
+    nis_mean: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
+    nis_dof: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
 
     def _per_sensor(self, values: np.ndarray, n: int, what: str) -> np.ndarray:
         v = np.asarray(values, dtype=np.float64).reshape(-1)
@@ -155,3 +161,15 @@ class Profile:
     def sensor_latency_s(self, n: int) -> np.ndarray:
         """Fitted latency of each of ``n`` sensors (s), shape (n,)."""
         return self._per_sensor(self.latency_s, n, "latency")
+
+    def sensor_nis(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``nis_mean`` and ``nis_dof`` of ``n`` sensors as ``(2 n,)`` each (sensor k's x at ``2k``, z at ``2k + 1``)."""
+        out = []
+        for v, what in ((self.nis_mean, "innovation mean"), (self.nis_dof, "innovation dof")):
+            v = np.asarray(v, dtype=np.float64).reshape(-1, 2)
+            if len(v) == 1:
+                v = np.repeat(v, n, axis=0)
+            elif len(v) != n:
+                raise ValueError(f"profile: {len(v)} {what} pairs for {n} sensors; expected one per sensor or one for all")
+            out.append(v.reshape(-1).copy())
+        return out[0], out[1]

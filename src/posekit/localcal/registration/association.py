@@ -314,7 +314,7 @@ def offset_std(offset_s, t_src, p_src, t_dst, p_dst, *, with_scale: bool = False
     inlier gate (:func:`.alignment.robust_inliers`) are linearised in the rotation
     (3), translation (3), scale (with ``with_scale``) and offset (the dst velocity ``v_i``); the
     offset's variance is the corresponding entry of ``σ² (JᵀJ)⁻¹`` (``σ²`` the residual variance),
-    times the residuals' integrated autocorrelation time (:func:`.uncertainty.autocorrelation_time`).
+    times the residuals' integrated autocorrelation time (:func:`posekit._autocorr.autocorrelation_time`).
 
     Parameters
     ----------
@@ -333,7 +333,7 @@ def offset_std(offset_s, t_src, p_src, t_dst, p_dst, *, with_scale: bool = False
         The offset's standard deviation, s; ``inf`` when fewer than ``MIN_POSES`` samples overlap
         or the dst path does not move at the paired samples (stop-and-go captures).
     """
-    from posekit.localcal.registration.uncertainty import autocorrelation_time
+    from posekit._autocorr import autocorrelation_time
 
     t_src, p_src = np.asarray(t_src, dtype=np.float64), np.asarray(p_src, dtype=np.float64)
     k = thin_indices(t_src.size, _REFINE_SAMPLES)

@@ -24,7 +24,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from .uncertainty import autocorrelation_time
+from posekit._autocorr import autocorrelation_time
 
 __all__ = ["MAX_SEGMENTS", "MIN_SEGMENT_PAIRS", "SCALE_ALPHA", "ScaleDrift", "scale_drift"]
 

@@ -113,6 +113,7 @@ class SeamParticleFilter:
         self.chain = cell.chain
         self.mounts = np.ascontiguousarray(cell.mounts)
         S = self.mounts.shape[0]
+        self._n_sensors = S
         self._lever = np.linalg.norm(self.mounts[:, :3, 3], axis=1)  # mm, tool centre to sensor
         self._latency = cell.latencies(profile)
         self._sigma2 = profile.sensor_sigma_mm(S) ** 2
@@ -134,7 +135,8 @@ class SeamParticleFilter:
         self.integrity = IntegrityMonitor(settings.particles, settings.integrity_window,
                                           settings.integrity_alpha_degraded, settings.integrity_alpha_lost,
                                           settings.integrity_ess_min, settings.integrity_recovery,
-                                          profile.max_force_n, settings.integrity_window_long)
+                                          profile.max_force_n, settings.integrity_window_long,
+                                          *profile.sensor_nis(S))
         self._bound = InformationBound()
         self._offset = np.eye(4) if T_offset is None else np.asarray(T_offset, dtype=np.float64)
         self.n = settings.particles
@@ -185,6 +187,14 @@ class SeamParticleFilter:
         out[:, :3, :3] = np.matmul(matrix_from_rotation_vector(dr), centre[:3, :3])
         out[:, :3, 3] = centre[:3, 3] + dt
         return out
+
+    def _present(self, inputs: StepInputs) -> np.ndarray:
+        """Indices of the sensors whose reading the step uses (both components finite), in order: the columns of
+        the lasers' errors come in this order (:meth:`_readings`)."""
+        if inputs.laser_mm is None or self._n_sensors == 0:
+            return np.empty(0, dtype=np.int64)
+        m = np.asarray(inputs.laser_mm, dtype=np.float64).reshape(-1, 2)[:self._n_sensors]
+        return np.flatnonzero(np.isfinite(m).all(axis=1))
 
     def _reading_mounts(self, inputs: StepInputs) -> np.ndarray:
         """Effective mounts ``(S, 4, 4)``: ``Fk(q̄(t))⁻¹ Fk(q̄(t - L)) T_tool_sensor`` per sensor (mm), the
@@ -369,8 +379,13 @@ class SeamParticleFilter:
             self._miss2 = radius * radius
             ll, ll_robot, E = self._loglik(self.T, rd, inputs, meas, errors=True)
             # integrity: the lasers' innovations under the cloud before the lasers weight it
-            nis, dof = (innovation_nis(E, normalize_log_weights(self.logw + ll_robot).w, rd.r2.reshape(-1))
-                        if used else (0.0, 0))
+            components = np.full(2 * self._n_sensors, np.nan)
+            if used:
+                nis, dof, u = innovation_nis(E, normalize_log_weights(self.logw + ll_robot).w, rd.r2.reshape(-1),
+                                             per_component=True)
+                components[np.repeat(2 * self._present(inputs), 2) + np.tile([0, 1], used)] = u
+            else:
+                nis, dof = 0.0, 0
         norm = normalize_log_weights(self.logw + ll)
         ess = effective_sample_size(norm.w)
         ess_update = ess
@@ -420,7 +435,7 @@ class SeamParticleFilter:
             self.resamplings += 1
         else:
             self.logw = norm.logw
-        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm)
+        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm, components)
         self.report = rep  # the step's consistency statistics (IntegrityReport)
         # the walk reacts to the consistency tests, not to the force range
         previous, self._last_status = self._last_status, rep.tests_status
@@ -432,7 +447,7 @@ class SeamParticleFilter:
                 self._init_pending = True
                 self._offset = np.eye(4)
         return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages,
-                            rep.status, rep.reason, nis, ess_update)
+                            rep.status, rep.reason, nis, ess_update, components)
 
     @property
     def weights(self) -> np.ndarray:

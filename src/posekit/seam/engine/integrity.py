@@ -11,7 +11,12 @@ Laser innovations (normalised innovation squared, NIS)
     correlation through the shared pose kept). ``NIS = ēᵀ C⁻¹ ē`` is χ² with ``2 S`` degrees of
     freedom when the model holds; the sums over the last ``window`` steps are tested against
     the χ² quantiles at two levels. A robot that bends more than the filter allows pulls the
-    cloud away from where the lasers see the seam: the innovations grow.
+    cloud away from where the lasers see the seam: the innovations grow. A second, long window
+    tests each reading component on its own (``ē_j² / C_jj``, sensor k's x and z) against the mean
+    and the effective degrees of freedom the profile's own training episodes showed (``seam tune``
+    fits them: on a real cell the predictive covariance is never exactly the innovations', and the
+    steps are correlated). A latency nobody declared shows there, mostly in the lateral
+    component of the sensor farthest ahead, long before it shows in the sum of every component.
 Robot consistency
     The estimate's offset from the kinematic pose ``Fk(q + Cj(τ))``, beyond the robot density's
     plateau (eq. 8: the part outside the ball of radius ``d(f)``), against the Gaussian tails
@@ -76,11 +81,11 @@ STATUSES = ("tracking", "degraded", "lost")
 
 
 @lru_cache(maxsize=16384)
-def _chi2_isf(alpha: float, dof: int) -> float:
+def _chi2_isf(alpha: float, dof: float) -> float:
     """The upper ``alpha`` quantile of a χ² with ``dof`` degrees of freedom (shared by every monitor)."""
     return float(chi2.isf(alpha, dof))
 
-def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var) -> tuple[float, int]:
+def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: bool = False):
     """Normalised innovation squared of one step's laser readings under the predictive cloud.
 
     Parameters
@@ -103,7 +108,12 @@ def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var) -> tuple[float,
     dof : int
         ``2 S`` of the readings some particle places on the seam (a reading beyond the seam model's end,
         where every particle's plane misses it, is left out).
+    components : ndarray, shape (2 S,)
+        Only with ``per_component``: each component's own normalised squared innovation ``ē_j² / C_jj``
+        (χ² with 1 degree of freedom when the model holds; NaN where no particle places the reading on the seam,
+        or where the cloud cannot explain the readings).
     """
+    u = np.full(errors.shape[1], np.nan)
     # a reading no particle can place on the seam (beyond the seam model's end) tells nothing about the cloud
     seen = np.isfinite(errors).any(axis=0)
     if not seen.all():
@@ -111,19 +121,24 @@ def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var) -> tuple[float,
         noise_var = np.broadcast_to(noise_var, seen.shape)[seen] if np.ndim(noise_var) else noise_var
     k = errors.shape[1]
     if k == 0:
-        return 0.0, 0
+        return (0.0, 0, u) if per_component else (0.0, 0)
     mean = np.empty(k)
     C = np.empty((k, k))
     total = _k.weighted_moments_kernel(np.ascontiguousarray(errors, dtype=np.float64),
                                        np.ascontiguousarray(w, dtype=np.float64), mean, C)
     if not total >= 1e-3:
-        return math.inf, k
+        return (math.inf, k, u) if per_component else (math.inf, k)
     C[np.diag_indices(k)] += noise_var
     try:
         nis = float(mean @ np.linalg.solve(C, mean))
     except np.linalg.LinAlgError:
-        return math.inf, k
-    return (nis if math.isfinite(nis) else math.inf), k
+        nis = math.inf
+    nis = nis if math.isfinite(nis) else math.inf
+    if not per_component:
+        return nis, k
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u[seen] = mean * mean / np.diag(C)
+    return nis, k, u
 
 
 def robot_consistency(T_est: np.ndarray, spread: np.ndarray, meas) -> tuple[float, float]:
@@ -200,7 +215,9 @@ class IntegrityMonitor:
         Steps whose laser NIS are summed (>= 1).
     window_long : int
         Steps of a second, longer window tested at ``alpha_degraded`` only (0: none): a small inconsistency that
-        persists (a latency the filter was not told, an encoder offset) is degraded.
+        persists (a latency the filter was not told, a mount that moved) is degraded. It tests each reading
+        component (sensor k's x and z) on its own, against what the profile's training episodes showed
+        (``nis_mean``, ``nis_dof``), at ``alpha_degraded`` split over the components (Bonferroni).
     alpha_degraded, alpha_lost : float
         Test levels in (0, 0.5]: the probability that a consistent filter fails the test at one
         step (``alpha_lost`` < ``alpha_degraded``).
@@ -214,15 +231,24 @@ class IntegrityMonitor:
     max_force_n : float
         The largest force magnitude (N) the robot plateau was measured at; a step above it is
         ``degraded`` at best (0: no limit).
+    nis_mean, nis_dof : array_like, shape (2 S,), optional
+        Per reading component (sensor k's x at ``2k``, z at ``2k + 1``): the mean normalised squared innovation
+        ``ē_j² / C_jj`` on the episodes the profile was fitted on, and its effective χ² degrees of freedom per
+        reading (``2 / (τ var)``: below 1 when the steps are correlated or the tails heavier than Gaussian).
+        Fitted by ``seam tune`` (:mod:`posekit.seam.frontend.tune_nis`); None: 1 and 1 (the model's own χ²₁).
+        Over ``n`` readings of the long window the sum ``s_j`` is tested as ``s_j / (nis_mean_j) ~ χ²(ν) / ρ``
+        with ``ρ = nis_dof_j`` and ``ν = ρ n``.
     """
 
     def __init__(self, n_particles: int, window: int, alpha_degraded: float, alpha_lost: float, ess_min: float,
-                 recovery: int, max_force_n: float, window_long: int = 0):
+                 recovery: int, max_force_n: float, window_long: int = 0, nis_mean=None, nis_dof=None):
         self.n = int(n_particles)
         self.window_long = max(0, int(window_long))
+        self._nis_mean = None if nis_mean is None else np.asarray(nis_mean, dtype=np.float64).reshape(-1)
+        self._nis_dof = None if nis_dof is None else np.asarray(nis_dof, dtype=np.float64).reshape(-1)
         self._long: deque = deque()
-        self._long_sum = 0.0
-        self._long_dof = 0
+        self._long_sum = None   # (2 S,) the capped components' sums over the long window
+        self._long_n = None     # (2 S,) readings per component in it
         self.max_force_n = float(max_force_n)
         self.recovery = max(0, int(recovery))
         self._since_lost = None
@@ -250,12 +276,64 @@ class IntegrityMonitor:
         """Forget the windows (a new episode)."""
         self._nis.clear()
         self._long.clear()
-        self._long_sum = 0.0
-        self._long_dof = 0
+        self._long_sum = None
+        self._long_n = None
         self._since_lost = None
 
+    def _component_levels(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``nis_mean`` and ``nis_dof`` for ``n`` components (one pair given for every sensor: repeated)."""
+        out = []
+        for v in (self._nis_mean, self._nis_dof):
+            if v is None:
+                out.append(np.ones(n))
+            elif v.size == n:
+                out.append(v)
+            elif v.size == 2 and n % 2 == 0:
+                out.append(np.tile(v, n // 2))
+            else:
+                raise ValueError(f"integrity: {v.size} innovation calibration values for {n} reading components; "
+                                 "expected one x/z pair per sensor or one for all")
+        return out[0], out[1]
+
+    def _add_long(self, components) -> None:
+        """Put one step's per-component NIS into the long window (capped like the step's total)."""
+        u = np.asarray(components, dtype=np.float64).reshape(-1)
+        if self._long_sum is None or self._long_sum.size != u.size:
+            self._long.clear()
+            self._long_sum, self._long_n = np.zeros(u.size), np.zeros(u.size, dtype=np.int64)
+            self._c, self._rho = self._component_levels(u.size)
+            self._u_cap = self._c * _chi2_isf(self.alpha_degraded, 1)
+        seen = np.isfinite(u)
+        capped = np.where(seen, np.minimum(np.where(seen, u, 0.0), self._u_cap), 0.0)
+        self._long.append((capped, seen))
+        self._long_sum += capped
+        self._long_n += seen
+        if len(self._long) > self.window_long:
+            v0, k0 = self._long.popleft()
+            self._long_sum -= v0
+            self._long_n -= k0
+
+    def _long_test(self) -> str | None:
+        """The reason the long window fails (None: it passes; see ``nis_mean``)."""
+        if self._long_sum is None or self._long_sum.size == 0:   # no sensor: nothing to test
+            return None
+        C = self._long_sum.size
+        alpha = self.alpha_degraded / C
+        worst = None
+        for j in range(C):
+            n = int(self._long_n[j])
+            if n <= self.window:    # the short window's business
+                continue
+            c, rho = float(self._c[j]), float(self._rho[j])
+            limit = _chi2_isf(alpha, rho * n) / (rho * n)
+            ratio = float(self._long_sum[j]) / (c * n)
+            if ratio > limit and (worst is None or ratio / limit > worst[0]):
+                worst = (ratio / limit, f"sensor {j // 2 + 1}'s {'xz'[j % 2]} innovations over the last {n} readings "
+                                        f"{ratio:.3g} x the profile's nis_mean_{'xz'[j % 2]} (> {limit:.3g})")
+        return None if worst is None else worst[1]
+
     def update(self, nis: float, dof: int, robot_maha_t: float, robot_maha_r: float, ess_update: float,
-               recovered: bool = False, force_norm_n: float = 0.0) -> IntegrityReport:
+               recovered: bool = False, force_norm_n: float = 0.0, components=None) -> IntegrityReport:
         """Add one step's statistics and return its verdict.
 
         Parameters
@@ -270,6 +348,9 @@ class IntegrityMonitor:
             Every weight vanished at this step (the filter was reset to uniform weights).
         force_norm_n : float
             The step's measured force magnitude, N (against ``max_force_n``).
+        components : array_like, shape (2 S,), optional
+            The step's per-component NIS (:func:`innovation_nis` with ``per_component``; NaN: no reading), for the
+            long window (None: no long test at this step).
         """
         # one step's NIS enters the window capped at its own degraded quantile: a single failed step (a
         # wrong start the update then corrects) is lost at that step but does not fail the next
@@ -280,14 +361,8 @@ class IntegrityMonitor:
         self._nis.append((capped, dof))
         s = float(sum(v for v, _ in self._nis))
         d = int(sum(k for _, k in self._nis))
-        if self.window_long:
-            self._long.append((capped, dof))
-            self._long_sum += capped
-            self._long_dof += dof
-            if len(self._long) > self.window_long:
-                v0, k0 = self._long.popleft()
-                self._long_sum -= v0
-                self._long_dof -= k0
+        if self.window_long and components is not None:
+            self._add_long(components)
         level = 0
         reasons = []
         if dof > 0 and nis > cap:
@@ -321,11 +396,10 @@ class IntegrityMonitor:
         tests_level = level
         # a small inconsistency that persists (a latency nobody declared, an encoder offset): degraded, but the walk
         # is not widened for it (a wider walk would absorb it, and the next window would pass)
-        if self.window_long and self._long_dof > d and level < 1:
-            q_long = self._quantiles(self._long_dof)[0]
-            if self._long_sum > q_long:
-                fail(1, f"laser NIS {self._long_sum:.4g} > {q_long:.4g} over the last {len(self._long)} steps "
-                        f"(dof {self._long_dof})")
+        if self.window_long and level < 1:
+            why = self._long_test()
+            if why is not None:
+                fail(1, why)
         if self.max_force_n > 0.0 and not force_norm_n <= self.max_force_n:  # NaN is beyond too
             fail(1, f"force {force_norm_n / 1e3:.3g} kN beyond the {self.max_force_n / 1e3:.3g} kN the robot "
                     "plateau was fitted at (profile plateau.max_force_n)")

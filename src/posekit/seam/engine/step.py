@@ -121,6 +121,9 @@ class StepEstimate:
         Normalised innovation squared of this step's laser readings (0 without readings).
     ess_update : float
         ESS of the measurement update before tempering, in [1, N].
+    nis_components : ndarray, shape (2 S,) or None
+        Each reading component's normalised squared innovation (sensor k's x at ``2k``, z at ``2k + 1``; NaN: no
+        reading): what the long integrity window tests and ``seam tune`` calibrates.
     """
 
     T: np.ndarray
@@ -135,6 +138,7 @@ class StepEstimate:
     reason: str | None = None
     nis: float = 0.0
     ess_update: float = math.nan
+    nis_components: np.ndarray | None = None
 
 
 def jitter_variances(mounts: np.ndarray, jitter: np.ndarray) -> np.ndarray:

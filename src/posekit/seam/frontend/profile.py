@@ -11,7 +11,9 @@ Format (YAML, version 1)::
     version: 1
     fitted: {method: truth | innovations, command: "...", episodes: [{name, steps, sha256}, ...]}
     sensors:            # one entry per sensor in the cell's order, or one for all
-      - {latency_s: 0.0, sigma_mm: 0.05, angle_sigma_deg: 0.2}
+      - {latency_s: 0.0, sigma_mm: 0.05, angle_sigma_deg: 0.2,
+         nis_mean_x: 1.0, nis_mean_z: 1.0, nis_dof_x: 1.0, nis_dof_z: 1.0}   # innovations on the training
+                        # episodes (the integrity test's calibration; optional, 1: the model's own chi2)
     walk:               # random walk of the pose about its modelled motion, tool frame, per sqrt(mm travelled)
       {x_mm: .., y_mm: .., z_mm: .., rx_deg: .., ry_deg: .., rz_deg: ..}
     jitter:             # white jitter of the pose about that walk, per sample
@@ -107,11 +109,18 @@ class _Part(BaseModel):
 
 
 class SensorProfile(_Part):
-    """Per sensor: latency (s), laser noise (mm, std in the laser plane), angle noise (deg)."""
+    """Per sensor: latency (s), laser noise (mm, std in the laser plane), angle noise (deg), and what its
+    innovations looked like on the training episodes (the integrity monitor's long window,
+    :mod:`posekit.seam.engine.integrity`): the mean normalised squared innovation of its x and z reading and their
+    effective χ² degrees of freedom per reading (1 and 1: the model's own χ²₁, none fitted)."""
 
     latency_s: _fitted(0.0, 1.0, "s")
     sigma_mm: _fitted(1e-9, 1e3, "mm")
     angle_sigma_deg: _fitted(1e-9, 180.0, "deg")
+    nis_mean_x: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
+    nis_mean_z: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
+    nis_dof_x: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
+    nis_dof_z: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
 
 
 class AxesProfile(_Part):
@@ -210,7 +219,9 @@ class ProfileModel(_Part):
             d0_mm=float(p.d0_mm), kd_mm_per_n=float(p.kd_mm_per_n), d0_rad=math.radians(float(p.d0_deg)),
             kd_rad_per_n=math.radians(float(p.kd_deg_per_n)), tail_mm=float(p.tail_mm),
             tail_rad=math.radians(float(p.tail_deg)), joint_sigma_rad=math.radians(float(self.joints.sigma_deg)),
-            max_force_n=float(p.max_force_n), spread_scale=self.spread.vector())
+            max_force_n=float(p.max_force_n), spread_scale=self.spread.vector(),
+            nis_mean=np.array([[float(s.nis_mean_x), float(s.nis_mean_z)] for s in self.sensors]),
+            nis_dof=np.array([[float(s.nis_dof_x), float(s.nis_dof_z)] for s in self.sensors]))
 
     def plain(self) -> dict:
         """The profile as a mapping of bare numbers (no std, no provenance): what a study perturbs."""

@@ -27,6 +27,11 @@ until the particle filter itself covers 95 % of its errors within 2σ on those e
 factor per axis (at least 1) makes its 2σ cover 90 % of the errors of every one of the episodes (the implementation
 in :mod:`.tune_truth`).
 
+Both ways end with the integrity test's calibration (:mod:`.tune_nis`): the particle filter, run with the fitted
+profile on the same episodes, measures the mean and the effective degrees of freedom of each reading component's
+normalised squared innovation (``sensors[k].nis_mean_x/z``, ``nis_dof_x/z``), which the long integrity window
+tests against.
+
 A value the data do not pin (its 1σ above the value itself; for a latency above the sample period (with truth) or
 as above (without); kd when the
 force spans less than 20 % of its largest value; one episode for the tails) keeps the base profile's value, and the
@@ -70,6 +75,7 @@ from posekit.seam.frontend.tune_intervals import (
     reading_rate_rms,
     uniform_rms,
 )
+from posekit.seam.frontend.tune_nis import fit_nis
 from posekit.seam.frontend.tune_truth import fit_truth
 
 __all__ = ["TuneResult", "TunedValue", "episode_arrays", "local_level_fit", "simulate_episodes", "tune_profile",
@@ -202,11 +208,13 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
         nll = fit_truth(logs, work, share_sensors, put)
     else:
         nll = _fit_innovations(logs, work, share_sensors, put)
+    data["format"], data["version"] = "posekit-seam-profile", 1
+    # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
+    fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
                       "episodes": [episode_record(log.folder) for log in logs]}
     data["notes"] = notes[:100]
-    data["format"], data["version"] = "posekit-seam-profile", 1
     model = profile_from_dict(data, "tuned profile")
     return TuneResult(model, values, "truth" if with_truth else "innovations", len(logs),
                       int(sum(len(log.time_s) for log in logs)), nll)

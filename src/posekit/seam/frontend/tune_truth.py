@@ -245,8 +245,10 @@ def _fit_walk_truth(logs, cell, prof, parts, put) -> float:
     scale = per.max(axis=0)
     for a, name in enumerate(("x", "y", "z", "rx", "ry", "rz")):
         sd = float(np.std(per[:, a], ddof=1) / math.sqrt(len(per))) if len(per) >= 2 else None
-        put(f"spread.{name}", float(scale[a]), sd, sd is not None and sd <= PINNED * scale[a],
-            "one episode: the base profile's" if sd is None else "the episodes disagree: the base profile's")
+        pinned = sd is not None and sd <= PINNED * scale[a]
+        put(f"spread.{name}", float(scale[a]), sd, pinned,
+            "" if pinned else "one episode: the base profile's" if sd is None else
+            "the episodes disagree: the base profile's")
     return f0
 
 

@@ -1,0 +1,122 @@
+"""``seam tune``'s last step: what the lasers' innovations look like on the training episodes.
+
+The integrity monitor's long window (:mod:`posekit.seam.engine.integrity`) tests each reading component (sensor
+k's x and z) for a small inconsistency that persists, such as a latency nobody declared. Under the filter's own
+model each step's ``u_j = ē_j² / C_jj`` is χ² with one degree of freedom and the steps are independent; on a real
+cell neither holds exactly (the predictive covariance is the particle cloud's plus a modelled noise, and the
+robot's unmodelled error is correlated in time), so a test against the textbook χ² is either blind (the
+covariance overstates the innovations: on the independent cell of the tests the mean ``u`` is 0.8) or alarmed.
+Here the filter, run with the fitted profile on the training episodes, measures per component:
+
+- ``nis_mean`` ``c_j``: the mean of ``u_j`` (1σ: the larger of ``c √(2 / (ρ n))`` and the spread of the
+  episodes' means over √episodes);
+- ``nis_dof`` ``ρ_j = 2 / (τ var(u_j / c_j))``: the χ² degrees of freedom one reading is worth, from the
+  variance (2 for a χ²₁) and the integrated autocorrelation time ``τ`` of the normalised series
+  (:func:`posekit._autocorr.autocorrelation_time`, the mean over the episodes).
+
+A component with fewer than :data:`MIN_READINGS` readings keeps 1 and 1 (said so). Steps the filter itself
+reports ``lost`` are left out (the tests there are the short window's). With one sensor entry for every sensor
+(``--share-sensors``) the x components of all sensors are pooled, and the z components.
+"""
+
+import math
+
+import numpy as np
+
+from posekit._autocorr import autocorrelation_time
+
+__all__ = ["MIN_READINGS", "calibrate_components", "fit_nis", "innovation_components"]
+
+#: Readings a component needs for its innovations to be calibrated (fewer: 1 and 1 are kept).
+MIN_READINGS = 100
+
+
+def innovation_components(logs, profile) -> list:
+    """The particle filter's per-component NIS on each episode, run with ``profile``.
+
+    Parameters
+    ----------
+    logs : list of EpisodeLog
+        Recorded episodes (:func:`posekit.seam.frontend.logs.read_episode_log`); each is run with its own filter
+        settings and seed.
+    profile : posekit.seam.model.Profile
+        The fitted profile.
+
+    Returns
+    -------
+    list of ndarray, shape (T, 2 S)
+        Per episode and step, sensor k's x (column ``2k``) and z (``2k + 1``) ``ē² / C`` (NaN: no reading, or a
+        step reported ``lost``).
+    """
+    from posekit.seam.frontend.tracker import SeamTracker
+
+    out = []
+    for log in logs:
+        tr = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
+        tr.profile = profile
+        S = log.config.cell.sensors.count
+        U = np.full((len(log.time_s), 2 * S), np.nan)
+        for k in range(len(log.time_s)):
+            r = tr.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
+                        laser_mm=log.laser_mm[k] if log.laser_mm.shape[1] else None,
+                        angle_rad=None if log.angle_rad is None else log.angle_rad[k],
+                        torque_tool_nm=None if log.torque_tool_nm is None else log.torque_tool_nm[k],
+                        reading_time_s=None if log.reading_time_s is None else log.reading_time_s[k])
+            if r.status != "lost" and r.raw.nis_components is not None:
+                U[k] = r.raw.nis_components
+        out.append(U)
+    return out
+
+
+def calibrate_components(series) -> tuple[float, float, float, int]:
+    """``nis_mean``, its 1σ, ``nis_dof`` and the readings used, from one component's series of every episode.
+
+    Parameters
+    ----------
+    series : list of ndarray, shape (T,)
+        Per episode the component's ``u`` in time order (NaN: no reading; left out).
+
+    Returns
+    -------
+    mean, mean_std, dof, n : float, float, float, int
+        ``nan`` for all three when there are fewer than 2 readings.
+    """
+    eps = [np.asarray(s, dtype=np.float64) for s in series]
+    eps = [s[np.isfinite(s)] for s in eps]
+    eps = [s for s in eps if s.size]
+    n = int(sum(s.size for s in eps))
+    if n < 2:
+        return math.nan, math.nan, math.nan, n
+    allu = np.concatenate(eps)
+    c = float(allu.mean())
+    if not c > 0.0:
+        return math.nan, math.nan, math.nan, n
+    var = float(np.var(allu / c, ddof=1))
+    tau = float(np.average([autocorrelation_time(s / c) for s in eps], weights=[s.size for s in eps]))
+    rho = 2.0 / (tau * var) if var > 0.0 else math.nan
+    std = c * math.sqrt(2.0 / (rho * n)) if math.isfinite(rho) else math.nan
+    if len(eps) >= 2:
+        std = max(std, float(np.std([s.mean() for s in eps], ddof=1)) / math.sqrt(len(eps)))
+    return c, std, rho, n
+
+
+def fit_nis(logs, profile, share: bool, put) -> None:
+    """Calibrate every sensor's ``nis_mean_x/z`` and ``nis_dof_x/z`` (see the module docstring) with ``put``
+    (:func:`posekit.seam.frontend.tune.tune_profile`'s)."""
+    from posekit.seam.frontend.tune_fit import _sensor_key
+
+    U = innovation_components(logs, profile)
+    S = U[0].shape[1] // 2 if U else 0
+    entries = 1 if share else S
+    for i in range(entries):
+        for a, axis in enumerate("xz"):
+            cols = [2 * k + a for k in (range(S) if share else (i,))]
+            series = [u[:, j] for u in U for j in cols]
+            c, c_std, rho, n = calibrate_components(series)
+            if n < MIN_READINGS or not (math.isfinite(c) and math.isfinite(rho)):
+                why = f"{n} readings (at least {MIN_READINGS} needed): the model's own chi2 is kept"
+                put(_sensor_key(i, f"nis_mean_{axis}"), 1.0, None, False, why)
+                put(_sensor_key(i, f"nis_dof_{axis}"), 1.0, None, False, why)
+                continue
+            put(_sensor_key(i, f"nis_mean_{axis}"), c, c_std, True)
+            put(_sensor_key(i, f"nis_dof_{axis}"), rho, None, True)
