@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import chi2
 
 from posekit.geometry import matrix_from_rotation_vector, se3_exp, transform_from
+from posekit.seam.engine import _cloud_kernels as _ck
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import RobotMeasurement, laser_loglik
 from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, robot_consistency
@@ -293,7 +294,7 @@ def test_weighted_moments_kernel_matches_numpy_cov():
     w = rng.random(200)
     w /= w.sum()
     mean, C = np.empty(4), np.empty((4, 4))
-    total = _k.weighted_moments_kernel(E, w, mean, C)
+    total = _ck.weighted_moments_kernel(E, w, mean, C)
     ok = np.isfinite(E).all(1)
     assert total == pytest.approx(w[ok].sum(), rel=1e-12)
     np.testing.assert_allclose(mean, np.average(E[ok], axis=0, weights=w[ok]), rtol=1e-12)

@@ -46,6 +46,7 @@ import numpy as np
 
 from posekit.errors import ConfigError
 from posekit.geometry import invert_transform, matrix_from_rotation_vector
+from posekit.seam.engine import _cloud_kernels as _ck
 from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import (
     angle_loglik,
@@ -257,7 +258,7 @@ class SeamParticleFilter:
         weighted covariance."""
         xi = np.empty((T.shape[0], 6))
         L = np.empty((6, 6))
-        T_mean, spread, mu = _k.cloud_kernel(T, w, xi, L)
+        T_mean, spread, mu = _ck.cloud_kernel(T, w, xi, L)
         return T_mean, spread, xi, mu, L
 
     def _kernel_resample(self, T: np.ndarray, w: np.ndarray, h: float, shrink: bool, cloud=None) -> np.ndarray:
@@ -277,7 +278,7 @@ class SeamParticleFilter:
         z = self._noise
         self.rng.standard_normal(out=z, dtype=np.float32)
         out = np.empty_like(self.T)
-        _k.kernel_move(T_mean, xi, idx, mu, a, np.ascontiguousarray(B, dtype=np.float64), z, out)
+        _ck.kernel_move(T_mean, xi, idx, mu, a, np.ascontiguousarray(B, dtype=np.float64), z, out)
         return out
 
     def _readings(self, inputs: StepInputs, meas, mounts: np.ndarray) -> tuple[Readings, np.ndarray]:
@@ -332,7 +333,7 @@ class SeamParticleFilter:
                     if wr is None:
                         wr = normalize_log_weights(self.logw + ll_robot).w
                     mom_m, mom_c = np.empty(2), np.empty((2, 2))
-                    found = _k.weighted_moments_kernel(E, wr, mom_m, mom_c) > 0.0
+                    found = _ck.weighted_moments_kernel(E, wr, mom_m, mom_c) > 0.0
                     s2 += h2 * 0.5 * (mom_c[0, 0] + mom_c[1, 1]) if found else 0.0
                 self._s2[i] = s2
                 cols.append(E)

@@ -64,6 +64,7 @@ import numpy as np
 
 from posekit._chi2 import chi2
 from posekit.seam.engine import _kernels as _k
+from posekit.seam.engine._cloud_kernels import weighted_moments_kernel
 
 _EYE3 = np.eye(3)
 
@@ -124,7 +125,7 @@ def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: 
         return (0.0, 0, u) if per_component else (0.0, 0)
     mean = np.empty(k)
     C = np.empty((k, k))
-    total = _k.weighted_moments_kernel(np.ascontiguousarray(errors, dtype=np.float64),
+    total = weighted_moments_kernel(np.ascontiguousarray(errors, dtype=np.float64),
                                        np.ascontiguousarray(w, dtype=np.float64), mean, C)
     if not total >= 1e-3:
         return (math.inf, k, u) if per_component else (math.inf, k)

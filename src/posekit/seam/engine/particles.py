@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from posekit.errors import ConfigError
-from posekit.seam.engine._kernels import mean_spread_kernel
+from posekit.seam.engine._cloud_kernels import mean_spread_kernel
 
 __all__ = [
     "RESAMPLERS",
