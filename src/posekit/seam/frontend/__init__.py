@@ -8,7 +8,8 @@ Modules:
   ``config_legacy`` (the layout before issue 26), ``config_messages`` (one-line error messages);
 - the profile and its tuner: ``profile`` (the profile file), ``tune`` (``posekit seam tune``),
   ``tune_fit`` (its shared numerical pieces), ``tune_intervals`` (the 1σ of the tuned values),
-  ``tune_truth`` (``tune --with-truth``), ``tune_nis`` (the integrity test's calibration);
+  ``tune_truth`` (``tune --with-truth``), ``tune_nis`` (the integrity test's calibration), ``tune_filter`` (the particle filter over
+  recorded episodes, for the steps that judge it), ``tune_latency`` (a latency not pinned: its effect on the pose);
 - the robot program: ``trajectories`` (seams and nominal programs);
 - simulated episodes: ``simulate`` (the simulated world: true robot, process, sensors),
   ``episode`` (the particle filter over one simulated episode, :func:`run_episode`),
@@ -27,4 +28,5 @@ The public names are exported by :mod:`posekit.seam`; the sub-package lists its 
 __all__ = ["commands", "commands_batch", "compare", "config", "config_cell", "config_legacy", "config_messages",
            "config_types", "design", "episode", "episode_metrics", "logs", "logs_setup", "plots", "profile",
            "report", "seam_frame", "simulate", "study", "study_effects", "study_factors", "tracker",
-           "trajectories", "tune", "tune_fit", "tune_intervals", "tune_nis", "tune_truth"]
+           "trajectories", "tune", "tune_filter", "tune_fit", "tune_intervals", "tune_latency", "tune_nis",
+           "tune_truth"]

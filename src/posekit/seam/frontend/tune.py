@@ -10,7 +10,9 @@ the scales and the latencies). The walk's and noise's 1σ come from the full Hes
 fitted and ten times larger, since a robot error that wanders sideways with the seam looks like a latency
 (:mod:`.tune_intervals`). A latency whose interval touches 0, is wider than ±5 ms or moves with the walk is not
 pinned: the base profile's value is kept and that sensor's noise widened by the reading error a latency anywhere
-in the interval would make (the interval's rms about the kept value times the readings' rms rate). The joint noise
+in the interval would make (the interval's rms about the kept value times the readings' rms rate), and the
+``spread`` factors are widened to the pose shift the interval's far end would make (:mod:`.tune_latency`: the
+particle filter run both ways on the same episodes). The joint noise
 comes from the encoders (the white part of ``q - q̄``: its second difference has variance ``6 σ²``). The plateau, its tails and
 the pose jitter are about the robot's absolute error, which the lasers do not see on every axis: they are kept
 from the base profile (unless the filter's estimates leave that plateau: then it is widened to them and said so).
@@ -75,6 +77,7 @@ from posekit.seam.frontend.tune_intervals import (
     reading_rate_rms,
     uniform_rms,
 )
+from posekit.seam.frontend.tune_latency import latency_spread
 from posekit.seam.frontend.tune_nis import fit_nis
 from posekit.seam.frontend.tune_truth import fit_truth
 
@@ -209,6 +212,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     else:
         nll = _fit_innovations(logs, work, share_sensors, put)
     data["format"], data["version"] = "posekit-seam-profile", 1
+    if not with_truth:   # a latency the lasers cannot pin: its effect on the pose goes into the reported spread
+        latency_spread(logs, profile_from_dict(data, "tuned profile"), values, put)
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
     fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from posekit._autocorr import autocorrelation_time
+from posekit.seam.frontend.tune_filter import run_filter
 
 __all__ = ["MIN_READINGS", "calibrate_components", "fit_nis", "innovation_components"]
 
@@ -48,22 +49,11 @@ def innovation_components(logs, profile) -> list:
         Per episode and step, sensor k's x (column ``2k``) and z (``2k + 1``) ``ē² / C`` (NaN: no reading, or a
         step reported ``lost``).
     """
-    from posekit.seam.frontend.tracker import SeamTracker
-
     out = []
     for log in logs:
-        tr = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
-        tr.profile = profile
-        S = log.config.cell.sensors.count
-        U = np.full((len(log.time_s), 2 * S), np.nan)
-        for k in range(len(log.time_s)):
-            r = tr.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
-                        laser_mm=log.laser_mm[k] if log.laser_mm.shape[1] else None,
-                        angle_rad=None if log.angle_rad is None else log.angle_rad[k],
-                        torque_tool_nm=None if log.torque_tool_nm is None else log.torque_tool_nm[k],
-                        reading_time_s=None if log.reading_time_s is None else log.reading_time_s[k])
-            if r.status != "lost" and r.raw.nis_components is not None:
-                U[k] = r.raw.nis_components
+        run = run_filter(log, profile)
+        U = run.components.copy()
+        U[np.asarray(run.status) == "lost"] = np.nan
         out.append(U)
     return out
 

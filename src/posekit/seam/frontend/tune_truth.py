@@ -13,6 +13,7 @@ from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine.densities import joint_compliance
 from posekit.seam.engine.ekf import LinearisedEpisode, reading_mounts
 from posekit.seam.frontend.profile import AXES, ProfileModel
+from posekit.seam.frontend.tune_filter import run_filter
 from posekit.seam.frontend.tune_fit import (
     FORCE_SPAN,
     PINNED,
@@ -263,22 +264,12 @@ def _particle_z(logs, profile) -> list:
     """Per episode ``e / s`` (T, 6): ``e`` the particle filter's error against the truth in the seam frame, ``s``
     its reported spread, run with ``profile`` (each episode's own filter settings and seed)."""
     from posekit.seam.frontend.seam_frame import seam_frame_errors
-    from posekit.seam.frontend.tracker import SeamTracker
 
     z2 = []
     for log in logs:
-        tr = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
-        tr.profile = profile
-        T = np.empty((len(log.time_s), 4, 4))
-        nom = np.empty_like(T)
-        spread = np.empty((len(log.time_s), 6))
-        for k in range(len(log.time_s)):
-            r = tr.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
-                        laser_mm=log.laser_mm[k] if log.laser_mm.shape[1] else None,
-                        reading_time_s=None if log.reading_time_s is None else log.reading_time_s[k])
-            T[k], nom[k], spread[k] = r.T_base_tool, r.T_nominal, r.spread
-        err = seam_frame_errors(T, np.matmul(nom, log.truth_seam_tool), nom)
-        z2.append(err / spread)
+        run = run_filter(log, profile)
+        err = seam_frame_errors(run.estimate, np.matmul(run.nominal, log.truth_seam_tool), run.nominal)
+        z2.append(err / run.spread)
     return z2
 
 
