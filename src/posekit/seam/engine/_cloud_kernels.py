@@ -11,7 +11,7 @@ import numpy as np
 
 from posekit._jit import njit
 from posekit.geometry import rotvec_from_entries
-from posekit.seam.engine._kernels import inv_det3
+from posekit.seam.engine._kernels import inv_det3, so3_exp_coefficients
 
 __all__ = [
     "cloud_kernel",
@@ -153,14 +153,7 @@ def kernel_move(Tm, xi, idx, mu, a, B, z_, out):
                 s += B[j, k] * z_[i, k]
             v[j] = s
         x, y, z = v[3], v[4], v[5]
-        th2 = x * x + y * y + z * z
-        if th2 < 1e-4:
-            c1 = 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0)
-            c2 = 0.5 - th2 / 24.0 * (1.0 - th2 / 30.0)
-        else:
-            th = math.sqrt(th2)
-            c1 = math.sin(th) / th
-            c2 = (1.0 - math.cos(th)) / th2
+        c1, c2 = so3_exp_coefficients(x * x + y * y + z * z)
         e00 = 1.0 - c2 * (y * y + z * z)
         e11 = 1.0 - c2 * (x * x + z * z)
         e22 = 1.0 - c2 * (x * x + y * y)

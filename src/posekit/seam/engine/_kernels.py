@@ -24,8 +24,19 @@ __all__ = [
     "propagate",
     "robot_consistency_kernel",
     "robot_loglik_kernel",
+    "so3_exp_coefficients",
     "window_kernel",
 ]
+
+
+@njit(cache=True, inline="always")
+def so3_exp_coefficients(th2):
+    """Rodrigues' coefficients ``(sin θ / θ, (1 - cos θ) / θ²)`` of a rotation vector with ``θ² = th2`` (rad²):
+    ``exp([w]x) = I + a [w]x + b [w]x²`` (a series to θ⁴ below 0.01 rad: truncation < 1e-16)."""
+    if th2 < 1e-4:
+        return 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0), 0.5 - th2 / 24.0 * (1.0 - th2 / 30.0)
+    th = math.sqrt(th2)
+    return math.sin(th) / th, (1.0 - math.cos(th)) / th2
 
 
 @njit(cache=True, boundscheck=False)
@@ -49,14 +60,7 @@ def propagate(T, A, z_, sig, out):
         t2 = A[2, 0] * T[i, 0, 3] + A[2, 1] * T[i, 1, 3] + A[2, 2] * T[i, 2, 3] + A[2, 3]
         # E = exp(hat(phi))
         x, y, z = sig[3] * z_[i, 3], sig[4] * z_[i, 4], sig[5] * z_[i, 5]
-        th2 = x * x + y * y + z * z
-        if th2 < 1e-4:  # series to theta^4: truncation < 1e-16 below 0.01 rad
-            a = 1.0 - th2 / 6.0 * (1.0 - th2 / 20.0)
-            b = 0.5 - th2 / 24.0 * (1.0 - th2 / 30.0)
-        else:
-            th = math.sqrt(th2)
-            a = math.sin(th) / th
-            b = (1.0 - math.cos(th)) / th2
+        a, b = so3_exp_coefficients(x * x + y * y + z * z)
         E[0, 0] = 1.0 - b * (y * y + z * z)
         E[1, 1] = 1.0 - b * (x * x + z * z)
         E[2, 2] = 1.0 - b * (x * x + y * y)
