@@ -2,6 +2,7 @@
 (``--dump-config``: the cell configuration it works with)."""
 
 import sys
+import time
 from pathlib import Path
 
 from ._flags import bounded_int, seed
@@ -63,10 +64,15 @@ def run_tune(args) -> int:
         return 0
     if not args.out:
         raise ConfigError("--out: a profile file is required (or use --dump-config)")
+    t0 = time.monotonic()
+
+    def stage(text):   # what the fit is doing, on stderr (a fit takes seconds to minutes)
+        print(f"posekit seam tune: [{time.monotonic() - t0:5.1f} s] {text}", file=sys.stderr, flush=True)
+
     with layout_notes():
         result = tune(args.out, args.logdirs, with_truth=args.with_truth, base=args.base,
                       share_sensors=args.share_sensors, simulate=args.simulate, config=args.config,
-                      trajectory=args.trajectory, seed=args.seed, overwrite=args.overwrite)
+                      trajectory=args.trajectory, seed=args.seed, overwrite=args.overwrite, stage=stage)
     from ..seam.frontend.tune import tune_report
 
     print(tune_report(result))

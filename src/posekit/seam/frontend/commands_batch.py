@@ -113,15 +113,15 @@ def tune_config(logdirs: Sequence = (), *, base=None, simulate: int | None = Non
 
 def tune(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, share_sensors: bool = False,
          simulate: int | None = None, config=None, trajectory=None, seed: int | None = None,
-         overwrite: bool = False) -> TuneResult:
+         overwrite: bool = False, stage=None) -> TuneResult:
     """``posekit seam tune``: fit a cell's profile and write it to the file ``out``.
 
     From the recorded episodes ``logdirs``, or from ``simulate`` episodes simulated now (of the
     configuration file ``config``, ``simulate`` episodes of each trajectory kind of ``trajectory``:
     ``'xy,yz'`` or a list; ``seed``, default the configuration's). ``with_truth``: fit from the errors
     against each episode's truth.csv; ``base``: the profile whose values are kept where the data do not
-    pin them; ``share_sensors``: one laser noise and one latency for every sensor. The file's header
-    records :func:`tune_command`. Returns the :class:`~posekit.seam.frontend.tune.TuneResult`.
+    pin them; ``share_sensors``: one laser noise and one latency for every sensor; ``stage(text)``: called as
+    each step of the fit starts. The file's header records :func:`tune_command`. Returns the :class:`~posekit.seam.frontend.tune.TuneResult`.
     :func:`tune_config` is the cell configuration it works with.
     """
     given, out = out, Path(out)
@@ -132,10 +132,10 @@ def tune(out, logdirs: Sequence = (), *, with_truth: bool = False, base=None, sh
                            simulate=simulate, config=config, trajectory=trajectory, seed=seed)
     if simulate is None:
         result = tune_profile(list(logdirs), with_truth=with_truth, base=base, share_sensors=share_sensors,
-                              command=command)
+                              command=command, stage=stage)
     else:
         result = tune_simulated(config, simulate, _kinds(trajectory), seed, with_truth=with_truth, base=base,
-                                share_sensors=share_sensors, command=command)
+                                share_sensors=share_sensors, command=command, stage=stage)
     header = (f"posekit seam profile, fitted by: {command}\n"
               f"from {result.episodes} episode(s), {result.steps} samples "
               f"({'errors against truth.csv' if result.method == 'truth' else 'laser innovations'})")

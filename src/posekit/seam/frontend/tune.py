@@ -133,7 +133,7 @@ class TuneResult:
 
 
 def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors: bool = False,
-                 command: str = "") -> TuneResult:
+                 command: str = "", stage=None) -> TuneResult:
     """Fit a profile from recorded episodes of one cell (see the module docstring).
 
     Parameters
@@ -150,6 +150,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
         One laser noise and one latency for every sensor (written as one sensor entry).
     command : str
         The command line, recorded in the profile.
+    stage : callable, optional
+        ``stage(text)`` is called as each step of the fit starts (what it is doing, for a long fit's progress).
 
     Returns
     -------
@@ -165,6 +167,7 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     dirs = [Path(d) for d in logdirs]
     if not dirs:
         raise ConfigError("seam tune: expected at least one recorded episode folder, got none")
+    say = stage if stage is not None else (lambda text: None)
     logs = [read_episode_log(d) for d in dirs]
     _check_same_cell(logs)
     if with_truth:
@@ -175,6 +178,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     S = logs[0].config.cell.sensors.count
     if not share_sensors and len(base_model.sensors) not in (1, S):
         raise ConfigError(f"base profile: {len(base_model.sensors)} sensor entries for {S} sensors")
+    if not with_truth and S == 0:
+        raise ConfigError("seam tune: the episodes have no laser sensor; expected at least one to fit from")
     values: list[TunedValue] = []
     data = profile_data(base_model)
     data.pop("fitted", None)
@@ -207,14 +212,21 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     # the spread factors are fitted against a reference only; without one the filter's own spread is reported
     data["spread"] = {a: 1.0 for a in ("x", "y", "z", "rx", "ry", "rz")}
     work = profile_from_dict({**data, "format": "posekit-seam-profile", "version": 1}, "profile")
+    # the input is checked (a bad one is a one-line error before anything is said): the fit starts
+    say(f"{len(logs)} episode(s), {sum(len(log.time_s) for log in logs)} samples")
     if with_truth:
+        say("fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's spread")
         nll = fit_truth(logs, work, share_sensors, put)
     else:
+        say("fitting the walk, laser noise and latencies from the laser innovations (each latency's 95 % interval "
+            "by profile likelihood)")
         nll = _fit_innovations(logs, work, share_sensors, put)
     data["format"], data["version"] = "posekit-seam-profile", 1
-    if not with_truth:   # a latency the lasers cannot pin: its effect on the pose goes into the reported spread
+    if not with_truth and any(v.key.endswith("latency_s") and not v.pinned and v.interval for v in values):
+        say("a latency is not pinned: the particle filter with it at its interval's end, for the reported spread")
         latency_spread(logs, profile_from_dict(data, "tuned profile"), values, put)
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
+    say("calibrating the integrity test: the particle filter over the episodes with the fitted profile")
     fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
@@ -231,9 +243,7 @@ def _fit_innovations(logs, work: ProfileModel, share: bool, put) -> float:
 
     prof = work.to_model()
     cell = cell_from_config(logs[0].config.cell)
-    S = cell.n_sensors
-    if S == 0:
-        raise ConfigError("seam tune: the episodes have no laser sensor; expected at least one to fit from")
+    S = cell.n_sensors          # at least one: tune_profile checked
     eps = [LinearisedEpisode(cell, prof, episode_arrays(log), _knots(log)) for log in logs]
     nS = 1 if share else S
     stamped = np.zeros(S, bool)
@@ -425,6 +435,8 @@ def tune_simulated(config, runs: int, kinds=None, seed: int | None = None, **kw)
     for k in kinds:
         if k not in TRAJECTORY_KINDS:
             raise ConfigError(f"--trajectory: expected kinds among {', '.join(TRAJECTORY_KINDS)}, got '{k}'")
+    if kw.get("stage") is not None:
+        kw["stage"](f"simulating {runs} episode(s) of each of {', '.join(kinds)}")
     with tempfile.TemporaryDirectory(prefix="posekit-tune-") as tmp:
         dirs = []
         for k in kinds:
