@@ -54,7 +54,7 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     assert stages == [f"{len(episodes)} episode(s), {samples} samples",
                       "fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's "
                       "spread",
-                      "calibrating the integrity test: the particle filter over the episodes with the fitted profile"]
+                      "calibrating the integrity test: the lasers' innovations of the spread fit's particle filter"]
     p = load_profile(out)
     lat, sig = p.sensors[0].latency_s, p.sensors[0].sigma_mm
     assert not lat.note and abs(float(lat) - 0.015) < 0.003 and 0 < lat.std < 0.003

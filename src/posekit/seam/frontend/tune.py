@@ -214,9 +214,10 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     work = profile_from_dict({**data, "format": "posekit-seam-profile", "version": 1}, "profile")
     # the input is checked (a bad one is a one-line error before anything is said): the fit starts
     say(f"{len(logs)} episode(s), {sum(len(log.time_s) for log in logs)} samples")
+    runs: list = []   # the particle filter with every value fitted (the truth fit's last pass; its innovations)
     if with_truth:
         say("fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's spread")
-        nll = fit_truth(logs, work, share_sensors, put)
+        nll = fit_truth(logs, work, share_sensors, put, runs)
     else:
         say("fitting the walk, laser noise and latencies from the laser innovations (each latency's 95 % interval "
             "by profile likelihood)")
@@ -226,8 +227,9 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
         say("a latency is not pinned: the particle filter with it at its interval's end, for the reported spread")
         latency_spread(logs, profile_from_dict(data, "tuned profile"), values, put)
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
-    say("calibrating the integrity test: the particle filter over the episodes with the fitted profile")
-    fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put)
+    say("calibrating the integrity test: the lasers' innovations " + ("of the spread fit's particle filter" if runs else
+        "of the particle filter over the episodes with the fitted profile"))
+    fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put, runs or None)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
                       "episodes": [episode_record(log.folder) for log in logs]}

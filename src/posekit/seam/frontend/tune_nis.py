@@ -32,7 +32,7 @@ __all__ = ["MIN_READINGS", "calibrate_components", "fit_nis", "innovation_compon
 MIN_READINGS = 100
 
 
-def innovation_components(logs, profile) -> list:
+def innovation_components(logs, profile, runs=None) -> list:
     """The particle filter's per-component NIS on each episode, run with ``profile``.
 
     Parameters
@@ -42,6 +42,9 @@ def innovation_components(logs, profile) -> list:
         settings and seed.
     profile : posekit.seam.model.Profile
         The fitted profile.
+    runs : list of FilterRun, optional
+        The filter already run with ``profile`` over ``logs`` (:func:`~posekit.seam.frontend.tune_filter.run_filter`;
+        the reported spread's factor may differ: it does not change the filter's path); run here when None.
 
     Returns
     -------
@@ -50,8 +53,7 @@ def innovation_components(logs, profile) -> list:
         step reported ``lost``).
     """
     out = []
-    for log in logs:
-        run = run_filter(log, profile)
+    for run in (runs if runs is not None else [run_filter(log, profile) for log in logs]):
         U = run.components.copy()
         U[np.asarray(run.status) == "lost"] = np.nan
         out.append(U)
@@ -90,12 +92,12 @@ def calibrate_components(series) -> tuple[float, float, float, int]:
     return c, std, rho, n
 
 
-def fit_nis(logs, profile, share: bool, put) -> None:
+def fit_nis(logs, profile, share: bool, put, runs=None) -> None:
     """Calibrate every sensor's ``nis_mean_x/z`` and ``nis_dof_x/z`` (see the module docstring) with ``put``
-    (:func:`posekit.seam.frontend.tune.tune_profile`'s)."""
+    (:func:`posekit.seam.frontend.tune.tune_profile`'s); ``runs``: the filter already run with ``profile``."""
     from posekit.seam.frontend.tune_fit import _sensor_key
 
-    U = innovation_components(logs, profile)
+    U = innovation_components(logs, profile, runs)
     S = U[0].shape[1] // 2 if U else 0
     entries = 1 if share else S
     for i in range(entries):

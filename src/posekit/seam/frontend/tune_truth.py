@@ -89,7 +89,7 @@ def _rotation_envelope(f: np.ndarray, par: np.ndarray, perp: np.ndarray, kd_fixe
     return float(grid[i]), float(kd_for(grid[i]))
 
 
-def fit_truth(logs, work: ProfileModel, share: bool, put) -> float:
+def fit_truth(logs, work: ProfileModel, share: bool, put, runs_out: list | None = None) -> float:
     """Walk, jitter, laser noise, latency and plateau from the errors against ``truth.csv``."""
     from posekit.seam.frontend.config import cell_from_config
 
@@ -162,7 +162,7 @@ def fit_truth(logs, work: ProfileModel, share: bool, put) -> float:
     # log score of its posterior at the truth, per axis)
     fitted = replace(prof, jitter=jitter, laser_sigma_mm=sig, latency_s=lat, d0_mm=d0, kd_mm_per_n=kd, d0_rad=d0r,
                      kd_rad_per_n=kdr, tail_mm=tail_t, tail_rad=tail_r, max_force_n=fmax)
-    return _fit_walk_truth(logs, cell, fitted, parts, put)
+    return _fit_walk_truth(logs, cell, fitted, parts, put, runs_out)
 
 
 _WALK_BOUNDS = (math.log(1e-7), math.log(10.0))
@@ -197,12 +197,13 @@ def _log_score(eps, Ms, truths, prof):
     return score
 
 
-def _fit_walk_truth(logs, cell, prof, parts, put) -> float:
+def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) -> float:
     """The walk per tool axis whose linearised filter reports spreads its errors against the truth bear out (the
     least log score, :func:`_log_score`); its 1σ from the score's curvature or, where the episodes disagree more,
     the spread of their own slopes (:func:`_curvature_std`). An axis along which a walk e times wider or narrower
     changes the score by less than one unit of log-likelihood does not depend on it (the robot plateau bounds
-    it): not pinned."""
+    it): not pinned. ``runs_out`` (a list) receives the particle filter's runs with the final walk (every value
+    fitted: the integrity test's calibration reads their innovations, :mod:`.tune_nis`)."""
     eps = [LinearisedEpisode(cell, prof, episode_arrays(log), _knots(log)) for log in logs]
     lat = prof.sensor_latency_s(cell.n_sensors)
     Ms = [e.mounts(lat) for e in eps]
@@ -241,7 +242,7 @@ def _fit_walk_truth(logs, cell, prof, parts, put) -> float:
     # covers 90 % of its errors on every one of these episodes (where the walk could not: an axis the lasers barely
     # see, an error that is not a walk; the episodes of one cell differ, and a factor fitted to their pool leaves
     # some of them uncovered)
-    z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)))
+    z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)), runs_out)
     per = np.array([np.clip(np.percentile(np.abs(e), 90.0, axis=0) / 2.0, *_SCALE_RANGE) for e in z])
     scale = per.max(axis=0)
     for a, name in enumerate(("x", "y", "z", "rx", "ry", "rz")):
@@ -260,14 +261,17 @@ def _coverage_ratio(z: list) -> np.ndarray:
     return (np.percentile(np.abs(np.concatenate(z)), 95.0, axis=0) / _Z95) ** 2
 
 
-def _particle_z(logs, profile) -> list:
+def _particle_z(logs, profile, runs_out: list | None = None) -> list:
     """Per episode ``e / s`` (T, 6): ``e`` the particle filter's error against the truth in the seam frame, ``s``
-    its reported spread, run with ``profile`` (each episode's own filter settings and seed)."""
+    its reported spread, run with ``profile`` (each episode's own filter settings and seed); the runs are appended
+    to ``runs_out`` when given."""
     from posekit.seam.frontend.seam_frame import seam_frame_errors
 
     z2 = []
     for log in logs:
         run = run_filter(log, profile)
+        if runs_out is not None:
+            runs_out.append(run)
         err = seam_frame_errors(run.estimate, np.matmul(run.nominal, log.truth_seam_tool), run.nominal)
         z2.append(err / run.spread)
     return z2
