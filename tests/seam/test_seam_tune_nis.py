@@ -43,3 +43,39 @@ def test_heavier_tails_than_chi2_are_fewer_degrees_of_freedom():
 def test_too_few_readings_give_nothing():
     assert all(math.isnan(v) for v in calibrate_components([np.array([np.nan, 1.0])])[:3])
     assert calibrate_components([np.array([np.nan, 1.0])])[3] == 1
+
+
+def test_an_unpinned_latency_s_pose_shift_sets_the_spread_factor(monkeypatch):
+    """frontend/tune_latency.py on a filter replaced by a stand-in whose estimate moves 2 mm along x per 10 ms of
+    latency with a spread of 1 mm: the factor is √(1 + (Δ/2)²) on x, 1 elsewhere, capped at the profile's 100."""
+    from types import SimpleNamespace
+
+    from posekit.seam.frontend import tune_latency
+    from posekit.seam.frontend.profile import default_profile
+    from posekit.seam.frontend.tune import TunedValue
+    from posekit.seam.frontend.tune_filter import FilterRun
+
+    T = 50
+
+    def fake_run(log, profile):
+        est = np.tile(np.eye(4), (T, 1, 1))
+        est[:, 0, 3] = log.mm_per_s * float(np.asarray(profile.latency_s).reshape(-1)[0])
+        return FilterRun(est, np.tile(np.eye(4), (T, 1, 1)), np.ones((T, 6)), ["tracking"] * T, np.ones((T, 2)))
+
+    monkeypatch.setattr(tune_latency, "run_filter", fake_run)
+    got = {}
+
+    def put(key, value, std, pinned, note=""):
+        got[key] = (value, note)
+
+    loose = [TunedValue("sensors[0].latency_s", 0.0, None, False, "not pinned", (0.0, 0.01))]
+    profile = default_profile().model_copy(update={"sensors": default_profile().sensors[:1]})
+    assert tune_latency.latency_spread([SimpleNamespace(time_s=np.zeros(T), mm_per_s=200.0)], profile, loose, put)
+    kept = float(profile.sensors[0].latency_s)                              # the profile's, ~0.4 µs
+    assert got["spread.x"][0] == pytest.approx(math.sqrt(1.0 + (200.0 * (0.01 - kept) / 2.0) ** 2), rel=1e-12)
+    assert [got[f"spread.{a}"][0] for a in ("y", "z", "rx", "ry", "rz")] == [1.0] * 5
+    assert "sensors[0] at 10.0 ms" in got["spread.x"][1]
+    assert tune_latency.latency_spread([SimpleNamespace(time_s=np.zeros(T), mm_per_s=1e5)], profile, loose, put)
+    assert got["spread.x"][0] == 100.0 and "capped; declare the latency" in got["spread.x"][1]
+    # a pinned latency leaves the factors alone
+    assert not tune_latency.latency_spread([], profile, [TunedValue("sensors[0].latency_s", 0.01, 1e-4, True)], put)

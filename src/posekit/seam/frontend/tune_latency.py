@@ -28,6 +28,8 @@ __all__ = ["latency_spread"]
 
 #: The spread factor's axes, in the profile's order.
 _AXES = ("x", "y", "z", "rx", "ry", "rz")
+#: The largest spread factor a profile holds (:class:`posekit.seam.frontend.profile.SpreadProfile`'s range).
+_MAX_FACTOR = 100.0
 
 
 def latency_spread(logs, profile, values, put) -> bool:
@@ -71,6 +73,9 @@ def latency_spread(logs, profile, values, put) -> bool:
     need = np.array([np.percentile(np.sqrt(1.0 + d2 / (4.0 * r.spread ** 2)), 90.0, axis=0)
                      for d2, r in zip(shift2, runs)]).max(axis=0)
     for a, name in enumerate(_AXES):
-        put(f"spread.{name}", float(max(1.0, need[a])), None, True,
-            f"covers the pose shift of the unpinned latency ({', '.join(ends)}) on 90 % of every episode's steps")
+        f = float(min(max(1.0, need[a]), _MAX_FACTOR))
+        put(f"spread.{name}", f, None, True,
+            f"covers the pose shift of the unpinned latency ({', '.join(ends)}) on 90 % of every episode's steps"
+            if f < _MAX_FACTOR else f"the unpinned latency ({', '.join(ends)}) moves the pose by more than "
+            f"{_MAX_FACTOR:g} x its spread: capped; declare the latency")
     return True
