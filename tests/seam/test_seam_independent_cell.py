@@ -12,6 +12,7 @@ Monte-Carlo (more episodes, encoder offsets, force biases) is benchmarks/seam_va
 benchmarks/data/seam_validation.json.
 """
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ import pytest
 
 from posekit.seam.frontend.logs import read_episode_log
 from posekit.seam.frontend.profile import episode_record, load_profile, merge_profile, write_profile
-from posekit.seam.frontend.tracker import track_log
+from posekit.seam.frontend.tracker import SeamTracker, step_record, track_log, write_track
 from posekit.seam.frontend.tune import tune_profile, tune_report
 from tests.seam import independent_cell as ic
 from tests.seam.helpers import coverage_band, effective_samples
@@ -150,6 +151,23 @@ def test_a_latency_nobody_declared_is_caught_by_the_calibrated_long_window(tmp_p
         # ahead (the one whose reading moves fastest)
         flagged = [r for r in reasons if r]
         assert sum(r.startswith("sensor 2's x innovations over the last") for r in flagged) >= 0.9 * len(flagged)
+    # the user reads the reason beside each step: estimates.csv's last column (empty while tracking) and the JSONL
+    result = track_log(read_episode_log(folder, profile=zero))
+    write_track(tmp_path, result)
+    with (tmp_path / "estimates.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0])[-1] == "reason" and [r["status"] for r in rows] == result.status
+    assert all((r["reason"] == "") == (r["status"] == "tracking") for r in rows)
+    assert any(r["reason"].startswith("sensor 2's x innovations over the last ") for r in rows)
+    tracker = SeamTracker(result.config, read_episode_log(folder).seam_mm)
+    est = tracker.step(0.0, *_first_sample(folder))
+    rec = step_record(0, est)             # (this sample's force is just beyond the fitted range: degraded, said why)
+    assert rec["reason"] == est.raw.reason and (rec["reason"] is None) == (rec["status"] == "tracking"), rec
+
+
+def _first_sample(folder):
+    log = read_episode_log(folder)
+    return log.qref[0], log.q[0], log.force_tool_n[0]
 
 
 def _run(folder, profile, reasons=None):

@@ -240,6 +240,8 @@ class SeamTrackResult:
         The measured force in the base frame (``R(Fk(q)) f_tool``), N, as the filter used it.
     config : SeamConfig or None
         The configuration the log was tracked with.
+    reason : list of str or None
+        Per step the failing consistency test(s) (None where the step is ``tracking``).
     """
 
     time_s: np.ndarray
@@ -257,6 +259,7 @@ class SeamTrackResult:
     particles: int = 0
     force_base_n: np.ndarray | None = None
     config: SeamConfig | None = None
+    reason: list | None = None
 
 
 def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
@@ -278,7 +281,7 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
     used = np.empty(T, dtype=int)
     resampled = np.zeros(T, dtype=bool)
     force_base = np.empty((T, 3))
-    status = []
+    status, reason = [], []
     it = range(T) if progress is None else progress(range(T), total=T, desc="steps")
     for k in it:
         r = tracker.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
@@ -289,13 +292,14 @@ def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
         est[k], kin[k], nom[k], spread[k] = r.T_base_tool, r.T_kinematic, r.T_nominal, r.spread
         ess[k], ms[k], used[k] = r.ess, r.step_ms, r.lasers_used
         status.append(r.status)
+        reason.append(r.raw.reason)
         resampled[k] = r.raw.resampled
         force_base[k] = tracker.force_base_n
         if on_step is not None:
             on_step(k, r)
     truth = None if log.truth_seam_tool is None else np.matmul(nom, log.truth_seam_tool)
     return SeamTrackResult(log.time_s.copy(), est, kin, nom, spread, status, ess, ms, used, log.interpolated.copy(),
-                           truth, resampled, log.config.filter.particles, force_base, log.config)
+                           truth, resampled, log.config.filter.particles, force_base, log.config, reason)
 
 
 def track_metrics(result: SeamTrackResult) -> dict:
@@ -348,12 +352,13 @@ def track_metrics(result: SeamTrackResult) -> dict:
 
 
 def track_columns(truth: bool) -> list[str]:
-    """Columns of ``estimates.csv`` of ``posekit seam track`` (errors only with truth)."""
+    """Columns of ``estimates.csv`` of ``posekit seam track`` (errors only with truth; last, the failing test's
+    ``reason``, empty where the step is ``tracking``)."""
     from posekit.seam.frontend.report import ERROR_COLUMNS
 
     cols = ["step", "time_s", "tx_mm", "ty_mm", "tz_mm", "qw", "qx", "qy", "qz", "status", *SPREAD_COLUMNS,
             "ess", "lasers_used", "interpolated", "step_ms"]
-    return cols + ([f"err_{c}" for c in ERROR_COLUMNS] if truth else [])
+    return cols + ([f"err_{c}" for c in ERROR_COLUMNS] if truth else []) + ["reason"]
 
 
 def write_track(folder, result: SeamTrackResult) -> dict:
@@ -388,7 +393,7 @@ def write_track(folder, result: SeamTrackResult) -> dict:
                    int(result.interpolated[k]), f"{result.step_ms[k]:.4g}"]
             if has_truth:
                 row += [f"{v:.6g}" for v in err[k]]
-            w.writerow(row)
+            w.writerow(row + [(result.reason[k] if result.reason is not None else None) or ""])
     write_json(folder / "metrics.json", m)
     from posekit.seam.frontend import plots
 
@@ -405,11 +410,12 @@ def write_track(folder, result: SeamTrackResult) -> dict:
 
 def step_record(k: int, est: TrackEstimate) -> dict:
     """One step as a JSON-ready dict (``posekit seam track --jsonl``): ``step``, ``time_s``, ``t_mm``
-    (3, base frame), ``q_wxyz`` (4), ``status``, ``std_mm`` (3), ``std_deg`` (3), ``ess``, ``lasers_used``."""
+    (3, base frame), ``q_wxyz`` (4), ``status``, ``std_mm`` (3), ``std_deg`` (3), ``ess``, ``lasers_used``,
+    ``reason`` (the failing test; None where ``tracking``)."""
     from posekit.seam.frontend.report import _poses
 
     pose = _poses(est.T_base_tool[None])[0]
     return {"step": int(k), "time_s": float(est.time_s), "t_mm": [float(v) for v in pose[:3]],
             "q_wxyz": [float(v) for v in pose[3:]], "status": est.status,
             "std_mm": [float(v) for v in est.spread[:3]], "std_deg": [math.degrees(v) for v in est.spread[3:]],
-            "ess": float(est.ess), "lasers_used": int(est.lasers_used)}
+            "ess": float(est.ess), "lasers_used": int(est.lasers_used), "reason": est.raw.reason}
