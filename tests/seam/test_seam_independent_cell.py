@@ -57,7 +57,7 @@ def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
         for a in "xz":
             c, rho = got[f"sensors[{i}].nis_mean_{a}"], got[f"sensors[{i}].nis_dof_{a}"]
             assert c.pinned and rho.pinned and 0.5 < c.value < 2.0 and 0.0 < c.std < 0.2 * c.value, (c, rho)
-            assert 0.2 < rho.value < 1.3, rho
+            assert 0.2 < rho.value < 1.3 and rho.std is not None and 0.0 < rho.std < 0.5 * rho.value, rho
 
 
 def test_tune_without_truth_is_never_confidently_wrong_about_a_latency(tmp_path, monkeypatch):

@@ -23,26 +23,27 @@ def test_mean_and_degrees_of_freedom_of_correlated_squares(c, phi):
     rng = np.random.default_rng(7)
     eps = [_ar1_squares(rng, c, phi, 20_000) for _ in range(3)]
     eps[1][::17] = np.nan                                 # dropped readings are left out, not zeros
-    mean, std, rho, n = calibrate_components(eps)
+    mean, std, rho, rho_std, n = calibrate_components(eps)
     assert n == 60_000 - len(eps[1][::17])
     rho_true = (1.0 - phi ** 2) / (1.0 + phi ** 2)
     assert mean == pytest.approx(c, abs=4.0 * std) and std < 0.05 * c
     # the autocorrelation sum stops below rho_k = 0.05 (posekit._autocorr): a few per cent of bias at most
     assert rho == pytest.approx(rho_true, rel=0.1)
+    assert 0.0 < rho_std < 0.1 * rho and abs(rho - rho_true) < 0.05 + 5.0 * rho_std      # the episodes agree
 
 
 def test_heavier_tails_than_chi2_are_fewer_degrees_of_freedom():
     # u = c t_5² / (5/3): mean c, var(u/c) = 2 (1 + 3/(5-4)) = 8 for a t with 5 dof: worth a quarter of a chi2_1 each
     rng = np.random.default_rng(3)
     eps = [0.9 * rng.standard_t(5, 100_000) ** 2 / (5.0 / 3.0) for _ in range(2)]
-    mean, _, rho, _ = calibrate_components(eps)
+    mean, _, rho, _, _ = calibrate_components(eps)
     assert mean == pytest.approx(0.9, rel=0.05)
     assert rho == pytest.approx(0.25, rel=0.3)    # the sample variance of a t_5² converges slowly
 
 
 def test_too_few_readings_give_nothing():
-    assert all(math.isnan(v) for v in calibrate_components([np.array([np.nan, 1.0])])[:3])
-    assert calibrate_components([np.array([np.nan, 1.0])])[3] == 1
+    assert all(math.isnan(v) for v in calibrate_components([np.array([np.nan, 1.0])])[:4])
+    assert calibrate_components([np.array([np.nan, 1.0])])[4] == 1
 
 
 def test_an_unpinned_latency_s_pose_shift_sets_the_spread_factor(monkeypatch):

@@ -12,7 +12,8 @@ Here the filter, run with the fitted profile on the training episodes, measures 
   episodes' means over √episodes);
 - ``nis_dof`` ``ρ_j = 2 / (τ var(u_j / c_j))``: the χ² degrees of freedom one reading is worth, from the
   variance (2 for a χ²₁) and the integrated autocorrelation time ``τ`` of the normalised series
-  (:func:`posekit._autocorr.autocorrelation_time`, the mean over the episodes).
+  (:func:`posekit._autocorr.autocorrelation_time`, the mean over the episodes); 1σ: the spread of the episodes'
+  own values over √episodes (none from one episode).
 
 A component with fewer than :data:`MIN_READINGS` readings keeps 1 and 1 (said so). Steps the filter itself
 reports ``lost`` are left out (the tests there are the short window's). With one sensor entry for every sensor
@@ -60,8 +61,9 @@ def innovation_components(logs, profile, runs=None) -> list:
     return out
 
 
-def calibrate_components(series) -> tuple[float, float, float, int]:
-    """``nis_mean``, its 1σ, ``nis_dof`` and the readings used, from one component's series of every episode.
+def calibrate_components(series) -> tuple[float, float, float, float, int]:
+    """``nis_mean`` and ``nis_dof`` with their 1σ and the readings used, from one component's series of every
+    episode.
 
     Parameters
     ----------
@@ -70,26 +72,32 @@ def calibrate_components(series) -> tuple[float, float, float, int]:
 
     Returns
     -------
-    mean, mean_std, dof, n : float, float, float, int
-        ``nan`` for all three when there are fewer than 2 readings.
+    mean, mean_std, dof, dof_std, n : float, float, float, float, int
+        ``nan`` for the first four when there are fewer than 2 readings; ``dof_std`` is the spread of the episodes'
+        own ``2 / (τ var)`` over √episodes (``nan`` with one episode).
     """
     eps = [np.asarray(s, dtype=np.float64) for s in series]
     eps = [s[np.isfinite(s)] for s in eps]
     eps = [s for s in eps if s.size]
     n = int(sum(s.size for s in eps))
     if n < 2:
-        return math.nan, math.nan, math.nan, n
+        return math.nan, math.nan, math.nan, math.nan, n
     allu = np.concatenate(eps)
     c = float(allu.mean())
     if not c > 0.0:
-        return math.nan, math.nan, math.nan, n
+        return math.nan, math.nan, math.nan, math.nan, n
     var = float(np.var(allu / c, ddof=1))
     tau = float(np.average([autocorrelation_time(s / c) for s in eps], weights=[s.size for s in eps]))
     rho = 2.0 / (tau * var) if var > 0.0 else math.nan
     std = c * math.sqrt(2.0 / (rho * n)) if math.isfinite(rho) else math.nan
+    rho_std = math.nan
     if len(eps) >= 2:
         std = max(std, float(np.std([s.mean() for s in eps], ddof=1)) / math.sqrt(len(eps)))
-    return c, std, rho, n
+        own = [2.0 / (autocorrelation_time(s / c) * float(np.var(s / c, ddof=1))) for s in eps if s.size >= 8]
+        own = [r for r in own if math.isfinite(r)]
+        if len(own) >= 2:
+            rho_std = float(np.std(own, ddof=1)) / math.sqrt(len(own))
+    return c, std, rho, rho_std, n
 
 
 def fit_nis(logs, profile, share: bool, put, runs=None) -> None:
@@ -104,11 +112,11 @@ def fit_nis(logs, profile, share: bool, put, runs=None) -> None:
         for a, axis in enumerate("xz"):
             cols = [2 * k + a for k in (range(S) if share else (i,))]
             series = [u[:, j] for u in U for j in cols]
-            c, c_std, rho, n = calibrate_components(series)
+            c, c_std, rho, rho_std, n = calibrate_components(series)
             if n < MIN_READINGS or not (math.isfinite(c) and math.isfinite(rho)):
                 why = f"{n} readings (at least {MIN_READINGS} needed): the model's own chi2 is kept"
                 put(_sensor_key(i, f"nis_mean_{axis}"), 1.0, None, False, why)
                 put(_sensor_key(i, f"nis_dof_{axis}"), 1.0, None, False, why)
                 continue
             put(_sensor_key(i, f"nis_mean_{axis}"), c, c_std, True)
-            put(_sensor_key(i, f"nis_dof_{axis}"), rho, None, True)
+            put(_sensor_key(i, f"nis_dof_{axis}"), rho, rho_std, True)
