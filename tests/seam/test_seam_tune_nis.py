@@ -67,7 +67,7 @@ def test_an_unpinned_latency_s_pose_shift_sets_the_spread_factor(monkeypatch):
     got = {}
 
     def put(key, value, std, pinned, note=""):
-        got[key] = (value, note)
+        got[key] = (value, note, std)
 
     loose = [TunedValue("sensors[0].latency_s", 0.0, None, False, "not pinned", (0.0, 0.01))]
     profile = default_profile().model_copy(update={"sensors": default_profile().sensors[:1]})
@@ -75,7 +75,12 @@ def test_an_unpinned_latency_s_pose_shift_sets_the_spread_factor(monkeypatch):
     kept = float(profile.sensors[0].latency_s)                              # the profile's, ~0.4 µs
     assert got["spread.x"][0] == pytest.approx(math.sqrt(1.0 + (200.0 * (0.01 - kept) / 2.0) ** 2), rel=1e-12)
     assert [got[f"spread.{a}"][0] for a in ("y", "z", "rx", "ry", "rz")] == [1.0] * 5
-    assert "sensors[0] at 10.0 ms" in got["spread.x"][1]
+    assert "sensors[0] at 10.0 ms" in got["spread.x"][1] and got["spread.x"][2] is None    # one episode: no 1σ
+    two = [SimpleNamespace(time_s=np.zeros(T), mm_per_s=v) for v in (200.0, 400.0)]          # Δ = 2 and 4 mm
+    assert tune_latency.latency_spread(two, profile, loose, put)
+    f1, f2 = (math.sqrt(1.0 + (v * (0.01 - kept) / 2.0) ** 2) for v in (200.0, 400.0))
+    assert got["spread.x"][0] == pytest.approx(f2, rel=1e-12)                                # the larger need
+    assert got["spread.x"][2] == pytest.approx(abs(f2 - f1) / math.sqrt(2.0) / math.sqrt(2.0), rel=1e-9)
     assert tune_latency.latency_spread([SimpleNamespace(time_s=np.zeros(T), mm_per_s=1e5)], profile, loose, put)
     assert got["spread.x"][0] == 100.0 and "capped; declare the latency" in got["spread.x"][1]
     # a pinned latency leaves the factors alone

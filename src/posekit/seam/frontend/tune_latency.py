@@ -11,7 +11,8 @@ What the tuner does instead is a sensitivity analysis on the training episodes t
 run with the kept latencies and again with each unpinned latency at the end of its interval farther from the kept
 value; the difference of the two estimates, ``Δ`` per tool axis and step (in the seam frame, each unpinned sensor's
 added in quadrature), is the pose shift that latency would make. The ``spread`` factor per axis is the least
-``f >= 1`` with ``f s >= √(s² + (Δ/2)²)`` on 90 % of the steps of every episode (``s`` the filter's spread): the
+``f >= 1`` with ``f s >= √(s² + (Δ/2)²)`` on 90 % of the steps of every episode (``s`` the filter's spread; its 1σ
+the spread of the episodes' own factors over √episodes): the
 reported 2σ then reaches the estimate a latency at that end would give, as the factor fitted with a reference
 covers 90 % of the errors of every episode (:mod:`.tune_truth`). A latency that is pinned, declared or stamped
 changes nothing here.
@@ -70,11 +71,14 @@ def latency_spread(logs, profile, values, put) -> bool:
         for e, log in enumerate(logs):
             d = seam_frame_errors(run_filter(log, moved).estimate, runs[e].estimate, runs[e].nominal)
             shift2[e] += d * d
-    need = np.array([np.percentile(np.sqrt(1.0 + d2 / (4.0 * r.spread ** 2)), 90.0, axis=0)
-                     for d2, r in zip(shift2, runs)]).max(axis=0)
+    per = np.array([np.percentile(np.sqrt(1.0 + d2 / (4.0 * r.spread ** 2)), 90.0, axis=0)
+                    for d2, r in zip(shift2, runs)])          # (episodes, 6): what each episode needs
+    need = per.max(axis=0)
+    # 1σ: the spread of the episodes' own factors over √episodes (none from one episode)
+    std = np.std(per, axis=0, ddof=1) / np.sqrt(len(per)) if len(per) >= 2 else np.full(6, np.nan)
     for a, name in enumerate(_AXES):
         f = float(min(max(1.0, need[a]), _MAX_FACTOR))
-        put(f"spread.{name}", f, None, True,
+        put(f"spread.{name}", f, float(std[a]) if np.isfinite(std[a]) else None, True,
             f"covers the pose shift of the unpinned latency ({', '.join(ends)}) on 90 % of every episode's steps"
             if f < _MAX_FACTOR else f"the unpinned latency ({', '.join(ends)}) moves the pose by more than "
             f"{_MAX_FACTOR:g} x its spread: capped; declare the latency")
