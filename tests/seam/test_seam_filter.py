@@ -272,7 +272,7 @@ def test_laser_variance_is_sigma_jitter_and_the_kernels_share_of_the_cloud():
     laser = np.array([[e @ T[:3, 0], e @ T[:3, 2]], [np.nan, np.nan]])
     inp = StepInputs(np.eye(4), T, nt.q[1], np.zeros(3), 0.0, nt.q[1], laser)
     meas = robot_measurement(pf.chain, nt.q[1], np.zeros(3), compliance=None, **pf._robot_kw)
-    rd, radius = pf._readings(inp, meas, pf.mounts)
+    rd, radius, _ = pf._readings(inp, meas, pf.mounts)
     pf._s2, pf._miss2 = np.empty(1), radius ** 2
     _, ll_robot, E = pf._loglik(pf.T, rd, inp, meas, errors=True)
     w = np.exp(ll_robot - ll_robot.max())

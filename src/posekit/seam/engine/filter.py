@@ -189,14 +189,6 @@ class SeamParticleFilter:
         out[:, :3, 3] = centre[:3, 3] + dt
         return out
 
-    def _present(self, inputs: StepInputs) -> np.ndarray:
-        """Indices of the sensors whose reading the step uses (both components finite), in order: the columns of
-        the lasers' errors come in this order (:meth:`_readings`)."""
-        if inputs.laser_mm is None or self._n_sensors == 0:
-            return np.empty(0, dtype=np.int64)
-        m = np.asarray(inputs.laser_mm, dtype=np.float64).reshape(-1, 2)[:self._n_sensors]
-        return np.flatnonzero(np.isfinite(m).all(axis=1))
-
     def _reading_mounts(self, inputs: StepInputs) -> np.ndarray:
         """Effective mounts ``(S, 4, 4)``: ``Fk(q̄(t))⁻¹ Fk(q̄(t - L)) T_tool_sensor`` per sensor (mm), the
         program's joints interpolated linearly between the steps kept (the earliest one before them)."""
@@ -281,16 +273,17 @@ class SeamParticleFilter:
         _ck.kernel_move(T_mean, xi, idx, mu, a, np.ascontiguousarray(B, dtype=np.float64), z, out)
         return out
 
-    def _readings(self, inputs: StepInputs, meas, mounts: np.ndarray) -> tuple[Readings, np.ndarray]:
+    def _readings(self, inputs: StepInputs, meas, mounts: np.ndarray) -> tuple[Readings, np.ndarray, list]:
         """The step's readings with their knot windows, searched about the kinematic pose as far as the robot
-        density reaches (plateau, 3 tails and the rotation plateau times the sensor's lever), and that search
-        radius per reading (mm: the error charged to a particle whose plane meets no seam)."""
+        density reaches (plateau, 3 tails and the rotation plateau times the sensor's lever), that search
+        radius per reading (mm: the error charged to a particle whose plane meets no seam), and the index of the
+        sensor of each reading."""
         S = mounts.shape[0]
         if inputs.laser_mm is None or S == 0:
-            return Readings.none(), np.empty(0)
+            return Readings.none(), np.empty(0), []
         reach = meas.d_t_mm + 3.0 * math.sqrt(max(float(np.trace(meas.Sigma_t)), 0.0))
         jit = jitter_variances(mounts, self._jitter)
-        mx, mz, Ms, lo, hi, r2, radius = [], [], [], [], [], [], []
+        mx, mz, Ms, lo, hi, r2, radius, sensor = [], [], [], [], [], [], [], []
         for i in range(S):
             m = inputs.laser_mm[i]
             if not (np.isfinite(m[0]) and np.isfinite(m[1])):
@@ -306,9 +299,10 @@ class SeamParticleFilter:
             hi.append(b)
             r2.append(self._sigma2[i] + jit[i])
             radius.append(rad)
+            sensor.append(i)
         if not mx:
-            return Readings.none(), np.empty(0)
-        return Readings(mx, mz, np.stack(Ms), lo, hi, np.stack(r2)), np.array(radius)
+            return Readings.none(), np.empty(0), []
+        return Readings(mx, mz, np.stack(Ms), lo, hi, np.stack(r2)), np.array(radius), sensor
 
     def _loglik(self, T: np.ndarray, rd: Readings, inputs: StepInputs, meas, errors: bool = False):
         """Total measurement log-likelihood of particles ``T (N, 4, 4)``; with ``errors`` also the robot part
@@ -374,7 +368,7 @@ class SeamParticleFilter:
             if drawn:
                 self.T = self._draw_from_robot(meas)  # the prior: where the robot can be
                 self._init_pending = False
-            rd, radius = self._readings(inputs, meas, self._reading_mounts(inputs))
+            rd, radius, sensor = self._readings(inputs, meas, self._reading_mounts(inputs))
             used = len(rd)
             self._s2 = np.empty(used)
             self._miss2 = radius * radius
@@ -384,7 +378,7 @@ class SeamParticleFilter:
             if used:
                 nis, dof, u = innovation_nis(E, normalize_log_weights(self.logw + ll_robot).w, rd.r2.reshape(-1),
                                              per_component=True)
-                components[np.repeat(2 * self._present(inputs), 2) + np.tile([0, 1], used)] = u
+                components[np.repeat(2 * np.asarray(sensor), 2) + np.tile([0, 1], used)] = u
             else:
                 nis, dof = 0.0, 0
         norm = normalize_log_weights(self.logw + ll)

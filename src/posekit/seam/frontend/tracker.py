@@ -262,15 +262,18 @@ class SeamTrackResult:
     reason: list | None = None
 
 
-def track_log(log, *, progress=None, on_step=None) -> SeamTrackResult:
+def track_log(log, *, progress=None, on_step=None, profile=None) -> SeamTrackResult:
     """Run the filter over a recorded episode (:func:`posekit.seam.frontend.logs.read_episode_log`).
 
     Each row of ``log.csv`` is one step; joints on laser-only rows are the interpolated ones.
     The filter's seed is ``setup.yaml``'s ``seed``; a log written by ``posekit seam simulate
     --save-log`` reproduces that run's estimates. ``on_step(k, TrackEstimate)`` is called after
-    every step (e.g. to stream it out).
+    every step (e.g. to stream it out). ``profile`` (:class:`posekit.seam.model.Profile`) replaces the episode's
+    own (``seam tune`` judging a candidate).
     """
     tracker = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
+    if profile is not None:
+        tracker.profile = profile
     T = len(log.time_s)
     est = np.empty((T, 4, 4))
     kin = np.empty((T, 4, 4))

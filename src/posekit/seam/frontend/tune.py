@@ -223,9 +223,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
             "by profile likelihood)")
         nll = _fit_innovations(logs, work, share_sensors, put)
     data["format"], data["version"] = "posekit-seam-profile", 1
-    if not with_truth and any(v.key.endswith("latency_s") and not v.pinned and v.interval for v in values):
-        say("a latency is not pinned: the particle filter with it at its interval's end, for the reported spread")
-        latency_spread(logs, profile_from_dict(data, "tuned profile"), values, put)
+    if not with_truth:
+        latency_spread(logs, profile_from_dict(data, "tuned profile"), values, put, say)
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
     say("calibrating the integrity test: the lasers' innovations " + ("of the spread fit's particle filter" if runs else
         "of the particle filter over the episodes with the fitted profile"))

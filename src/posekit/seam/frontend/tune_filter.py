@@ -33,26 +33,15 @@ class FilterRun:
 
 def run_filter(log, profile) -> FilterRun:
     """Run the particle filter over ``log`` (:func:`posekit.seam.frontend.logs.read_episode_log`) with ``profile``
-    (:class:`posekit.seam.model.Profile`) in place of the episode's own, with the episode's filter settings and
-    seed and every input the log has (lasers at their stamps, angles, torques)."""
-    from posekit.seam.frontend.tracker import SeamTracker
+    (:class:`posekit.seam.model.Profile`) in place of the episode's own: :func:`~posekit.seam.frontend.tracker.
+    track_log` (the episode's filter settings and seed, every input the log has), keeping each step's innovations."""
+    from posekit.seam.frontend.tracker import track_log
 
-    tr = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
-    tr.profile = profile
-    T = len(log.time_s)
-    S = log.config.cell.sensors.count
-    est, nom = np.empty((T, 4, 4)), np.empty((T, 4, 4))
-    spread = np.empty((T, 6))
-    comp = np.full((T, 2 * S), np.nan)
-    status = []
-    for k in range(T):
-        r = tr.step(log.time_s[k], log.qref[k], log.q[k], log.force_tool_n[k],
-                    laser_mm=log.laser_mm[k] if log.laser_mm.shape[1] else None,
-                    angle_rad=None if log.angle_rad is None else log.angle_rad[k],
-                    torque_tool_nm=None if log.torque_tool_nm is None else log.torque_tool_nm[k],
-                    reading_time_s=None if log.reading_time_s is None else log.reading_time_s[k])
-        est[k], nom[k], spread[k] = r.T_base_tool, r.T_nominal, r.spread
-        status.append(r.status)
-        if r.raw.nis_components is not None:
-            comp[k] = r.raw.nis_components
-    return FilterRun(est, nom, spread, status, comp)
+    comp = np.full((len(log.time_s), 2 * log.config.cell.sensors.count), np.nan)
+
+    def keep(k, est):
+        if est.raw.nis_components is not None:
+            comp[k] = est.raw.nis_components
+
+    r = track_log(log, on_step=keep, profile=profile)
+    return FilterRun(r.estimate, r.nominal, r.spread, r.status, comp)

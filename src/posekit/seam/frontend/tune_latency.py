@@ -33,7 +33,7 @@ _AXES = ("x", "y", "z", "rx", "ry", "rz")
 _MAX_FACTOR = 100.0
 
 
-def latency_spread(logs, profile, values, put) -> bool:
+def latency_spread(logs, profile, values, put, stage=None) -> bool:
     """Widen the profile's ``spread`` factors for the latencies ``values`` left unpinned (see the module docstring).
 
     Parameters
@@ -46,6 +46,8 @@ def latency_spread(logs, profile, values, put) -> bool:
         The tuner's values so far: each ``sensors[i].latency_s`` that is not pinned and has an ``interval``.
     put : callable
         :func:`posekit.seam.frontend.tune.tune_profile`'s.
+    stage : callable, optional
+        ``stage(text)`` when the work starts (there is an unpinned latency).
 
     Returns
     -------
@@ -56,6 +58,8 @@ def latency_spread(logs, profile, values, put) -> bool:
              if v.key.startswith("sensors[") and v.key.endswith("].latency_s") and not v.pinned and v.interval]
     if not loose:
         return False
+    if stage is not None:
+        stage("a latency is not pinned: the particle filter with it at its interval's end, for the reported spread")
     base = profile.to_model()
     kept = np.asarray(base.latency_s, dtype=np.float64).copy()
     runs = [run_filter(log, base) for log in logs]
