@@ -6,7 +6,9 @@ Run from a source checkout::
 
 It writes one JSON file (checked in: ``benchmarks/data/seam_validation.json``) with, per scenario, the 2σ coverage
 per axis (share of steps whose |error| <= 2 x the reported spread), the status counts, the confident-wrong share
-(steps ``tracking`` while beyond 3σ on some axis) over all steps and the worst single episode's:
+(steps ``tracking`` while beyond 3σ on some axis) over all steps and the worst single episode's, and what a
+perfectly honest spread would show on single episodes with these errors' autocorrelation
+(``honest_spread_reference``):
 
 - **posekit's own simulator** (``posekit seam simulate``'s episodes, the shipped default profile, 500 particles,
   500 steps): the paper's xy and yz seams and the bundled stress configurations (wrong start, 25 kN);
@@ -37,6 +39,30 @@ ROOT = HERE.parent
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 
+def _honest_reference(errors, spreads, trials: int = 4000) -> dict:
+    """What a perfectly honest spread would show on these episodes: per axis the integrated autocorrelation time
+    of ``error / spread`` (median over the episodes, ``posekit._autocorr``), then ``trials`` Monte-Carlo episodes of
+    the same length whose six axes are independent unit-variance Gaussian AR(1) series with those times (seeded):
+    the probability that more than 5 % of an episode's steps are beyond 3σ on some axis, and the episodes expected
+    over 5 % out of these. Errors correlated over tens of steps make single episodes vary far more than the pooled
+    share (an honest 2σ leaves 1.6 % of the steps beyond 3σ on some axis, on average)."""
+    from posekit._autocorr import autocorrelation_time
+
+    z = [np.asarray(e, dtype=np.float64) / np.asarray(sp, dtype=np.float64) for e, sp in zip(errors, spreads)]
+    tau = np.array([np.median([autocorrelation_time(e[:, a]) for e in z]) for a in range(6)])
+    phi = (tau - 1.0) / (tau + 1.0)                     # AR(1) with integrated time (1 + φ) / (1 - φ)
+    T = int(np.median([len(e) for e in z]))
+    rng = np.random.default_rng(26)
+    x = rng.standard_normal((trials, 6))
+    beyond = np.zeros(trials)
+    for _ in range(T):
+        x = phi * x + np.sqrt(1.0 - phi ** 2) * rng.standard_normal((trials, 6))
+        beyond += np.any(np.abs(x) > 3.0, axis=1)
+    p = float(np.mean(beyond / T > 0.05))
+    return {"tau_steps": {a: round(float(v), 1) for a, v in zip(AXES, tau)}, "steps": T,
+            "p_episode_over_5_percent": round(p, 3), "episodes_over_5_percent_expected": round(p * len(z), 2)}
+
+
 def _summary(errors, spreads, statuses) -> dict:
     """Coverage, statuses and confident-wrong shares of a list of episodes (errors mm/rad, spreads alike)."""
     E = np.abs(np.concatenate(errors))
@@ -51,6 +77,7 @@ def _summary(errors, spreads, statuses) -> dict:
             "confident_wrong": round(float(np.mean((st == "tracking") & np.any(E > 3.0 * S, axis=1))), 4),
             "confident_wrong_worst_episode": round(max(cw), 4),
             "episodes_confident_wrong_over_5_percent": int(sum(c > 0.05 for c in cw)),
+            "honest_spread_reference": _honest_reference(errors, spreads),
             "rmse_mm": {a: round(float(v), 4) for a, v in zip(AXES[:3], np.sqrt(np.mean(E[:, :3] ** 2, axis=0)))},
             "rmse_deg": {a: round(math.degrees(float(v)), 4)
                          for a, v in zip(AXES[3:], np.sqrt(np.mean(E[:, 3:] ** 2, axis=0)))}}
@@ -113,17 +140,20 @@ def independent_cell(episodes: int, folder: Path) -> dict:
                 "force-sensor bias 300 N along z": ({"force_bias_n": (0, 0, 300.0)}, "truth.yaml")}
         if cell.latency_s[0] > 0:
             scen["latency undeclared (profile says 0)"] = ({}, "zero-latency.yaml")
+        # a newcomer's first run, before any seam tune: the shipped default profile (fitted on another cell)
+        scen["never tuned (the shipped default profile)"] = ({}, None)
         for name, (kw, prof) in scen.items():
             errs, spr, sts = [], [], []
             for s in held:
                 ep = ic.episode(cell, s, **kw)
                 d = ic.write_episode(root / f"{name}-{s}".replace(" ", "_"), cell, ep, declare_latency=False)
-                r = track_log(read_episode_log(d, profile=root / prof))
+                r = track_log(read_episode_log(d, profile=None if prof is None else root / prof))
                 errs.append(ic.seam_frame_errors(r.estimate, ep))
                 spr.append(r.spread)
                 sts.append(r.status)
-            block[name] = {"command": f"posekit seam track EPISODE --profile {prof} --out DIR (held-out seeds "
-                                      f"{held.start}-{held.stop - 1})", **_summary(errs, spr, sts)}
+            block[name] = {"command": f"posekit seam track EPISODE{'' if prof is None else ' --profile ' + prof} "
+                                      f"--out DIR (held-out seeds {held.start}-{held.stop - 1})",
+                           **_summary(errs, spr, sts)}
             print(f"  independent {label} {name}: {block[name]['coverage_2sigma']} tracking "
                   f"{block[name]['tracking']} confident-wrong {block[name]['confident_wrong']} (worst episode "
                   f"{block[name]['confident_wrong_worst_episode']})", flush=True)

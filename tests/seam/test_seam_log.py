@@ -12,6 +12,7 @@ from posekit.geometry import matrix_from_rotation_vector
 from posekit.seam.frontend.config import apply_overrides, config_from_dict
 from posekit.seam.frontend.episode import run_episode
 from posekit.seam.frontend.logs import log_columns, read_episode_log, write_episode_log
+from posekit.seam.frontend.profile import DEFAULT_PROFILE, load_profile, merge_profile, write_profile
 from posekit.seam.frontend.simulate import simulate_data
 from posekit.seam.frontend.tracker import track_log, track_metrics
 
@@ -92,17 +93,25 @@ def _mount(rz_deg, t_mm):
 def test_filter_uses_the_mount_a_wrong_mount_in_setup_is_caught(tmp_path):
     """Two sensors turned 25° and -15° about their z axes: tracked with the right mounts the
     filter beats kinematics; the same log with setup.yaml claiming straight sensors gives errors
-    several times larger, and the integrity verdict does not call those steps tracking."""
+    several times larger, and the integrity verdict does not call those steps tracking. (The
+    default profile's values with no cell named: what is tested is the innovations' verdict, not
+    the profile's cell check, which alone makes both degraded: the default was fitted on sensors
+    20 / 40 mm ahead.)"""
     mounts = [_mount(25.0, [5.0, 30.0, 0.0]), _mount(-15.0, [-5.0, 50.0, 2.0])]
     cfg = _small(sensors={"count": 2, "mounts": mounts})
     data = simulate_data(cfg, 6)
     (tmp_path / "ok").mkdir()
     write_episode_log(tmp_path / "ok", cfg, data, 6)
-    good = track_metrics(track_log(read_episode_log(tmp_path / "ok")))
+    anywhere = write_profile(tmp_path / "anywhere.yaml",
+                             merge_profile(load_profile(DEFAULT_PROFILE), {}))   # (no `fitted`)
+    good = track_metrics(track_log(read_episode_log(tmp_path / "ok", profile=anywhere)))
     (tmp_path / "bad").mkdir()
     wrong = _small(sensors={"count": 2, "distances_mm": [30.0, 50.0]})
     write_episode_log(tmp_path / "bad", wrong, data, 6)   # the same rows, the mounts of the wrong setup
-    bad = track_metrics(track_log(read_episode_log(tmp_path / "bad")))
+    bad = track_metrics(track_log(read_episode_log(tmp_path / "bad", profile=anywhere)))
+    default = track_log(read_episode_log(tmp_path / "ok"))
+    assert set(default.status) == {"degraded"}, default.status
+    assert all(r.startswith("the profile was fitted on another cell (sensor 1's mount ") for r in default.reason)
     # measured: x 0.152 vs 0.223 mm, z 0.197 vs 0.305 mm (kinematics with the compliance model: the
     # deflection); the wrong mounts 0.532 mm in x, every step lost
     assert good["rmse_mm"]["x"] < 0.8 * good["kinematic_rmse_mm"]["x"]

@@ -37,6 +37,11 @@ def run_track(args) -> int:
 
     with layout_notes():
         log = read_episode_log(args.logdir, profile=args.profile)
+    from ..seam.frontend.cell_signature import config_mismatch
+
+    why = config_mismatch(log.config)
+    if why is not None:   # said before the run: every step will be degraded at best
+        print(f"warning: {why}; every step is degraded at best", file=sys.stderr)
     with staged(args) as tmp:
         run = track_episode(log, tmp, jsonl=args.jsonl,
                             progress=lambda it, total, desc: _progress(it, total=total, desc=desc, unit="step"))

@@ -91,6 +91,9 @@ class SeamParticleFilter:
         Workpiece surface normal (base frame) for the angle readings; default ``-z``.
     compliance : callable ``Cj(q (n,), τ (n,) N·mm) -> Δq (n,) rad``, optional
         Compliance model of eq. (5); default ``cell.compliance_rad_per_nm`` as a diagonal model (none when 0).
+    degraded_reason : str, optional
+        Every step is ``degraded`` at best, with this reason (:class:`~posekit.seam.engine.integrity.
+        IntegrityMonitor`'s ``degraded_reason``: the profile was fitted on another cell).
 
     Attributes
     ----------
@@ -103,7 +106,7 @@ class SeamParticleFilter:
     """
 
     def __init__(self, cell: Cell, settings: FilterSettings, profile: Profile, seam_polyline, rng=None, *,
-                 T_init=None, T_offset=None, seam_normal=None, compliance=None):
+                 T_init=None, T_offset=None, seam_normal=None, compliance=None, degraded_reason=None):
         if settings.resampler not in RESAMPLERS:
             raise ConfigError(f"filter.resampler: expected one of {sorted(RESAMPLERS)}, got {settings.resampler!r}")
         self.cell = cell
@@ -137,7 +140,7 @@ class SeamParticleFilter:
                                           settings.integrity_alpha_degraded, settings.integrity_alpha_lost,
                                           settings.integrity_ess_min, settings.integrity_recovery,
                                           profile.max_force_n, settings.integrity_window_long,
-                                          *profile.sensor_nis(S))
+                                          *profile.sensor_nis(S), degraded_reason=degraded_reason)
         self._bound = InformationBound()
         self._offset = np.eye(4) if T_offset is None else np.asarray(T_offset, dtype=np.float64)
         self.n = settings.particles

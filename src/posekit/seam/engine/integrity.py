@@ -239,11 +239,16 @@ class IntegrityMonitor:
         Fitted by ``seam tune`` (:mod:`posekit.seam.frontend.tune_nis`); None: 1 and 1 (the model's own χ²₁).
         Over ``n`` readings of the long window the sum ``s_j`` is tested as ``s_j / (nis_mean_j) ~ χ²(ν) / ρ``
         with ``ρ = nis_dof_j`` and ``ν = ρ n``.
+    degraded_reason : str, optional
+        A reason that holds for every step (the profile was fitted on another cell): each step is ``degraded``
+        at best, with it.
     """
 
     def __init__(self, n_particles: int, window: int, alpha_degraded: float, alpha_lost: float, ess_min: float,
-                 recovery: int, max_force_n: float, window_long: int = 0, nis_mean=None, nis_dof=None):
+                 recovery: int, max_force_n: float, window_long: int = 0, nis_mean=None, nis_dof=None,
+                 degraded_reason: str | None = None):
         self.n = int(n_particles)
+        self.degraded_reason = degraded_reason
         self.window_long = max(0, int(window_long))
         self._nis_mean = None if nis_mean is None else np.asarray(nis_mean, dtype=np.float64).reshape(-1)
         self._nis_dof = None if nis_dof is None else np.asarray(nis_dof, dtype=np.float64).reshape(-1)
@@ -404,5 +409,7 @@ class IntegrityMonitor:
         if self.max_force_n > 0.0 and not force_norm_n <= self.max_force_n:  # NaN is beyond too
             fail(1, f"force {force_norm_n / 1e3:.3g} kN beyond the {self.max_force_n / 1e3:.3g} kN the robot "
                     "plateau was fitted at (profile plateau.max_force_n)")
+        if self.degraded_reason:
+            fail(1, self.degraded_reason)
         return IntegrityReport(STATUSES[level], "; ".join(reasons) or None, s, d, robot_maha_t, robot_maha_r,
                                ess_update, STATUSES[tests_level])

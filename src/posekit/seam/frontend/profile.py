@@ -9,7 +9,9 @@ Format (YAML, version 1)::
 
     format: posekit-seam-profile
     version: 1
-    fitted: {method: truth | innovations, command: "...", episodes: [{name, steps, sha256}, ...]}
+    fitted: {method: truth | innovations, command: "...", episodes: [{name, steps, sha256}, ...],
+             cell: {robot, joints, tcp_zero_mm, mounts_mm, compliance_rad_per_nm, angle}}   # the cell it was
+                        # fitted on (optional; seam track checks it: posekit.seam.frontend.cell_signature)
     sensors:            # one entry per sensor in the cell's order, or one for all
       - {latency_s: 0.0, sigma_mm: 0.05, angle_sigma_deg: 0.2,
          nis_mean_x: 1.0, nis_mean_z: 1.0, nis_dof_x: 1.0, nis_dof_z: 1.0}   # innovations on the training
@@ -41,6 +43,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator
 
 from posekit.errors import ConfigError
+from posekit.seam.frontend.cell_signature import CellSignature
 from posekit.seam.model import Profile
 
 __all__ = [
@@ -187,6 +190,7 @@ class Provenance(_Part):
     method: Literal["truth", "innovations", "hand"]
     command: str = Field("", max_length=2000)
     episodes: tuple[Episode, ...] = Field((), max_length=10_000)
+    cell: CellSignature | None = None
 
 
 class ProfileModel(_Part):
@@ -361,7 +365,13 @@ def _represent_dict(dumper, data):
     return dumper.represent_mapping("tag:yaml.org,2002:map", data, flow_style=flow)
 
 
+def _represent_list(dumper, data):
+    flow = bool(data) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+
 _FlowDumper.add_representer(dict, _represent_dict)
+_FlowDumper.add_representer(list, _represent_list)
 
 
 def profile_data(model: ProfileModel) -> dict:

@@ -38,6 +38,7 @@ from posekit.seam.engine.filter import SeamParticleFilter
 from posekit.seam.engine.integrity import STATUSES
 from posekit.seam.engine.step import StepEstimate, StepInputs
 from posekit.seam.engine.trend import trend_filter
+from posekit.seam.frontend.cell_signature import mismatch_reason
 from posekit.seam.frontend.config import SeamConfig, cell_from_config
 from posekit.verdict import Verdict, status_counts
 
@@ -121,6 +122,9 @@ class SeamTracker:
         self.cell = cell_from_config(cfg.cell)
         self.settings = cfg.filter.settings()
         self.profile = cfg.profile_model()
+        #: Why every step is ``degraded`` at best: the profile was fitted on another cell (None: this one, or a
+        #: profile that names none; :mod:`posekit.seam.frontend.cell_signature`).
+        self.cell_mismatch = mismatch_reason(cfg.profile.fitted.cell if cfg.profile.fitted else None, self.cell)
         self.chain = self.cell.chain
         seam = np.asarray(seam_mm, dtype=np.float64)
         if knots_mm is None:
@@ -185,7 +189,8 @@ class SeamTracker:
         self.force_base_n = force_base
         if self.filter is None:
             self.filter = SeamParticleFilter(self.cell, self.settings, self.profile, self.knots_mm, self.rng,
-                                             T_init=T_nom, seam_normal=self.seam_normal)
+                                             T_init=T_nom, seam_normal=self.seam_normal,
+                                             degraded_reason=self.cell_mismatch)
             inc = np.eye(4)
         else:
             inc = T_nom @ invert_transform(self._T_prev, check=False)
@@ -272,8 +277,9 @@ def track_log(log, *, progress=None, on_step=None, profile=None) -> SeamTrackRes
     own (``seam tune`` judging a candidate).
     """
     tracker = SeamTracker(log.config, log.seam_mm, seed=log.setup.seed, seam_normal=log.setup.seam_normal)
-    if profile is not None:
+    if profile is not None:          # a candidate for this very cell
         tracker.profile = profile
+        tracker.cell_mismatch = None
     T = len(log.time_s)
     est = np.empty((T, 4, 4))
     kin = np.empty((T, 4, 4))

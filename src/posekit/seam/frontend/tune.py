@@ -52,6 +52,7 @@ from scipy.optimize import minimize
 from posekit.errors import ConfigError
 from posekit.geometry import rotation_vector_from_matrix
 from posekit.seam.engine.ekf import LinearisedEpisode
+from posekit.seam.frontend.cell_signature import fitted_cell
 from posekit.seam.frontend.profile import (
     AXES,
     ProfileModel,
@@ -232,6 +233,11 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
                       "episodes": [episode_record(log.folder) for log in logs]}
+    cell = fitted_cell(logs)
+    if cell is not None:
+        data["fitted"]["cell"] = cell.model_dump()
+    else:
+        notes.append("fitted.cell: the episodes come from more than one cell; seam track checks none")
     data["notes"] = notes[:100]
     model = profile_from_dict(data, "tuned profile")
     return TuneResult(model, values, "truth" if with_truth else "innovations", len(logs),
