@@ -15,7 +15,13 @@ import pytest
 
 from posekit.cli.main import main
 from posekit.seam.frontend.cell_signature import (
-    CellSignature, cell_difference, cell_signature, config_mismatch, fitted_cell, mismatch_reason)
+    CellSignature,
+    cell_difference,
+    cell_signature,
+    config_mismatch,
+    fitted_cell,
+    mismatch_reason,
+)
 from posekit.seam.frontend.config_cell import cell_from_config
 from posekit.seam.frontend.logs import read_episode_log
 from posekit.seam.frontend.profile import DEFAULT_PROFILE, PRIOR_PROFILE, load_profile, merge_profile, write_profile
