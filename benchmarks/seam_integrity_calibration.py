@@ -12,12 +12,15 @@ Prints, per scenario, the share of steps ``tracking``, the 2σ coverage per axis
   held-out seeds 100.., tracked with the checked-in profile (fitted by ``seam tune --with-truth`` on 3 training
   episodes): latency declared (fitted), undeclared (the same profile claiming 0), lasers on time, encoder
   offsets, force-sensor biases;
+- how soon any test on the innovations could flag the undeclared latency (:func:`detection_limit`: an oracle
+  CUSUM that knows the effect, its threshold the least that raises no alarm on the declared episodes);
 - posekit's own simulator with the shipped default profile: xy, yz, a wrong start.
 
 Run it on another tree's source (``PYTHONPATH=OTHER/src``) with that tree's profile for a before/after.
 """
 
 import argparse
+import math
 import sys
 import tempfile
 from pathlib import Path
@@ -65,6 +68,68 @@ def independent_cell(profile: Path, episodes: int, folder: Path) -> None:
         print("independent  " + _line(name, st, err, spr), flush=True)
 
 
+def detection_limit(profile: Path, episodes: int, folder: Path) -> None:
+    """How soon *any* test on the lasers' innovations could say ``degraded`` for the undeclared latency.
+
+    The filter runs over the held-out episodes twice: with the profile (latency declared: the null) and with it
+    claiming 0 (the alternative). Per reading component ``j`` the normalised squared innovation ``x = u / c_j``
+    (``c_j`` the profile's ``nis_mean``) is modelled as the profile says, a Gamma of shape ``ρ_j / 2`` (``ρ_j``
+    its ``nis_dof``) with mean 1 under the null and ``θ_j`` under the alternative, ``θ_j`` measured here on the
+    alternative's own runs (an oracle: a real monitor does not know it). Kullback-Leibler divergence per reading
+    ``ρ/2 (θ - 1 - ln θ)``; the CUSUM of the log-likelihood ratio (the quickest detector of a known change,
+    Lorden / Moustakides) with its threshold at the least value that raises no alarm on the null's episodes
+    (in-sample: flattering the detector) gives the detection step on each alternative episode."""
+    sys.path.insert(0, str(ROOT))
+    from posekit.seam.frontend.logs import read_episode_log
+    from posekit.seam.frontend.profile import load_profile, merge_profile, write_profile
+    from posekit.seam.frontend.tracker import track_log
+    from posekit.seam.frontend.tune_filter import run_filter
+    from tests.seam import independent_cell as ic
+
+    zero = write_profile(folder / "zero-limit.yaml",
+                         merge_profile(load_profile(profile), {"sensors": [{"latency_s": 0.0}] * 2}))
+    cell = ic.Cell()
+    null, alt, monitor = [], [], []
+    for seed in range(100, 100 + episodes):
+        d = ic.write_episode(folder / f"limit-{seed}", cell, ic.episode(cell, seed), declare_latency=False)
+        for prof, out in ((profile, null), (zero, alt)):
+            log = read_episode_log(d, profile=prof)
+            out.append(run_filter(log, log.config.profile.to_model()).components)
+        # the monitor itself: the first step its long window fails on the undeclared run
+        flags = []
+        track_log(read_episode_log(d, profile=zero),
+                  on_step=lambda k, e: flags.append("innovations over the last" in (e.raw.reason or "")))
+        monitor.append(int(np.argmax(flags)) if any(flags) else len(flags))
+    c, rho = read_episode_log(folder / "limit-100", profile=profile).config.profile.to_model().sensor_nis(2)
+    X0, X1 = [u / c for u in null], [u / c for u in alt]
+    theta = np.nanmean(np.concatenate(X1), axis=0)
+    kl = rho / 2.0 * (theta - 1.0 - np.log(theta))
+
+    def cusum(x):
+        llr = np.where(np.isfinite(x), rho / 2.0 * (x * (1.0 - 1.0 / theta) - np.log(theta)), 0.0).sum(axis=1)
+        out, s = np.empty(len(llr)), 0.0
+        for i, v in enumerate(llr):
+            s = max(0.0, s + v)
+            out[i] = s
+        return out
+
+    def first(h):
+        return [int(np.argmax(S > h)) if np.any(S > h) else len(S) for S in (cusum(x) for x in X1)]
+
+    h = max(float(cusum(x).max()) for x in X0)
+    alpha = read_episode_log(folder / "limit-100", profile=profile).config.filter.integrity_alpha_degraded
+    h_alpha = math.log(len(theta) / alpha)        # a CUSUM's mean time to a false alarm is at least e^h readings
+    steps, steps_alpha = first(h), first(h_alpha)
+    print(f"detection limit: mean x / nis_mean with the latency undeclared {np.round(theta, 3).tolist()} "
+          f"(sensor 1 x, z, sensor 2 x, z); KL per step {kl.sum():.4f} nats", flush=True)
+    print(f"detection limit: oracle CUSUM, threshold {h:.2f} (the least with no alarm on {episodes} declared "
+          f"episodes): first alarm at steps {steps} (median {np.median(steps):.0f}) of {len(X1[0])}", flush=True)
+    print(f"detection limit: oracle CUSUM, threshold ln({len(theta)}/alpha_degraded) = {h_alpha:.2f} (the monitor's "
+          f"false-alarm level): first alarm at steps {steps_alpha} (median {np.median(steps_alpha):.0f})", flush=True)
+    print(f"detection limit: the monitor's long window, first failure at steps {monitor} "
+          f"(median {np.median(monitor):.0f})", flush=True)
+
+
 def own_simulator(episodes: int) -> None:
     from posekit.seam.frontend.config import apply_overrides, config_from_dict, load_config
     try:
@@ -87,6 +152,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="posekit-integrity-") as tmp:
         independent_cell(args.profile.resolve(), args.episodes, Path(tmp))
+        detection_limit(args.profile.resolve(), args.episodes, Path(tmp))
     own_simulator(args.episodes)
     return 0
 
