@@ -45,7 +45,8 @@ def test_another_cell_s_profile_is_never_tracking_and_says_why(held_out):
     r = track_log(read_episode_log(folder), on_step=lambda k, e: rows.append(e.raw.reason))   # the default profile
     assert set(r.status) == {"degraded"}
     want = "the profile was fitted on another cell (robot cell.urdf (6 joints), the profile's puma560 (6 joints)): "
-    assert all(x.startswith(want) and x.endswith(FIX) for x in rows), rows[0]
+    # (other tests may fail beside it: then their reasons follow, after "; ")
+    assert all(x.startswith(want) and x.split("; ")[0].endswith(FIX) for x in rows), rows[0]
     assert ic.scores(r.estimate, r.spread, r.status, ep)["confident_wrong"] == 0.0
     # the cell's own profile (seam tune --with-truth on its training episodes) names this cell: tracked
     own = track_log(read_episode_log(folder, profile=PROFILE))
@@ -62,6 +63,7 @@ def test_seam_track_says_it_before_the_run_and_beside_each_step(held_out, tmp_pa
     assert "status: degraded 400" in out
     with (tmp_path / "tr" / "estimates.csv").open() as f:
         assert {row["reason"].split(" (")[0] for row in csv.DictReader(f)} == {"the profile was fitted on another cell"}
+        # (here the bias test also sees the undeclared latency on some steps: its reason follows)
 
 
 def test_the_signature_survives_setup_yaml_and_the_profile_file(held_out, tmp_path):

@@ -41,6 +41,21 @@ def test_heavier_tails_than_chi2_are_fewer_degrees_of_freedom():
     assert rho == pytest.approx(0.25, rel=0.3)    # the sample variance of a t_5² converges slowly
 
 
+def test_episodes_whose_means_spread_wider_than_their_autocorrelation_says_are_worth_fewer_dof():
+    """Each episode white χ²₁ (ρ = 1 within it) times its own level, 1 ± 0.2 from episode to episode (a wander
+    slower than an episode): over 20 episodes of n = 500 the means vary by 0.04 (relative variance), far beyond
+    2 / (ρ n) = 0.004, so ρ is what the means' spread says, 2 / (n var) ~ 0.1; homogeneous episodes keep ρ ~ 1."""
+    rng = np.random.default_rng(11)
+    levels = 1.0 + 0.2 * rng.standard_normal(20)
+    eps = [lv * rng.standard_normal(500) ** 2 for lv in levels]
+    mean, std, rho, rho_std, _ = calibrate_components(eps)
+    m = np.array([e.mean() for e in eps]) / mean
+    assert rho == pytest.approx(2.0 / (500 * np.var(m, ddof=1)), rel=1e-9) and 0.03 < rho < 0.3
+    assert rho_std == pytest.approx(rho * math.sqrt(2.0 / 19)) and std >= mean * math.sqrt(2.0 / (rho * 10_000))
+    same = [rng.standard_normal(500) ** 2 for _ in range(20)]
+    assert calibrate_components(same)[2] == pytest.approx(1.0, rel=0.15)
+
+
 def test_too_few_readings_give_nothing():
     assert all(math.isnan(v) for v in calibrate_components([np.array([np.nan, 1.0])])[:4])
     assert calibrate_components([np.array([np.nan, 1.0])])[4] == 1
@@ -61,7 +76,8 @@ def test_an_unpinned_latency_s_pose_shift_sets_the_spread_factor(monkeypatch):
     def fake_run(log, profile):
         est = np.tile(np.eye(4), (T, 1, 1))
         est[:, 0, 3] = log.mm_per_s * float(np.asarray(profile.latency_s).reshape(-1)[0])
-        return FilterRun(est, np.tile(np.eye(4), (T, 1, 1)), np.ones((T, 6)), ["tracking"] * T, np.ones((T, 2)))
+        return FilterRun(est, np.tile(np.eye(4), (T, 1, 1)), np.ones((T, 6)), ["tracking"] * T, np.ones((T, 2)),
+                         np.ones((T, 2)))
 
     monkeypatch.setattr(tune_latency, "run_filter", fake_run)
     got = {}

@@ -127,6 +127,12 @@ class Profile:
         Per sensor, its x and z reading's mean normalised squared innovation on the training episodes and the
         effective χ² degrees of freedom per reading (:mod:`posekit.seam.engine.integrity`'s long window; 1: as
         the model says, none fitted).
+    bias_window : int
+        Steps the integrity monitor averages each component's signed innovation over for its bias test (0: no
+        bias test).
+    bias_mean, bias_dof : ndarray, shape (S, 2) or (1, 2)
+        Per sensor, the mean of that average squared on the training episodes and its effective χ² degrees of
+        freedom per step (both fitted by ``seam tune`` with ``bias_window``).
     """
 
     walk: np.ndarray
@@ -145,6 +151,9 @@ class Profile:
     spread_scale: np.ndarray = field(default_factory=lambda: np.ones(6))
     nis_mean: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
     nis_dof: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
+    bias_window: int = 0
+    bias_mean: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
+    bias_dof: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
 
     def _per_sensor(self, values: np.ndarray, n: int, what: str) -> np.ndarray:
         v = np.asarray(values, dtype=np.float64).reshape(-1)
@@ -164,8 +173,16 @@ class Profile:
 
     def sensor_nis(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """``nis_mean`` and ``nis_dof`` of ``n`` sensors as ``(2 n,)`` each (sensor k's x at ``2k``, z at ``2k + 1``)."""
+        return self._pairs(((self.nis_mean, "innovation mean"), (self.nis_dof, "innovation dof")), n)
+
+    def sensor_bias(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``bias_mean`` and ``bias_dof`` of ``n`` sensors as ``(2 n,)`` each (as :meth:`sensor_nis`)."""
+        return self._pairs(((self.bias_mean, "innovation bias mean"), (self.bias_dof, "innovation bias dof")), n)
+
+    @staticmethod
+    def _pairs(items, n: int) -> tuple[np.ndarray, np.ndarray]:
         out = []
-        for v, what in ((self.nis_mean, "innovation mean"), (self.nis_dof, "innovation dof")):
+        for v, what in items:
             v = np.asarray(v, dtype=np.float64).reshape(-1, 2)
             if len(v) == 1:
                 v = np.repeat(v, n, axis=0)

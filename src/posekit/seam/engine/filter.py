@@ -140,7 +140,9 @@ class SeamParticleFilter:
                                           settings.integrity_alpha_degraded, settings.integrity_alpha_lost,
                                           settings.integrity_ess_min, settings.integrity_recovery,
                                           profile.max_force_n, settings.integrity_window_long,
-                                          *profile.sensor_nis(S), degraded_reason=degraded_reason)
+                                          *profile.sensor_nis(S), degraded_reason=degraded_reason,
+                                          bias_window=profile.bias_window, **dict(zip(
+                                              ("bias_mean", "bias_dof"), profile.sensor_bias(S))))
         self._bound = InformationBound()
         self._offset = np.eye(4) if T_offset is None else np.asarray(T_offset, dtype=np.float64)
         self.n = settings.particles
@@ -377,13 +379,14 @@ class SeamParticleFilter:
             self._miss2 = radius * radius
             ll, ll_robot, E = self._loglik(self.T, rd, inputs, meas, errors=True)
             # integrity: the lasers' innovations under the cloud before the lasers weight it
-            components = np.full(2 * self._n_sensors, np.nan)
+            signed = np.full(2 * self._n_sensors, np.nan)
             if used:
-                nis, dof, u = innovation_nis(E, normalize_log_weights(self.logw + ll_robot).w, rd.r2.reshape(-1),
-                                             per_component=True)
-                components[np.repeat(2 * np.asarray(sensor), 2) + np.tile([0, 1], used)] = u
+                nis, dof, r = innovation_nis(E, normalize_log_weights(self.logw + ll_robot).w, rd.r2.reshape(-1),
+                                             per_component=True, signed=True)
+                signed[np.repeat(2 * np.asarray(sensor), 2) + np.tile([0, 1], used)] = r
             else:
                 nis, dof = 0.0, 0
+            components = signed * signed
         norm = normalize_log_weights(self.logw + ll)
         ess = effective_sample_size(norm.w)
         ess_update = ess
@@ -433,7 +436,7 @@ class SeamParticleFilter:
             self.resamplings += 1
         else:
             self.logw = norm.logw
-        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm, components)
+        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm, components, signed)
         self.report = rep  # the step's consistency statistics (IntegrityReport)
         # the walk reacts to the consistency tests, not to the force range
         previous, self._last_status = self._last_status, rep.tests_status
@@ -445,7 +448,7 @@ class SeamParticleFilter:
                 self._init_pending = True
                 self._offset = np.eye(4)
         return StepEstimate(T_mean, spread, ess, bool(resampled), norm.recovered, meas.T_mean, used, stages,
-                            rep.status, rep.reason, nis, ess_update, components)
+                            rep.status, rep.reason, nis, ess_update, components, signed)
 
     @property
     def weights(self) -> np.ndarray:

@@ -86,7 +86,7 @@ def _chi2_isf(alpha: float, dof: float) -> float:
     """The upper ``alpha`` quantile of a χ² with ``dof`` degrees of freedom (shared by every monitor)."""
     return float(chi2.isf(alpha, dof))
 
-def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: bool = False):
+def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: bool = False, signed: bool = False):
     """Normalised innovation squared of one step's laser readings under the predictive cloud.
 
     Parameters
@@ -112,7 +112,8 @@ def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: 
     components : ndarray, shape (2 S,)
         Only with ``per_component``: each component's own normalised squared innovation ``ē_j² / C_jj``
         (χ² with 1 degree of freedom when the model holds; NaN where no particle places the reading on the seam,
-        or where the cloud cannot explain the readings).
+        or where the cloud cannot explain the readings). With ``signed``: ``ē_j / √C_jj`` instead (its square is
+        that; standard normal when the model holds), what the bias test low-passes (:func:`bias_series`).
     """
     u = np.full(errors.shape[1], np.nan)
     # a reading no particle can place on the seam (beyond the seam model's end) tells nothing about the cloud
@@ -138,8 +139,38 @@ def innovation_nis(errors: np.ndarray, w: np.ndarray, noise_var, per_component: 
     if not per_component:
         return nis, k
     with np.errstate(divide="ignore", invalid="ignore"):
-        u[seen] = mean * mean / np.diag(C)
+        u[seen] = mean / np.sqrt(np.diag(C)) if signed else mean * mean / np.diag(C)
     return nis, k, u
+
+
+def bias_series(r: np.ndarray, window: int) -> np.ndarray:
+    """Each component's squared mean signed innovation over the last ``window`` steps: the bias test's statistic.
+
+    Parameters
+    ----------
+    r : ndarray, shape (T, C)
+        Per step the signed normalised innovations (:func:`innovation_nis` with ``signed``; NaN: no reading).
+    window : int
+        Steps averaged (>= 1).
+
+    Returns
+    -------
+    ndarray, shape (T, C)
+        ``(mean of the readings among steps k - window + 1 .. k)²``; NaN where that stretch holds fewer than
+        ``max(1, window // 2)`` readings. The monitor computes the same step by step (``IntegrityMonitor``'s
+        ``bias_window``); ``seam tune`` calibrates it on the training episodes.
+    """
+    r = np.asarray(r, dtype=np.float64)
+    seen = np.isfinite(r)
+    v = np.where(seen, r, 0.0)
+    cs = np.vstack([np.zeros((1, r.shape[1])), np.cumsum(v, axis=0)])
+    cn = np.vstack([np.zeros((1, r.shape[1])), np.cumsum(seen, axis=0)])
+    lo = np.maximum(np.arange(1, len(r) + 1) - int(window), 0)
+    total = cs[1:] - cs[lo]
+    count = cn[1:] - cn[lo]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = total / count
+    return np.where(count >= max(1, int(window) // 2), m * m, np.nan)
 
 
 def robot_consistency(T_est: np.ndarray, spread: np.ndarray, meas) -> tuple[float, float]:
@@ -242,13 +273,28 @@ class IntegrityMonitor:
     degraded_reason : str, optional
         A reason that holds for every step (the profile was fitted on another cell): each step is ``degraded``
         at best, with it.
+    bias_window : int
+        Steps over which each component's *signed* innovation is averaged for the bias test (0: none). A latency
+        nobody declared, a mount that moved, leave a bias in the innovations that changes slowly with the
+        motion; squared step by step it is diluted in the noise (on the independent cell of the tests the
+        lateral NIS of the sensor ahead rises 1.6×), averaged over a few steps first it stands out (its squared
+        10-step mean rises 10-17×). The squared mean (:func:`bias_series`) enters the long window as a
+        component of its own, tested like the NIS against the profile's ``bias_mean`` and ``bias_dof``.
+    bias_mean, bias_dof : array_like, shape (2 S,), optional
+        Per reading component the mean of that squared mean on the training episodes and its effective χ²
+        degrees of freedom per step (``seam tune``; None: 1 / ``bias_window`` and 3 / (2 ``bias_window``), a
+        white unit-variance innovation's).
     """
 
     def __init__(self, n_particles: int, window: int, alpha_degraded: float, alpha_lost: float, ess_min: float,
                  recovery: int, max_force_n: float, window_long: int = 0, nis_mean=None, nis_dof=None,
-                 degraded_reason: str | None = None):
+                 degraded_reason: str | None = None, bias_window: int = 0, bias_mean=None, bias_dof=None):
         self.n = int(n_particles)
         self.degraded_reason = degraded_reason
+        self.bias_window = max(0, int(bias_window))
+        self._bias_mean = None if bias_mean is None else np.asarray(bias_mean, dtype=np.float64).reshape(-1)
+        self._bias_dof = None if bias_dof is None else np.asarray(bias_dof, dtype=np.float64).reshape(-1)
+        self._recent: deque = deque(maxlen=max(1, self.bias_window))   # the last signed innovations
         self.window_long = max(0, int(window_long))
         self._nis_mean = None if nis_mean is None else np.asarray(nis_mean, dtype=np.float64).reshape(-1)
         self._nis_dof = None if nis_dof is None else np.asarray(nis_dof, dtype=np.float64).reshape(-1)
@@ -281,25 +327,32 @@ class IntegrityMonitor:
     def reset(self) -> None:
         """Forget the windows (a new episode)."""
         self._nis.clear()
+        self._recent.clear()
         self._long.clear()
         self._long_sum = None
         self._long_n = None
         self._since_lost = None
 
+    @staticmethod
+    def _levels(values, n: int, default: float) -> np.ndarray:
+        """One calibration value per each of ``n`` components (one x/z pair given for every sensor: repeated)."""
+        if values is None:
+            return np.full(n, default)
+        if values.size == n:
+            return values
+        if values.size == 2 and n % 2 == 0:
+            return np.tile(values, n // 2)
+        raise ValueError(f"integrity: {values.size} innovation calibration values for {n} reading components; "
+                         "expected one x/z pair per sensor or one for all")
+
     def _component_levels(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """``nis_mean`` and ``nis_dof`` for ``n`` components (one pair given for every sensor: repeated)."""
-        out = []
-        for v in (self._nis_mean, self._nis_dof):
-            if v is None:
-                out.append(np.ones(n))
-            elif v.size == n:
-                out.append(v)
-            elif v.size == 2 and n % 2 == 0:
-                out.append(np.tile(v, n // 2))
-            else:
-                raise ValueError(f"integrity: {v.size} innovation calibration values for {n} reading components; "
-                                 "expected one x/z pair per sensor or one for all")
-        return out[0], out[1]
+        """Means and degrees of freedom of the long window's ``n`` components: the NIS (``nis_mean``,
+        ``nis_dof``), then, with a bias test, the squared means (``bias_mean``, ``bias_dof``)."""
+        if not self.bias_window:
+            return self._levels(self._nis_mean, n, 1.0), self._levels(self._nis_dof, n, 1.0)
+        h, w = n // 2, self.bias_window
+        return (np.concatenate([self._levels(self._nis_mean, h, 1.0), self._levels(self._bias_mean, h, 1.0 / w)]),
+                np.concatenate([self._levels(self._nis_dof, h, 1.0), self._levels(self._bias_dof, h, 1.5 / w)]))
 
     def _add_long(self, components) -> None:
         """Put one step's per-component NIS into the long window (capped like the step's total)."""
@@ -334,12 +387,20 @@ class IntegrityMonitor:
             limit = _chi2_isf(alpha, rho * n) / (rho * n)
             ratio = float(self._long_sum[j]) / (c * n)
             if ratio > limit and (worst is None or ratio / limit > worst[0]):
-                worst = (ratio / limit, f"sensor {j // 2 + 1}'s {'xz'[j % 2]} innovations over the last {n} readings "
-                                        f"{ratio:.3g} x the profile's nis_mean_{'xz'[j % 2]} (> {limit:.3g})")
+                h = C // 2 if self.bias_window else C      # the NIS components, then the bias test's
+                k, a = (j % h) // 2 + 1, "xz"[j % 2]
+                if j >= h:
+                    what = (f"sensor {k}'s {a} innovations biased: their {self.bias_window}-step means over the last "
+                            f"{n} readings {ratio:.3g} x the profile's bias_mean_{a} (> {limit:.3g})")
+                else:
+                    what = (f"sensor {k}'s {a} innovations over the last {n} readings {ratio:.3g} x the profile's "
+                            f"nis_mean_{a} (> {limit:.3g})")
+                worst = (ratio / limit, what)
         return None if worst is None else worst[1]
 
     def update(self, nis: float, dof: int, robot_maha_t: float, robot_maha_r: float, ess_update: float,
-               recovered: bool = False, force_norm_n: float = 0.0, components=None) -> IntegrityReport:
+               recovered: bool = False, force_norm_n: float = 0.0, components=None,
+               innovations=None) -> IntegrityReport:
         """Add one step's statistics and return its verdict.
 
         Parameters
@@ -357,6 +418,9 @@ class IntegrityMonitor:
         components : array_like, shape (2 S,), optional
             The step's per-component NIS (:func:`innovation_nis` with ``per_component``; NaN: no reading), for the
             long window (None: no long test at this step).
+        innovations : array_like, shape (2 S,), optional
+            The step's signed normalised innovations (:func:`innovation_nis` with ``signed``), for the bias test
+            (``bias_window``; None: not at this step).
         """
         # one step's NIS enters the window capped at its own degraded quantile: a single failed step (a
         # wrong start the update then corrects) is lost at that step but does not fail the next
@@ -368,6 +432,11 @@ class IntegrityMonitor:
         s = float(sum(v for v, _ in self._nis))
         d = int(sum(k for _, k in self._nis))
         if self.window_long and components is not None:
+            if self.bias_window:
+                r = np.full(np.size(components), np.nan) if innovations is None else np.asarray(innovations, float)
+                self._recent.append(r.reshape(-1))
+                components = np.concatenate([np.asarray(components, dtype=np.float64).reshape(-1),
+                                             bias_series(np.array(self._recent), self.bias_window)[-1]])
             self._add_long(components)
         level = 0
         reasons = []
@@ -409,7 +478,8 @@ class IntegrityMonitor:
         if self.max_force_n > 0.0 and not force_norm_n <= self.max_force_n:  # NaN is beyond too
             fail(1, f"force {force_norm_n / 1e3:.3g} kN beyond the {self.max_force_n / 1e3:.3g} kN the robot "
                     "plateau was fitted at (profile plateau.max_force_n)")
-        if self.degraded_reason:
+        if self.degraded_reason:             # the standing reason first: it holds whatever the tests say
             fail(1, self.degraded_reason)
+            reasons.insert(0, reasons.pop())
         return IntegrityReport(STATUSES[level], "; ".join(reasons) or None, s, d, robot_maha_t, robot_maha_r,
                                ess_update, STATUSES[tests_level])

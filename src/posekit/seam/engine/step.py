@@ -124,6 +124,8 @@ class StepEstimate:
     nis_components : ndarray, shape (2 S,) or None
         Each reading component's normalised squared innovation (sensor k's x at ``2k``, z at ``2k + 1``; NaN: no
         reading): what the long integrity window tests and ``seam tune`` calibrates.
+    innovations : ndarray, shape (2 S,) or None
+        The same, signed and not squared (``ē_j / √C_jj``): what the bias test averages.
     """
 
     T: np.ndarray
@@ -139,6 +141,7 @@ class StepEstimate:
     nis: float = 0.0
     ess_update: float = math.nan
     nis_components: np.ndarray | None = None
+    innovations: np.ndarray | None = None
 
 
 def jitter_variances(mounts: np.ndarray, jitter: np.ndarray) -> np.ndarray:

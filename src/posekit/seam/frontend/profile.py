@@ -16,6 +16,8 @@ Format (YAML, version 1)::
       - {latency_s: 0.0, sigma_mm: 0.05, angle_sigma_deg: 0.2,
          nis_mean_x: 1.0, nis_mean_z: 1.0, nis_dof_x: 1.0, nis_dof_z: 1.0}   # innovations on the training
                         # episodes (the integrity test's calibration; optional, 1: the model's own chi2)
+         # bias_mean_x, bias_mean_z, bias_dof_x, bias_dof_z: the same for the squared mean signed innovation
+         # over bias_window steps (the bias test; optional)
     walk:               # random walk of the pose about its modelled motion, tool frame, per sqrt(mm travelled)
       {x_mm: .., y_mm: .., z_mm: .., rx_deg: .., ry_deg: .., rz_deg: ..}
     jitter:             # white jitter of the pose about that walk, per sample
@@ -24,6 +26,7 @@ Format (YAML, version 1)::
       {d0_mm: .., kd_mm_per_n: .., d0_deg: .., kd_deg_per_n: .., tail_mm: .., tail_deg: .., max_force_n: ..}
     joints: {sigma_deg: ..}
     spread: {x: .., y: .., z: .., rx: .., ry: .., rz: ..}   # factor on the filter's spread per axis (default 1)
+    bias_window: 10     # steps the bias test averages the signed innovations over (0 or absent: no bias test)
     notes: ["..."]      # the fit's verdicts (values the data did not pin)
 
 Every value is a number (set by hand) or ``{value: v, std: s}`` (fitted, with its 1σ), optionally with a
@@ -124,6 +127,10 @@ class SensorProfile(_Part):
     nis_mean_z: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
     nis_dof_x: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
     nis_dof_z: _fitted(1e-3, 1e3, "") = Fitted(value=1.0)
+    bias_mean_x: _fitted(1e-6, 1e3, "") = Fitted(value=1.0)
+    bias_mean_z: _fitted(1e-6, 1e3, "") = Fitted(value=1.0)
+    bias_dof_x: _fitted(1e-6, 1e3, "") = Fitted(value=1.0)
+    bias_dof_z: _fitted(1e-6, 1e3, "") = Fitted(value=1.0)
 
 
 class AxesProfile(_Part):
@@ -205,6 +212,7 @@ class ProfileModel(_Part):
     plateau: PlateauProfile
     joints: JointsProfile
     spread: SpreadProfile = SpreadProfile(x=1.0, y=1.0, z=1.0, rx=1.0, ry=1.0, rz=1.0)
+    bias_window: int = Field(0, ge=0, le=1000)
     notes: tuple[str, ...] = Field((), max_length=100)
 
     @field_validator("notes")
@@ -225,7 +233,10 @@ class ProfileModel(_Part):
             tail_rad=math.radians(float(p.tail_deg)), joint_sigma_rad=math.radians(float(self.joints.sigma_deg)),
             max_force_n=float(p.max_force_n), spread_scale=self.spread.vector(),
             nis_mean=np.array([[float(s.nis_mean_x), float(s.nis_mean_z)] for s in self.sensors]),
-            nis_dof=np.array([[float(s.nis_dof_x), float(s.nis_dof_z)] for s in self.sensors]))
+            nis_dof=np.array([[float(s.nis_dof_x), float(s.nis_dof_z)] for s in self.sensors]),
+            bias_window=int(self.bias_window),
+            bias_mean=np.array([[float(s.bias_mean_x), float(s.bias_mean_z)] for s in self.sensors]),
+            bias_dof=np.array([[float(s.bias_dof_x), float(s.bias_dof_z)] for s in self.sensors]))
 
     def plain(self) -> dict:
         """The profile as a mapping of bare numbers (no std, no provenance): what a study perturbs."""

@@ -229,7 +229,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
     say("calibrating the integrity test: the lasers' innovations " + ("of the spread fit's particle filter" if runs else
         "of the particle filter over the episodes with the fitted profile"))
-    fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put, runs or None)
+    data["bias_window"] = fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put,
+                                  runs or None)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
                       "episodes": [episode_record(log.folder) for log in logs]}

@@ -22,6 +22,8 @@ class FilterRun:
         Per step ``tracking`` / ``degraded`` / ``lost``.
     components : ndarray, shape (T, 2 S)
         Per step sensor k's x (column ``2k``) and z (``2k + 1``) normalised squared innovation (NaN: no reading).
+    innovations : ndarray, shape (T, 2 S)
+        The same signed and not squared.
     """
 
     estimate: np.ndarray
@@ -29,6 +31,7 @@ class FilterRun:
     spread: np.ndarray
     status: list
     components: np.ndarray
+    innovations: np.ndarray
 
 
 def run_filter(log, profile) -> FilterRun:
@@ -38,10 +41,13 @@ def run_filter(log, profile) -> FilterRun:
     from posekit.seam.frontend.tracker import track_log
 
     comp = np.full((len(log.time_s), 2 * log.config.cell.sensors.count), np.nan)
+    signed = comp.copy()
 
     def keep(k, est):
         if est.raw.nis_components is not None:
             comp[k] = est.raw.nis_components
+        if est.raw.innovations is not None:
+            signed[k] = est.raw.innovations
 
     r = track_log(log, on_step=keep, profile=profile)
-    return FilterRun(r.estimate, r.nominal, r.spread, r.status, comp)
+    return FilterRun(r.estimate, r.nominal, r.spread, r.status, comp, signed)
