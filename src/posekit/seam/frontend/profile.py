@@ -118,7 +118,9 @@ class SensorProfile(_Part):
     """Per sensor: latency (s), laser noise (mm, std in the laser plane), angle noise (deg), and what its
     innovations looked like on the training episodes (the integrity monitor's long window,
     :mod:`posekit.seam.engine.integrity`): the mean normalised squared innovation of its x and z reading and their
-    effective χ² degrees of freedom per reading (1 and 1: the model's own χ²₁, none fitted)."""
+    effective χ² degrees of freedom per reading (1 and 1: the model's own χ²₁, none fitted), and the same for the
+    squared mean of the signed innovations over the profile's ``bias_window`` steps (the bias test; 1 and 1 when
+    not fitted: a test that sees only biases far larger than the noise)."""
 
     latency_s: _fitted(0.0, 1.0, "s")
     sigma_mm: _fitted(1e-9, 1e3, "mm")
