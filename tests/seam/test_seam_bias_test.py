@@ -128,4 +128,4 @@ def test_the_limit_is_the_calibrated_chi2_quantile():
     limit = chi2.isf(1e-3 / 4, rho * readings) / (rho * readings)
     assert 0.64 / c > limit
     prev = readings - 1
-    assert 0.64 / c <= chi2.isf(1e-3 / 4, rho * prev) / (rho * prev) or prev <= 10
+    assert prev > 10 and 0.64 / c <= chi2.isf(1e-3 / 4, rho * prev) / (rho * prev)   # and not one reading sooner
