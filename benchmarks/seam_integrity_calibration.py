@@ -41,15 +41,21 @@ def _line(name, statuses, errors, spreads) -> str:
             f"(worst {max(cw):.3f}, {sum(c > 0.05 for c in cw)} over 5 %)  coverage {np.round(cov, 3).tolist()}")
 
 
+def _zero_latency(profile: Path, folder: Path) -> Path:
+    """``profile`` claiming latency 0 for both lasers (an undeclared latency), written into ``folder``."""
+    from posekit.seam.frontend.profile import load_profile, merge_profile, write_profile
+
+    return write_profile(folder / "zero-latency.yaml",
+                         merge_profile(load_profile(profile), {"sensors": [{"latency_s": 0.0}] * 2}))
+
+
 def independent_cell(profile: Path, episodes: int, folder: Path) -> None:
     sys.path.insert(0, str(ROOT))
     from posekit.seam.frontend.logs import read_episode_log
-    from posekit.seam.frontend.profile import load_profile, merge_profile, write_profile
     from posekit.seam.frontend.tracker import track_log
     from tests.seam import independent_cell as ic
 
-    zero = write_profile(folder / "zero.yaml",
-                         merge_profile(load_profile(profile), {"sensors": [{"latency_s": 0.0}] * 2}))
+    zero = _zero_latency(profile, folder)
     scen = (("latency declared (fitted)", ic.Cell(), profile, {}),
             ("latency undeclared", ic.Cell(), zero, {}),
             ("on time, profile says 0", ic.Cell(latency_s=(0.0, 0.0)), zero, {}),
@@ -85,13 +91,11 @@ def detection_limit(profile: Path, episodes: int, folder: Path) -> None:
     first and beats it."""
     sys.path.insert(0, str(ROOT))
     from posekit.seam.frontend.logs import read_episode_log
-    from posekit.seam.frontend.profile import load_profile, merge_profile, write_profile
     from posekit.seam.frontend.tracker import track_log
     from posekit.seam.frontend.tune_filter import run_filter
     from tests.seam import independent_cell as ic
 
-    zero = write_profile(folder / "zero-limit.yaml",
-                         merge_profile(load_profile(profile), {"sensors": [{"latency_s": 0.0}] * 2}))
+    zero = _zero_latency(profile, folder)
     cell = ic.Cell()
     null, alt, monitor = [], [], []
     for seed in range(100, 100 + episodes):

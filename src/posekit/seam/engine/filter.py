@@ -136,13 +136,13 @@ class SeamParticleFilter:
             "d0_rad": profile.d0_rad, "kd_rad_per_n": profile.kd_rad_per_n, "bending": True,
         }
         self._angle_sigma = profile.angle_sigma_rad if cell.angle else 0.0
+        bias_mean, bias_dof = profile.sensor_bias(S)
         self.integrity = IntegrityMonitor(settings.particles, settings.integrity_window,
                                           settings.integrity_alpha_degraded, settings.integrity_alpha_lost,
                                           settings.integrity_ess_min, settings.integrity_recovery,
                                           profile.max_force_n, settings.integrity_window_long,
                                           *profile.sensor_nis(S), degraded_reason=degraded_reason,
-                                          bias_window=profile.bias_window, **dict(zip(
-                                              ("bias_mean", "bias_dof"), profile.sensor_bias(S))))
+                                          bias_window=profile.bias_window, bias_mean=bias_mean, bias_dof=bias_dof)
         self._bound = InformationBound()
         self._offset = np.eye(4) if T_offset is None else np.asarray(T_offset, dtype=np.float64)
         self.n = settings.particles

@@ -479,7 +479,7 @@ class IntegrityMonitor:
             fail(1, f"force {force_norm_n / 1e3:.3g} kN beyond the {self.max_force_n / 1e3:.3g} kN the robot "
                     "plateau was fitted at (profile plateau.max_force_n)")
         if self.degraded_reason:             # the standing reason first: it holds whatever the tests say
-            fail(1, self.degraded_reason)
-            reasons.insert(0, reasons.pop())
+            level = max(level, 1)
+            reasons.insert(0, self.degraded_reason)
         return IntegrityReport(STATUSES[level], "; ".join(reasons) or None, s, d, robot_maha_t, robot_maha_r,
                                ess_update, STATUSES[tests_level])

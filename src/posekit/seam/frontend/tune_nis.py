@@ -166,7 +166,7 @@ def fit_nis(logs, profile, share: bool, put, runs=None) -> int:
                     why = f"{n} readings (at least {MIN_READINGS} needed): the model's own chi2 is kept"
                     put(_sensor_key(i, f"{name}_mean_{axis}"), 1.0, None, False, why)
                     put(_sensor_key(i, f"{name}_dof_{axis}"), 1.0, None, False, why)
-                    calibrated &= name == "nis"
+                    calibrated = calibrated and name == "nis"     # no bias test without its calibration
                     continue
                 put(_sensor_key(i, f"{name}_mean_{axis}"), c, c_std, True)
                 put(_sensor_key(i, f"{name}_dof_{axis}"), rho, rho_std, True)
