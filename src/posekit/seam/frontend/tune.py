@@ -189,7 +189,7 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     base_sensors = [dict(data["sensors"][min(i, len(data["sensors"]) - 1)]) for i in range(max(nS, 1))]
     data["sensors"] = base_sensors
 
-    def put(key: str, value: float, std, pinned: bool, note: str = "", interval=None):
+    def put(key: str, value: float, std, pinned: bool, note: str = "", interval=None, keep_note: bool = False):
         std = None if std is None or not np.isfinite(std) else float(std)
         node, parts = data, key.replace("]", "").replace("[", ".").split(".")
         for p in parts[:-1]:
@@ -198,6 +198,8 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
             entry = {"value": float(value)}
             if std is not None:
                 entry["std"] = std
+            if keep_note and note:   # set by a rule rather than fitted: the profile says which
+                entry["note"] = note[:300]
             node[parts[-1]] = entry
         else:  # the base profile's value is kept (and reported)
             old = node[parts[-1]]

@@ -241,12 +241,18 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
     # the reported spread itself, per axis: the least factor (at least 1) with which the particle filter's 2σ
     # covers 90 % of its errors on every one of these episodes (where the walk could not: an axis the lasers barely
     # see, an error that is not a walk; the episodes of one cell differ, and a factor fitted to their pool leaves
-    # some of them uncovered)
+    # some of them uncovered). Where every episode needs less than 1 the filter's own spread is kept: its 1σ is
+    # then not a fit's, and the report says how much of it the errors used
     z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)), runs_out)
-    per = np.array([np.clip(np.percentile(np.abs(e), 90.0, axis=0) / 2.0, *_SCALE_RANGE) for e in z])
-    scale = per.max(axis=0)
+    need = np.array([np.percentile(np.abs(e), 90.0, axis=0) / 2.0 for e in z])
+    scale = np.clip(need.max(axis=0), *_SCALE_RANGE)
     for a, name in enumerate(("x", "y", "z", "rx", "ry", "rz")):
-        sd = float(np.std(per[:, a], ddof=1) / math.sqrt(len(per))) if len(per) >= 2 else None
+        if need[:, a].max() < _SCALE_RANGE[0]:
+            put(f"spread.{name}", float(scale[a]), None, True,
+                f"the filter's own spread: these episodes' errors need {need[:, a].min():.2g}-{need[:, a].max():.2g}"
+                " of it (a factor below 1 is not fitted)", keep_note=True)
+            continue
+        sd = float(np.std(need[:, a], ddof=1) / math.sqrt(len(need))) if len(need) >= 2 else None
         pinned = sd is not None and sd <= PINNED * scale[a]
         put(f"spread.{name}", float(scale[a]), sd, pinned,
             "" if pinned else "one episode: the base profile's" if sd is None else
