@@ -65,6 +65,9 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     assert [e.name for e in p.fitted.episodes] == [d.name for d in episodes]
     assert f"wrote {out}" in stdout and "walk.x_mm" in stdout and "sensors[0].latency_s" in stdout
     assert " ms ± " in stdout
+    assert stdout.splitlines()[-1] == (f"next: check it on episodes it was not fitted on: posekit seam track EPISODE "
+                                       f"--profile {out} --out DIR (with a truth.csv, DIR/metrics.json has the 2σ "
+                                       "coverage per axis and confident_wrong)")
     assert out.read_text().startswith("# posekit seam profile, fitted by: posekit seam tune ")
     # the profile feeds seam track
     rc, stdout, err = run_cli(capsys, "seam", "track", episodes[0], "--profile", out, "--out", tmp_path / "tr")

@@ -79,5 +79,8 @@ def run_tune(args) -> int:
     unpinned = len(result.unpinned)
     print(f"wrote {Path(args.out)}" + (f" ({unpinned} value(s) kept from the base profile: the data do not pin them)"
                                       if unpinned else ""))
+    # a profile from a few episodes depends on which (benchmarks/seam_training_sets.py): say how to check it
+    print(f"next: check it on episodes it was not fitted on: posekit seam track EPISODE --profile {args.out} --out "
+          "DIR (with a truth.csv, DIR/metrics.json has the 2σ coverage per axis and confident_wrong)")
     sys.stdout.flush()
     return 0
