@@ -14,13 +14,13 @@ other checkout's ``src``.
 """
 
 import argparse
-import json
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from seam_validation import write_json
 
 ROOT = Path(__file__).resolve().parent.parent
 AXES = ("x", "y", "z", "rx", "ry", "rz")
@@ -82,10 +82,7 @@ def main(argv=None) -> int:
         with tempfile.TemporaryDirectory(prefix="posekit-training-sets-") as tmp:
             data[label] = study(cell, Path(tmp))
     data["seconds"] = round(time.time() - t0, 1)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-    print(f"wrote {out} ({data['seconds']} s)")
+    write_json(args.out, data)
     return 0
 
 

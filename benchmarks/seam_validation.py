@@ -195,11 +195,17 @@ def main(argv=None) -> int:
                        + (f" --episodes {args.episodes}" if args.episodes else ""),
             "python": platform.python_version(), "seconds": round(time.time() - t0, 1),
             "own_simulator": own, "independent_cell": ind}
-    out = Path(args.out)
+    write_json(args.out, data)
+    return 0
+
+
+def write_json(path, data: dict) -> Path:
+    """Write a study's ``data`` (with its ``seconds``) to the JSON file ``path`` (its folder made) and say so."""
+    out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
     print(f"wrote {out} ({data['seconds']} s)")
-    return 0
+    return out
 
 
 if __name__ == "__main__":
