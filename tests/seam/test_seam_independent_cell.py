@@ -124,6 +124,18 @@ def test_the_checked_in_profile_was_fitted_on_this_generator_s_episodes(tmp_path
     p = load_profile(PROFILE)
     assert p.fitted.method == "truth"
     assert [episode_record(d) for d in ic.write_training(tmp_path)] == [e.model_dump() for e in p.fitted.episodes]
+    # its spread factors as seam tune writes them: fitted above 1 with a 1σ (z, rx here), or kept at 1 with the
+    # share of the filter's own spread the training episodes' errors needed (x, y, ry, rz: 0.30-0.81)
+    kept = {}
+    for a in ("x", "y", "z", "rx", "ry", "rz"):
+        f = getattr(p.spread, a)
+        if f.note is None:
+            assert f.value > 1.0 and f.std is not None and 0.0 < f.std < f.value, (a, f)
+        else:
+            assert f.value == 1.0 and f.std is None and f.note.endswith("of it (a factor below 1 is not fitted)"), f
+            kept[a] = [float(x) for x in f.note.split("errors need ")[1].split(" of it")[0].split("-")]
+    assert sorted(kept) == ["ry", "rz", "x", "y"], kept
+    assert all(0.0 < lo <= hi < 1.0 for lo, hi in kept.values()), kept
 
 
 def test_held_out_episodes_are_tracked_with_an_honest_spread(tmp_path):
