@@ -163,6 +163,32 @@ def test_a_process_started_during_the_clean_up_can_still_be_terminated():
     assert signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN
 
 
+def test_a_signal_that_arrives_in_a_finaliser_still_ends_the_run():
+    """A signal handled while Python runs a weakref callback or a ``__del__`` (at start-up: importlib's
+    module-lock clean-up) raised there, where Python prints the exception and goes on: the run
+    continued and exited 0 (CI, test_a_signal_at_start_up). It is sent again and raised outside."""
+    from posekit.cli import main as cli_main
+
+    class Finalised:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)      # handled here, before __del__ returns
+
+    with pytest.raises(KeyboardInterrupt):
+        with cli_main._signals():
+            Finalised()                               # dropped at once: __del__ runs now
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:
+                time.sleep(0.001)
+    assert cli_main._received == signal.SIGINT
+    # importlib's own callback, by name and file, is recognised as such; ordinary code is not
+    lock_cb = compile("def cb(ref):\n    import sys\n    return sys._getframe()\n", "<frozen importlib._bootstrap>",
+                      "exec")
+    ns = {}
+    exec(lock_cb, ns)
+    assert cli_main._lost_if_raised_in(ns["cb"](None))
+    assert not cli_main._lost_if_raised_in(sys._getframe())
+
+
 def test_a_signal_right_after_the_temporary_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
     """The signal of the test above can arrive between the system call that makes the hidden
     folder and the clean-up's ``try``: the name is chosen first, so the clean-up knows it."""

@@ -219,12 +219,35 @@ def _on_signal(signum, frame):
     # with SIG_IGN: a process started during the clean-up (a Dask nanny restarting a worker the
     # Ctrl-C ended) would inherit it and could then not be terminated; a handler is not inherited.
     global _received
+    if _lost_if_raised_in(frame):
+        # Python only prints an exception raised here (a weakref callback, e.g. importlib's module-lock
+        # clean-up while posekit starts, or a finaliser): the run would go on. The handler stays, and the
+        # signal comes again in a moment, from ordinary code.
+        import os
+
+        threading.Timer(_REDELIVER_S, os.kill, args=(os.getpid(), signum)).start()
+        return
     _received = signum
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, _ignore)
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     raise Terminated(signum)
+
+
+#: How soon a signal that arrived where its exception would be lost is sent again, s.
+_REDELIVER_S = 0.005
+
+
+def _lost_if_raised_in(frame) -> bool:
+    """Whether an exception raised in ``frame`` (or a frame it was called from) would be printed and
+    dropped rather than end the run: a finaliser (``__del__``) or importlib's module-lock callback."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or (code.co_name == "cb" and code.co_filename.startswith("<frozen importlib")):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _ignore(signum, frame):
