@@ -20,10 +20,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from seam_validation import write_json
+from seam_validation import AXES, write_json
 
 ROOT = Path(__file__).resolve().parent.parent
-AXES = ("x", "y", "z", "rx", "ry", "rz")
 SETS = ((0, 1, 2), (3, 4, 5), (6, 7, 8), (9, 10, 11), (0, 1, 2, 3, 4, 5), (6, 7, 8, 9, 10, 11))
 HELD_OUT = range(100, 130)
 BAND = (0.85, 0.99)
@@ -44,7 +43,8 @@ def study(cell, folder: Path) -> list:
         train = [ic.write_episode(folder / f"train{s}", cell, ic.episode(cell, s), declare_latency=False)
                  for s in seeds]
         profile = write_profile(folder / "profile.yaml", tune_profile(train, with_truth=True).profile)
-        scores = [ic.scores(*_track(read_episode_log(dirs[s], profile=profile), track_log), held[s]) for s in held]
+        runs = {s: track_log(read_episode_log(dirs[s], profile=profile)) for s in held}
+        scores = [ic.scores(r.estimate, r.spread, r.status, held[s]) for s, r in runs.items()]
         cov = np.concatenate([sc["covered"] for sc in scores]).mean(axis=0)
         cw = [sc["confident_wrong"] for sc in scores]
         rows.append({"training_seeds": list(seeds),
@@ -60,11 +60,6 @@ def study(cell, folder: Path) -> list:
               f"(worst {r['confident_wrong_worst_episode']:.3f}, {r['episodes_confident_wrong_over_5_percent']} "
               "over 5 %)", flush=True)
     return rows
-
-
-def _track(log, track_log):
-    r = track_log(log)
-    return r.estimate, r.spread, r.status
 
 
 def main(argv=None) -> int:

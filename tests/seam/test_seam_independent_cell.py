@@ -36,6 +36,13 @@ def _track(cell, root, seed, profile, name, **kw):
     return ic.scores(r.estimate, r.spread, r.status, ep)
 
 
+def _needs(note: str) -> tuple[float, float]:
+    """The least and largest share of the filter's own spread the episodes' errors needed, from the note of a
+    spread factor kept at 1 (``... these episodes' errors need 0.32-0.81 of it ...``)."""
+    lo, hi = note.split("errors need ")[1].split(" of it")[0].split("-")
+    return float(lo), float(hi)
+
+
 def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
     cell = ic.Cell()
     train = [ic.write_episode(tmp_path / f"train{s}", cell, ic.episode(cell, s, steps=120), declare_latency=False)
@@ -56,7 +63,7 @@ def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
         v = got[f"spread.{a}"]
         assert v.pinned and v.value >= 1.0, v
         if v.std is None:
-            lo, hi = (float(x) for x in v.note.split("errors need ")[1].split(" of it")[0].split("-"))
+            lo, hi = _needs(v.note)
             assert v.value == 1.0 and 0.0 < lo <= hi < 1.0 and "a factor below 1 is not fitted" in v.note, v
         else:
             assert v.value > 1.0 and v.std > 0.0 and not v.note, v
@@ -133,7 +140,7 @@ def test_the_checked_in_profile_was_fitted_on_this_generator_s_episodes(tmp_path
             assert f.value > 1.0 and f.std is not None and 0.0 < f.std < f.value, (a, f)
         else:
             assert f.value == 1.0 and f.std is None and f.note.endswith("of it (a factor below 1 is not fitted)"), f
-            kept[a] = [float(x) for x in f.note.split("errors need ")[1].split(" of it")[0].split("-")]
+            kept[a] = _needs(f.note)
     assert sorted(kept) == ["ry", "rz", "x", "y"], kept
     assert all(0.0 < lo <= hi < 1.0 for lo, hi in kept.values()), kept
 
