@@ -104,3 +104,24 @@ def test_cli_tune_errors_are_one_line(episodes, tmp_path, capsys):
     with pytest.raises(ConfigError):
         tune_profile([bare], with_truth=True)
     assert not (tmp_path / "p.yaml").exists()
+
+
+def test_plateau_factor_is_the_larger_rms_of_the_kinematics_and_the_filter_at_most_1():
+    """The spread factor of an axis the robot plateau bounds (tune_truth._plateau_factor): errors drawn with a
+    known rms over the spread give that rms back; the filter's own larger error wins; never above 1; its 1σ from
+    the episodes' own rms."""
+    from posekit.seam.frontend.tune_truth import _plateau_factor
+
+    rng = np.random.default_rng(26)
+
+    def draw(*scales, n=4000):
+        return [s * rng.standard_normal(n) for s in scales]
+
+    f, sd, kin = _plateau_factor(draw(0.6, 0.6, 0.6), draw(0.3, 0.4, 0.3))
+    assert kin == pytest.approx(0.6, rel=0.03) and f == kin          # the kinematics' error: the filter learnt more
+    assert 0.0 < sd < 0.02
+    f, sd, kin = _plateau_factor(draw(0.5, 0.5), draw(0.7, 0.9))       # the filter worse than the kinematics
+    assert kin == pytest.approx(0.5, rel=0.03) and f == pytest.approx(math.sqrt((0.49 + 0.81) / 2), rel=0.03)
+    assert sd == pytest.approx(f * abs(math.log(0.9 / 0.7)) / math.sqrt(2) / math.sqrt(2), rel=0.1)
+    f, sd, kin = _plateau_factor(draw(1.5), draw(0.3))                 # one episode: no 1σ; capped at 1
+    assert f == 1.0 and sd is None and kin == pytest.approx(1.5, rel=0.03)

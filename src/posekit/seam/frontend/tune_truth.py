@@ -29,7 +29,8 @@ __all__ = ["fit_truth"]
 def _offsets(log, cell):
     """Per step: the truth's offset from the modelled motion ``(D_k Fk(q̄_k))⁻¹ T_true,k`` in the tool frame
     ``(T, 6)`` (mm, rad), from the kinematic pose ``Fk(q + Cj(τ))`` ``(T, 3)`` translation (base) and
-    rotation vector ``(T, 3)`` (base), and the measured force in the base frame ``(T, 3)``."""
+    rotation vector ``(T, 3)`` (base), the measured force in the base frame ``(T, 3)``, the true and nominal
+    tool poses ``(T, 4, 4)`` (base, mm) and the kinematic pose ``Fk(q + Cj(τ))`` itself ``(T, 4, 4)``."""
     from posekit.seam.engine.densities import robot_measurement
 
     chain = cell.chain
@@ -51,7 +52,7 @@ def _offsets(log, cell):
     delta = np.hstack([rel[:, :3, 3], rotation_vector_from_matrix(rel[:, :3, :3], check=False)])
     dt_base = truth[:, :3, 3] - K[:, :3, 3]
     dr_base = rotation_vector_from_matrix(truth[:, :3, :3] @ np.swapaxes(K[:, :3, :3], 1, 2), check=False)
-    return delta, dt_base, dr_base, arr.force_base_n, truth, Tn
+    return delta, dt_base, dr_base, arr.force_base_n, truth, Tn, K
 
 
 def _envelope(f: np.ndarray, e: np.ndarray) -> tuple[float, float]:
@@ -238,16 +239,29 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
         why = ("the errors do not depend on it (the robot plateau bounds this axis)" if not steep[a] else
                f"1σ {walk[a] * k * std_log[a]:.3g}")
         put(f"walk.{name}", value, sd, bool(pinned[a]), "" if pinned[a] else why + ": the base profile's")
-    # the reported spread itself, per axis: the least factor (at least 1) with which the particle filter's 2σ
-    # covers 90 % of its errors on every one of these episodes (where the walk could not: an axis the lasers barely
-    # see, an error that is not a walk; the episodes of one cell differ, and a factor fitted to their pool leaves
-    # some of them uncovered). Where every episode needs less than 1 the filter's own spread is kept: its 1σ is
-    # then not a fit's, and the report says how much of it the errors used
-    z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)), runs_out)
+    # the reported spread itself, per axis: the least factor (at least 1) with which the particle filter's 2σ covers
+    # 90 % of its errors on every one of these episodes (where the walk could not: an axis the lasers barely see, an
+    # error that is not a walk; the episodes of one cell differ, and a factor fitted to their pool leaves some of them
+    # uncovered). Where every episode needs less than 1 the filter's own spread is kept: its 1σ is then not a fit's,
+    # and the report says how much of it the errors used. Except along an axis the robot plateau bounds (the errors
+    # do not depend on its walk) where the kinematics alone err by less than the filter's spread: the filter reports
+    # the plateau there, a bound on the largest error, and the factor is the rms of the larger of the kinematics'
+    # error and its own over that spread (:func:`_plateau_factor`)
+    runs: list = []
+    z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)), runs)
+    if runs_out is not None:
+        runs_out.extend(runs)
     need = np.array([np.percentile(np.abs(e), 90.0, axis=0) / 2.0 for e in z])
     scale = np.clip(need.max(axis=0), *_SCALE_RANGE)
+    kin = [_kinematic_z(part, run) for part, run in zip(parts, runs)]
     for a, name in enumerate(("x", "y", "z", "rx", "ry", "rz")):
         if need[:, a].max() < _SCALE_RANGE[0]:
+            f, sd, f_kin = _plateau_factor([k[:, a] for k in kin], [e[:, a] for e in z])
+            if not steep[a] and f_kin < 1.0:
+                put(f"spread.{name}", f, sd, True,
+                    f"the robot plateau bounds this axis and the kinematics err by {f_kin:.2g} of the filter's spread "
+                    "there: the larger of their error's rms and the filter's", keep_note=True)
+                continue
             put(f"spread.{name}", float(scale[a]), None, True,
                 f"the filter's own spread: these episodes' errors need {need[:, a].min():.2g}-{need[:, a].max():.2g}"
                 " of it (a factor below 1 is not fitted)", keep_note=True)
@@ -258,6 +272,41 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
             "" if pinned else "one episode: the base profile's" if sd is None else
             "the episodes disagree: the base profile's")
     return f0
+
+
+def _kinematic_z(part, run) -> np.ndarray:
+    """``(T, 6)``: the error of the kinematic pose ``Fk(q + Cj(τ))`` against the truth in the seam frame (an
+    estimate that learnt nothing from the lasers) over the particle filter's reported spread ``run.spread``."""
+    from posekit.seam.frontend.seam_frame import seam_frame_errors
+
+    return seam_frame_errors(part[6], part[4], run.nominal) / run.spread
+
+
+def _plateau_factor(z_kin: list, z_pf: list) -> tuple[float, float | None, float]:
+    """The spread factor of an axis the robot plateau bounds, its 1σ, and the kinematics' own factor.
+
+    Parameters
+    ----------
+    z_kin, z_pf : list of ndarray, shape (T,)
+        Per episode, the kinematic pose's error (:func:`_kinematic_z`) and the particle filter's over the filter's
+        reported spread on the axis.
+
+    Returns
+    -------
+    factor, std, kinematic : float, float or None, float
+        ``min(1, max(rms(z_kin), rms(z_pf)))`` over every step (the spread of a filter that knows what the
+        kinematics know, or less where its own errors are larger); its 1σ from the spread of the episodes' own
+        (log scale, over √n; None for one episode); ``rms(z_kin)``.
+    """
+    def rms(z):
+        return float(np.sqrt(np.mean(np.square(np.concatenate(z)))))
+
+    f_kin = rms(z_kin)
+    f = min(1.0, max(f_kin, rms(z_pf)))
+    if len(z_kin) < 2:
+        return f, None, f_kin
+    own = np.log([max(rms([k]), rms([p])) for k, p in zip(z_kin, z_pf)])
+    return f, f * float(np.std(own, ddof=1)) / math.sqrt(len(z_kin)), f_kin
 
 
 def _coverage_ratio(z: list) -> np.ndarray:
