@@ -245,8 +245,8 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
     # uncovered). Where every episode needs less than 1 the filter's own spread is kept: its 1σ is then not a fit's,
     # and the report says how much of it the errors used. Except along an axis the robot plateau bounds (the errors
     # do not depend on its walk) where the kinematics alone err by less than the filter's spread: the filter reports
-    # the plateau there, a bound on the largest error, and the factor is the rms of the larger of the kinematics'
-    # error and its own over that spread (:func:`_plateau_factor`)
+    # the plateau there, a bound on the largest error, and the factor is the larger of the kinematics' rms error
+    # and its own over that spread (:func:`_plateau_factor`)
     runs: list = []
     z = _particle_z(logs, replace(prof, walk=effective, spread_scale=np.ones(6)), runs)
     if runs_out is not None:
@@ -295,7 +295,7 @@ def _plateau_factor(z_kin: list, z_pf: list) -> tuple[float, float | None, float
     -------
     factor, std, kinematic : float, float or None, float
         ``min(1, max(rms(z_kin), rms(z_pf)))`` over every step (the spread of a filter that knows what the
-        kinematics know, or less where its own errors are larger); its 1σ from the spread of the episodes' own
+        kinematics know, or the filter's own where its errors are larger); its 1σ from the spread of the episodes' own
         (log scale, over √n; None for one episode); ``rms(z_kin)``.
     """
     def rms(z):
