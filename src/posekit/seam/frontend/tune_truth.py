@@ -253,11 +253,12 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
         runs_out.extend(runs)
     need = np.array([np.percentile(np.abs(e), 90.0, axis=0) / 2.0 for e in z])
     scale = np.clip(need.max(axis=0), *_SCALE_RANGE)
-    kin = [_kinematic_z(part, run) for part, run in zip(parts, runs)]
+    kin = [_kinematic_z(part, run) for part, run in zip(parts, runs)] if not steep.all() else []
     for a, name in enumerate(("x", "y", "z", "rx", "ry", "rz")):
         if need[:, a].max() < _SCALE_RANGE[0]:
-            f, sd, f_kin = _plateau_factor([k[:, a] for k in kin], [e[:, a] for e in z])
-            if not steep[a] and f_kin < 1.0:
+            f, sd, f_kin = _plateau_factor([k[:, a] for k in kin], [e[:, a] for e in z]) if not steep[a] else (
+                None, None, math.inf)
+            if f_kin < 1.0:
                 put(f"spread.{name}", f, sd, True,
                     f"the robot plateau bounds this axis and the kinematics err by {f_kin:.2g} of the filter's spread "
                     "there: the larger of their error's rms and the filter's", keep_note=True)
