@@ -224,3 +224,35 @@ def _run(folder, profile, reasons=None):
     r = track_log(read_episode_log(folder, profile=profile),
                   on_step=None if reasons is None else (lambda k, e: reasons.append(e.raw.reason or "")))
     return r.estimate, r.spread, r.status
+
+
+def test_cross_check_scores_each_left_out_episode_as_the_generator_does(tmp_path, capsys):
+    """``seam tune --with-truth --cross-check``: each episode tracked with a profile fitted on the others; the row
+    of a left-out episode is what the generator's own errors (``independent_cell.scores``) say of the same fold,
+    and the pooled row is the step-weighted mean."""
+    from tests.cli_helpers import run_cli
+
+    cell = ic.Cell()
+    eps = {s: ic.episode(cell, s, steps=100) for s in (0, 1)}
+    dirs = [ic.write_episode(tmp_path / f"e{s}", cell, ep, declare_latency=False) for s, ep in eps.items()]
+    rc, out, err = run_cli(capsys, "seam", "tune", *dirs, "--with-truth", "--cross-check", "--out",
+                           tmp_path / "p.yaml")
+    assert rc == 0, err
+    assert load_profile(tmp_path / "p.yaml").fitted.method == "truth"          # the profile itself, as without it
+    assert "cross-check 1/2: fitting on the other 1 episode(s), tracking e0" in err
+    assert "cross-check 2/2: fitting on the other 1 episode(s), tracking e1" in err
+    rows = {ln.split()[0]: ln.split() for ln in out.splitlines() if ln.startswith(("  e0 ", "  e1 ", "  pooled "))}
+    assert sorted(rows) == ["e0", "e1", "pooled"], out
+    assert "of 2 episode(s) more than 5 % confident-wrong" in out
+
+    def numbers(r):   # coverage x..rz, tracking %, confident-wrong %
+        return np.array([float(v) for v in r[1:7]] + [float(r[7]), float(r[9])])
+
+    fitted = tune_profile([dirs[1]], with_truth=True).profile
+    r = track_log(read_episode_log(dirs[0], profile=fitted))
+    sc = ic.scores(r.estimate, r.spread, r.status, eps[0])
+    want = np.r_[sc["coverage"], 100 * sc["tracking"], 100 * sc["confident_wrong"]]
+    tol = np.r_[np.full(6, 5e-4), 0.05, 0.005]                  # as printed: 3 decimals, 0.1 % and 0.01 %
+    assert np.all(np.abs(numbers(rows["e0"]) - want) <= tol), (rows["e0"], want)
+    mean = (numbers(rows["e0"]) + numbers(rows["e1"])) / 2        # equal steps: the step-weighted mean
+    assert np.all(np.abs(numbers(rows["pooled"]) - mean) <= 2 * tol), (rows["pooled"], mean)

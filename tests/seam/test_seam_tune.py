@@ -104,6 +104,21 @@ def test_cli_tune_errors_are_one_line(episodes, tmp_path, capsys):
     with pytest.raises(ConfigError):
         tune_profile([bare], with_truth=True)
     assert not (tmp_path / "p.yaml").exists()
+    # --cross-check: refused before anything is fitted
+    rc, out, err = run_cli(capsys, "seam", "tune", *episodes, "--cross-check", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--cross-check: needs --with-truth (each left-out episode is scored against "
+                                        "its truth.csv)")
+    rc, out, err = run_cli(capsys, "seam", "tune", episodes[0], "--with-truth", "--cross-check", "--out",
+                           tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--cross-check: needs at least 2 episodes (each is left out in turn), got 1")
+    rc, out, err = run_cli(capsys, "seam", "tune", "--simulate", "2", "--with-truth", "--cross-check", "--out",
+                           tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--cross-check: recorded episodes only, not --simulate")
+    from posekit.seam.frontend.tune_check import cross_check
+
+    with pytest.raises(ConfigError, match=r"bare has no truth.csv; expected every episode to have one"):
+        cross_check([episodes[0], bare])
+    assert not (tmp_path / "p.yaml").exists()
 
 
 def test_plateau_factor_is_the_larger_rms_of_the_kinematics_and_the_filter_at_most_1():

@@ -26,6 +26,9 @@ def add_tune_parser(verbs):
                         "else the shipped default)")
     p.add_argument("--share-sensors", action="store_true",
                    help="one laser noise and one latency for every sensor")
+    p.add_argument("--cross-check", action="store_true",
+                   help="with --with-truth: also leave each episode out in turn, fit on the others and track it: "
+                        "its 2σ coverage per axis, tracking and confident-wrong shares (one fit per episode)")
     p.add_argument("--simulate", type=bounded_int(1, MAX_SIMULATED), default=None, metavar="RUNS",
                    help=f"fit on RUNS episodes simulated now (1..{MAX_SIMULATED}; with --config, --seed), "
                         "written to a temporary folder; how the shipped default profile is made")
@@ -64,6 +67,14 @@ def run_tune(args) -> int:
         return 0
     if not args.out:
         raise ConfigError("--out: a profile file is required (or use --dump-config)")
+    if args.cross_check and not args.with_truth:
+        raise ConfigError("--cross-check: needs --with-truth (each left-out episode is scored against its truth.csv)")
+    if args.cross_check and args.simulate is not None:
+        raise ConfigError("--cross-check: recorded episodes only, not --simulate (track held-out simulated "
+                          "episodes with posekit seam simulate --profile)")
+    if args.cross_check and len(args.logdirs) < 2:
+        raise ConfigError(f"--cross-check: needs at least 2 episodes (each is left out in turn), got "
+                          f"{len(args.logdirs)}")
     t0 = time.monotonic()
 
     def stage(text):   # what the fit is doing, on stderr (a fit takes seconds to minutes)
@@ -79,6 +90,12 @@ def run_tune(args) -> int:
     unpinned = len(result.unpinned)
     print(f"wrote {Path(args.out)}" + (f" ({unpinned} value(s) kept from the base profile: the data do not pin them)"
                                       if unpinned else ""))
+    if args.cross_check:
+        from ..seam.frontend.tune_check import cross_check, cross_check_report
+
+        sys.stdout.flush()
+        print(cross_check_report(cross_check(args.logdirs, base=args.base, share_sensors=args.share_sensors,
+                                             stage=stage)))
     # a profile from a few episodes depends on which (benchmarks/seam_training_sets.py): say how to check it
     print(f"next: check it on episodes it was not fitted on: posekit seam track EPISODE --profile {args.out} --out "
           "DIR (with a truth.csv, DIR/metrics.json has the 2σ coverage per axis and confident_wrong)")
