@@ -1,4 +1,4 @@
-"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth]``: fit a cell's profile
+"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth [--cross-check]]``: fit a cell's profile
 (``--dump-config``: the cell configuration it works with)."""
 
 import sys
