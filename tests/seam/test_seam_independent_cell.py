@@ -226,6 +226,7 @@ def _run(folder, profile, reasons=None):
     return r.estimate, r.spread, r.status
 
 
+@pytest.mark.slow
 def test_cross_check_scores_each_left_out_episode_as_the_generator_does(tmp_path, capsys):
     """``seam tune --with-truth --cross-check``: each episode tracked with a profile fitted on the others; the row
     of a left-out episode is what the generator's own errors (``independent_cell.scores``) say of the same fold,
