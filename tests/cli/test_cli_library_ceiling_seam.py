@@ -265,6 +265,7 @@ def test_seam_simulate_is_one_library_call(seam_run, tmp_path):
         assert (seam_run / "log" / name).read_bytes() == (tmp_path / "log" / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_seam_track_and_tune_are_one_library_call_each(seam_run, tmp_path, capsys):
     assert main(["seam", "track", str(seam_run / "log"), "--out", str(tmp_path / "cli")]) == 0
     run = track_episode(seam_run / "log", tmp_path / "lib")

@@ -85,6 +85,7 @@ def test_tune_recovers_each_sensor_s_latency_within_3_ms(tmp_path):
             assert 0.3 * c.value / 10 < b.value < 3.0 * c.value / 10 and 0.03 < brho.value < 0.5, (b, brho)
 
 
+@pytest.mark.slow
 def test_tune_without_truth_is_never_confidently_wrong_about_a_latency(tmp_path, monkeypatch):
     """``seam tune`` from the laser innovations alone: here the robot's own unmodelled error wanders sideways with
     the seam's wave, as a latency does, and the likelihood (which trusts the random-walk model) alone puts sensor

@@ -75,6 +75,7 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     assert "status:" in stdout
 
 
+@pytest.mark.slow
 def test_tune_from_innovations_alone_finds_the_latency(episodes):
     """No truth: the linearised filter's likelihood of the laser readings over the latency (and walk, noise)."""
     res = tune_profile(episodes, with_truth=False, share_sensors=True)
