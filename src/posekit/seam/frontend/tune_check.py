@@ -12,13 +12,14 @@ episode fewer than given.
 """
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from posekit.errors import ConfigError
 from posekit.seam.frontend.seam_frame import AXES
 
-__all__ = ["CrossCheck", "cross_check", "cross_check_report"]
+__all__ = ["CrossCheck", "check_cross_check", "cross_check", "cross_check_report"]
 
 
 @dataclass
@@ -51,6 +52,19 @@ class CrossCheck:
                        "episodes_confident_wrong_over_5_percent": int(np.sum(self.confident_wrong > 0.05))}
 
 
+def check_cross_check(logdirs) -> list:
+    """The episode folders as paths, or a one-line ConfigError before anything is fitted: fewer than two
+    episodes, or one without ``truth.csv``."""
+    dirs = [Path(d) for d in logdirs]
+    if len(dirs) < 2:
+        raise ConfigError(f"--cross-check: needs at least 2 episodes (each is left out in turn), got {len(dirs)}")
+    for d in dirs:
+        if not (d / "truth.csv").is_file():
+            raise ConfigError(f"--cross-check: {d} has no truth.csv; expected every episode to have one (each is "
+                              "scored against it when left out)")
+    return dirs
+
+
 def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None) -> CrossCheck:
     """Leave each episode out in turn: fit on the others (``seam tune --with-truth``), track it, score it.
 
@@ -68,19 +82,11 @@ def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None) 
     ConfigError
         Fewer than two episodes; a left-out episode without ``truth.csv``.
     """
-    from pathlib import Path
-
     from posekit.seam.frontend.logs import read_episode_log
     from posekit.seam.frontend.tracker import track_log, track_metrics
     from posekit.seam.frontend.tune import tune_profile
 
-    dirs = [Path(d) for d in logdirs]
-    if len(dirs) < 2:
-        raise ConfigError(f"--cross-check: needs at least 2 episodes (each is left out in turn), got {len(dirs)}")
-    for d in dirs:
-        if not (d / "truth.csv").is_file():
-            raise ConfigError(f"--cross-check: {d} has no truth.csv; expected every episode to have one (each is "
-                              "scored against it when left out)")
+    dirs = check_cross_check(logdirs)
     rows = []
     for i, d in enumerate(dirs):
         if stage is not None:
@@ -93,7 +99,10 @@ def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None) 
         rows.append((steps, [m["coverage_2sigma"][a] for a in AXES],
                      m["status_counts"].get("tracking", 0) / steps, m["confident_wrong"]))
     steps, cov, trk, cw = (np.array(c) for c in zip(*rows))
-    return CrossCheck([d.name for d in dirs], steps.astype(int), cov.astype(float), trk.astype(float),
+    names = [d.name for d in dirs]
+    if len(set(names)) < len(names):   # folders of the same name in different places: the paths as given
+        names = [str(d) for d in dirs]
+    return CrossCheck(names, steps.astype(int), cov.astype(float), trk.astype(float),
                       cw.astype(float))
 
 
