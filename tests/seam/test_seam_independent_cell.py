@@ -22,6 +22,7 @@ from posekit.seam.frontend.logs import read_episode_log
 from posekit.seam.frontend.profile import episode_record, load_profile, merge_profile, write_profile
 from posekit.seam.frontend.tracker import SeamTracker, step_record, track_log, write_track
 from posekit.seam.frontend.tune import tune_profile, tune_report
+from tests.cli_helpers import run_cli
 from tests.seam import independent_cell as ic
 from tests.seam.helpers import coverage_band, effective_samples
 
@@ -232,8 +233,6 @@ def test_cross_check_scores_each_left_out_episode_as_the_generator_does(tmp_path
     """``seam tune --with-truth --cross-check``: each episode tracked with a profile fitted on the others; the row
     of a left-out episode is what the generator's own errors (``independent_cell.scores``) say of the same fold,
     and the pooled row is the step-weighted mean."""
-    from tests.cli_helpers import run_cli
-
     cell = ic.Cell()
     eps = {s: ic.episode(cell, s, steps=100) for s in (0, 1)}
     dirs = [ic.write_episode(tmp_path / f"e{s}", cell, ep, declare_latency=False) for s, ep in eps.items()]

@@ -11,7 +11,7 @@ the episodes, step-weighted, it is what a new episode of this cell may expect fr
 episode fewer than given.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,13 +43,15 @@ class CrossCheck:
     coverage: np.ndarray
     tracking: np.ndarray
     confident_wrong: np.ndarray
-    pooled: dict = field(init=False)
 
-    def __post_init__(self):
+    @property
+    def pooled(self) -> dict:
+        """Step-weighted over the episodes: ``coverage_2sigma`` per axis, ``tracking``, ``confident_wrong``, and
+        ``episodes_confident_wrong_over_5_percent``."""
         w = self.steps / self.steps.sum()
-        self.pooled = {"coverage_2sigma": dict(zip(AXES, (float(v) for v in w @ self.coverage))),
-                       "tracking": float(w @ self.tracking), "confident_wrong": float(w @ self.confident_wrong),
-                       "episodes_confident_wrong_over_5_percent": int(np.sum(self.confident_wrong > 0.05))}
+        return {"coverage_2sigma": dict(zip(AXES, (float(v) for v in w @ self.coverage))),
+                "tracking": float(w @ self.tracking), "confident_wrong": float(w @ self.confident_wrong),
+                "episodes_confident_wrong_over_5_percent": int(np.sum(self.confident_wrong > 0.05))}
 
 
 def check_cross_check(logdirs) -> list:
