@@ -16,8 +16,9 @@ perfectly honest spread would show on single episodes with these errors' autocor
   drift and two lasers 13 / 17 ms late): ``seam tune --with-truth`` and ``seam tune`` (innovations only) on 3
   training episodes (the latency each recovers, with its 1σ), then held-out episodes tracked with the fitted
   profile (nominal; an encoder offset of 0.05 deg on joint 1 or 2; a force-sensor bias of 300 N along x or z) and
-  with the same profile claiming no latency (an undeclared latency); and the same on the cell with its lasers on
-  time (a profile fitted there).
+  with the same profile claiming no latency (an undeclared latency); the same on the cell with its lasers on
+  time (a profile fitted there); and on the 13/17 ms cell with a profile fitted on 9 episodes (enough to pin the
+  kinematics' offset, so that the integrity monitor's offset test flags an encoder offset).
 
 The numbers depend on the machine only through floating point; ``--episodes`` sets the episodes per scenario
 (default 20 on the own simulator, 30 held-out on the independent cell).
@@ -124,9 +125,7 @@ def own_simulator(episodes: int) -> dict:
 def independent_cell(episodes: int, folder: Path) -> dict:
     """Tune on 3 training episodes of the independent cell, then score held-out ones."""
     sys.path.insert(0, str(ROOT))
-    from posekit.seam.frontend.logs import read_episode_log
     from posekit.seam.frontend.profile import merge_profile, write_profile
-    from posekit.seam.frontend.tracker import track_log
     from posekit.seam.frontend.tune import tune_profile
     from tests.seam import independent_cell as ic
 
@@ -158,23 +157,45 @@ def independent_cell(episodes: int, folder: Path) -> dict:
             scen["latency undeclared (profile says 0)"] = ({}, "zero-latency.yaml")
         # a newcomer's first run, before any seam tune: the shipped default profile (fitted on another cell)
         scen["never tuned (the shipped default profile)"] = ({}, None)
-        for name, (kw, prof) in scen.items():
-            errs, spr, sts = [], [], []
-            for s in held:
-                ep = ic.episode(cell, s, **kw)
-                d = ic.write_episode(root / f"{name}-{s}".replace(" ", "_"), cell, ep, declare_latency=False)
-                r = track_log(read_episode_log(d, profile=None if prof is None else root / prof))
-                errs.append(ic.seam_frame_errors(r.estimate, ep))
-                spr.append(r.spread)
-                sts.append(r.status)
-            block[name] = {"command": f"posekit seam track EPISODE{'' if prof is None else ' --profile ' + prof} "
-                                      f"--out DIR (held-out seeds {held.start}-{held.stop - 1})",
-                           **_summary(errs, spr, sts)}
-            print(f"  independent {label} {name}: {block[name]['coverage_2sigma']} tracking "
-                  f"{block[name]['tracking']} confident-wrong {block[name]['confident_wrong']} (worst episode "
-                  f"{block[name]['confident_wrong_worst_episode']})", flush=True)
+        _score(block, label, root, cell, held, scen)
         out[label] = block
+    # the offset test needs the kinematics' offset pinned: a profile fitted on 9 episodes of the 13/17 ms cell
+    label, cell = "latency 13/17 ms, profile from 9 episodes", ic.Cell()
+    root = folder / "nine"
+    train = [ic.write_episode(root / f"train{s}", cell, ic.episode(cell, s), declare_latency=False)
+             for s in range(9)]
+    write_profile(root / "truth.yaml", tune_profile(train, with_truth=True).profile)
+    block = {"command": "posekit seam tune train0 ... train8 --with-truth --out truth.yaml"}
+    _score(block, label, root, cell, held, {k: v for k, v in scen.items()
+                                            if k in ("nominal", "encoder offset 0.05 deg joint 1",
+                                                     "encoder offset 0.05 deg joint 2",
+                                                     "force-sensor bias 300 N along z")})
+    out[label] = block
     return out
+
+
+def _score(block: dict, label: str, root: Path, cell, held: range, scen: dict) -> None:
+    """Track the held-out episodes of each scenario ``{name: (episode keywords, profile file in root or None)}``
+    and put their summary into ``block``."""
+    from posekit.seam.frontend.logs import read_episode_log
+    from posekit.seam.frontend.tracker import track_log
+    from tests.seam import independent_cell as ic
+
+    for name, (kw, prof) in scen.items():
+        errs, spr, sts = [], [], []
+        for s in held:
+            ep = ic.episode(cell, s, **kw)
+            d = ic.write_episode(root / f"{name}-{s}".replace(" ", "_"), cell, ep, declare_latency=False)
+            r = track_log(read_episode_log(d, profile=None if prof is None else root / prof))
+            errs.append(ic.seam_frame_errors(r.estimate, ep))
+            spr.append(r.spread)
+            sts.append(r.status)
+        block[name] = {"command": f"posekit seam track EPISODE{'' if prof is None else ' --profile ' + prof} "
+                                  f"--out DIR (held-out seeds {held.start}-{held.stop - 1})",
+                       **_summary(errs, spr, sts)}
+        print(f"  independent {label} {name}: {block[name]['coverage_2sigma']} tracking "
+              f"{block[name]['tracking']} confident-wrong {block[name]['confident_wrong']} (worst episode "
+              f"{block[name]['confident_wrong_worst_episode']})", flush=True)
 
 
 def main(argv=None) -> int:

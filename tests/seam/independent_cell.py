@@ -406,8 +406,9 @@ def write_training(root, seeds=(0, 1, 2)) -> list:
 
 
 if __name__ == "__main__":
-    # python -m tests.seam.independent_cell DIR: write the training episodes into DIR (see write_training)
+    # python -m tests.seam.independent_cell DIR [N]: write the training episodes 0 .. N - 1 (default 3) into DIR
+    # (see write_training)
     import sys
 
-    for folder in write_training(sys.argv[1]):
+    for folder in write_training(sys.argv[1], range(int(sys.argv[2]) if len(sys.argv) > 2 else 3)):
         print(folder)

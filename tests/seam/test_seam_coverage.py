@@ -149,12 +149,14 @@ def test_25_kN_is_never_tracking_beyond_the_plateau_s_fitted_range_and_the_walk_
     assert all("the robot plateau was fitted at (profile plateau.max_force_n)" in x for x in r.reason)
     np.testing.assert_array_equal(r.estimate, free.estimate)
     np.testing.assert_array_equal(r.spread, free.spread)
-    # without the limit a quarter of the steps the consistency tests pass are wrong (the plateau extrapolated 4x),
-    # far beyond the ~1.6 % of steps an honest 3-sigma verdict leaves: the reason for the limit (measured on the
-    # full episode: 27 of 500 steps tracking, 7 of them beyond 3 sigma; before the innovations' bias test, 72 and 46)
+    # without the limit the consistency tests now see it too: the plateau extrapolated 4x leaves the estimate's
+    # offset from the kinematic pose unlike the profile's episodes' (the offset test), along the roll, from the
+    # long window's first test on. Measured on the full episode: 10 of 500 steps tracking, none beyond 3 sigma
+    # (before the offset test 27, 7 of them beyond 3 sigma; before the innovations' bias test too, 72 and 46)
     full = run_episode(apply_overrides(cfg, {"profile.plateau.max_force_n": 0.0, "trajectory.steps": 500,
                                              "trajectory.length_mm": 200.0}), 0)
-    assert confident_wrong_fraction([full]) > 0.2 * np.mean(full.status == "tracking") > 0
+    assert any(x and x.startswith("the estimate's offset from the kinematic pose along ry ") for x in full.reason)
+    assert np.mean(full.status == "tracking") < 0.05 and confident_wrong_fraction([full]) <= 0.01
     # the default force (5.1 kN, drifting by 20 %) stays inside the range
     nominal = run_episode(_cfg(**{"trajectory.steps": 120, "trajectory.length_mm": 48.0}), 0)
     assert (nominal.status == "tracking").mean() >= 0.98

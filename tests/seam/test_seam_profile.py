@@ -31,6 +31,16 @@ def test_round_trip_keeps_values_stds_notes_and_provenance(tmp_path):
     m = p.to_model()
     assert m.walk.shape == m.jitter.shape == m.spread_scale.shape == (6,)
     assert m.laser_sigma_mm.shape == m.latency_s.shape == (1,)
+    # the offset test's calibration, in the filter's units (mm, rad)
+    assert m.offset_mean.shape == m.offset_sd.shape == m.offset_samples.shape == (6,)
+    assert m.offset_sd[4] == pytest.approx(np.radians(float(p.offset.sd.ry_deg)))
+    assert m.offset_samples[4] == p.offset.samples.ry and np.all(m.offset_samples >= 2.0)
+    # without the block there is no offset test
+    d = profile_data(p)
+    d.pop("offset")
+    path = tmp_path / "no-offset.yaml"
+    path.write_text(yaml.safe_dump(d))
+    assert load_profile(path).to_model().offset_sd is None
 
 
 def test_merge_replaces_values_and_keeps_the_rest():
@@ -47,6 +57,9 @@ def test_merge_replaces_values_and_keeps_the_rest():
     (lambda d: d.update(bogus=1), "unknown key 'bogus'"),
     (lambda d: d["sensors"][0].update(latency_s={"value": 2.0, "std": 0.1}), "sensors.0.latency_s: expected 0..1 s, got 2"),
     (lambda d: d["spread"].update(rz=0.0), "spread.rz: expected 0.1..100, got 0"),
+    (lambda d: d["offset"]["sd"].update(z_mm=-0.1), "offset.sd.z_mm: expected 0..1000 mm, got -0.1"),
+    (lambda d: d["offset"]["mean"].update(ry_deg=200), "offset.mean.ry_deg: expected -180..180 deg, got 200"),
+    (lambda d: d["offset"]["samples"].update(x=-1), "offset.samples.x: input should be greater than or equal to 0"),
 ])
 def test_bad_profile_is_one_line_naming_file_and_key(tmp_path, edit, message):
     d = profile_data(load_profile(DEFAULT_PROFILE))

@@ -133,6 +133,10 @@ class Profile:
     bias_mean, bias_dof : ndarray, shape (S, 2) or (1, 2)
         Per sensor, the mean of that average squared on the training episodes and its effective χ² degrees of
         freedom per step (both fitted by ``seam tune`` with ``bias_window``).
+    offset_mean, offset_sd, offset_samples : ndarray, shape (6,) or None
+        The integrity monitor's offset test: per tool axis (mm, rad) the mean of the estimate's offset from the
+        kinematic pose over the long window on the training episodes, the spread of those window means, and the
+        effective number of independent windows behind it (``seam tune``; None: no offset test).
     """
 
     walk: np.ndarray
@@ -154,6 +158,9 @@ class Profile:
     bias_window: int = 0
     bias_mean: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
     bias_dof: np.ndarray = field(default_factory=lambda: np.ones((1, 2)))
+    offset_mean: np.ndarray | None = None
+    offset_sd: np.ndarray | None = None
+    offset_samples: np.ndarray | None = None
 
     def _per_sensor(self, values: np.ndarray, n: int, what: str) -> np.ndarray:
         v = np.asarray(values, dtype=np.float64).reshape(-1)

@@ -55,7 +55,7 @@ from posekit.seam.engine.densities import (
     robot_measurement,
     transition,
 )
-from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, robot_consistency
+from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, kinematic_offset, robot_consistency
 from posekit.seam.engine.particles import (
     RESAMPLERS,
     effective_sample_size,
@@ -142,7 +142,9 @@ class SeamParticleFilter:
                                           settings.integrity_ess_min, settings.integrity_recovery,
                                           profile.max_force_n, settings.integrity_window_long,
                                           *profile.sensor_nis(S), degraded_reason=degraded_reason,
-                                          bias_window=profile.bias_window, bias_mean=bias_mean, bias_dof=bias_dof)
+                                          bias_window=profile.bias_window, bias_mean=bias_mean, bias_dof=bias_dof,
+                                          offset_mean=profile.offset_mean, offset_sd=profile.offset_sd,
+                                          offset_samples=profile.offset_samples)
         self._bound = InformationBound()
         self._offset = np.eye(4) if T_offset is None else np.asarray(T_offset, dtype=np.float64)
         self.n = settings.particles
@@ -436,7 +438,8 @@ class SeamParticleFilter:
             self.resamplings += 1
         else:
             self.logw = norm.logw
-        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm, components, signed)
+        rep = self.integrity.update(nis, dof, m_t, m_r, ess_update, norm.recovered, force_norm, components, signed,
+                                    kinematic_offset(T_mean, meas.T_mean) if self.integrity.tests_offset else None)
         self.report = rep  # the step's consistency statistics (IntegrityReport)
         # the walk reacts to the consistency tests, not to the force range
         previous, self._last_status = self._last_status, rep.tests_status

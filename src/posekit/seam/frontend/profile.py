@@ -27,6 +27,11 @@ Format (YAML, version 1)::
     joints: {sigma_deg: ..}
     spread: {x: .., y: .., z: .., rx: .., ry: .., rz: ..}   # factor on the filter's spread per axis (default 1)
     bias_window: 10     # steps the bias test averages the signed innovations over (0 or absent: no bias test)
+    offset:             # the offset test (optional): the estimate's offset from the kinematic pose, tool frame,
+                        # averaged over the long window, on the training episodes
+      mean: {x_mm: .., ..., rz_deg: ..}   # its mean (signed)
+      sd: {x_mm: .., ..., rz_deg: ..}     # the spread of those window means
+      samples: {x: .., ..., rz: ..}       # the effective number of independent windows behind that spread
     notes: ["..."]      # the fit's verdicts (values the data did not pin)
 
 Every value is a number (set by hand) or ``{value: v, std: s}`` (fitted, with its 1σ), optionally with a
@@ -152,6 +157,48 @@ class AxesProfile(_Part):
         return v
 
 
+class SignedAxes(_Part):
+    """Six signed values per tool axis: translation (mm) and rotation (deg)."""
+
+    x_mm: _fitted(-1e3, 1e3, "mm")
+    y_mm: _fitted(-1e3, 1e3, "mm")
+    z_mm: _fitted(-1e3, 1e3, "mm")
+    rx_deg: _fitted(-180.0, 180.0, "deg")
+    ry_deg: _fitted(-180.0, 180.0, "deg")
+    rz_deg: _fitted(-180.0, 180.0, "deg")
+
+    def vector(self) -> np.ndarray:
+        """``(6,)`` in mm and rad."""
+        v = np.array([float(getattr(self, a)) for a in AXES])
+        v[3:] = np.radians(v[3:])
+        return v
+
+
+class Samples(_Part):
+    """An effective number of independent samples per tool axis."""
+
+    x: float = Field(ge=0.0, le=1e9)
+    y: float = Field(ge=0.0, le=1e9)
+    z: float = Field(ge=0.0, le=1e9)
+    rx: float = Field(ge=0.0, le=1e9)
+    ry: float = Field(ge=0.0, le=1e9)
+    rz: float = Field(ge=0.0, le=1e9)
+
+    def vector(self) -> np.ndarray:
+        """``(6,)``."""
+        return np.array([float(getattr(self, a)) for a in ("x", "y", "z", "rx", "ry", "rz")])
+
+
+class OffsetProfile(_Part):
+    """The integrity monitor's offset test (:mod:`posekit.seam.engine.integrity`): the estimate's offset from the
+    kinematic pose, averaged over the long window, on the training episodes — its mean, the spread of those means
+    and the effective number of independent windows behind the spread (fitted by ``seam tune``)."""
+
+    mean: SignedAxes
+    sd: AxesProfile
+    samples: Samples
+
+
 class SpreadProfile(_Part):
     """Factor per tool axis on the filter's spread (dimensionless; fitted by ``seam tune --with-truth``)."""
 
@@ -215,6 +262,7 @@ class ProfileModel(_Part):
     joints: JointsProfile
     spread: SpreadProfile = SpreadProfile(x=1.0, y=1.0, z=1.0, rx=1.0, ry=1.0, rz=1.0)
     bias_window: int = Field(0, ge=0, le=1000)
+    offset: OffsetProfile | None = None
     notes: tuple[str, ...] = Field((), max_length=100)
 
     @field_validator("notes")
@@ -238,7 +286,10 @@ class ProfileModel(_Part):
             nis_dof=np.array([[float(s.nis_dof_x), float(s.nis_dof_z)] for s in self.sensors]),
             bias_window=int(self.bias_window),
             bias_mean=np.array([[float(s.bias_mean_x), float(s.bias_mean_z)] for s in self.sensors]),
-            bias_dof=np.array([[float(s.bias_dof_x), float(s.bias_dof_z)] for s in self.sensors]))
+            bias_dof=np.array([[float(s.bias_dof_x), float(s.bias_dof_z)] for s in self.sensors]),
+            offset_mean=None if self.offset is None else self.offset.mean.vector(),
+            offset_sd=None if self.offset is None else self.offset.sd.vector(),
+            offset_samples=None if self.offset is None else self.offset.samples.vector())
 
     def plain(self) -> dict:
         """The profile as a mapping of bare numbers (no std, no provenance): what a study perturbs."""

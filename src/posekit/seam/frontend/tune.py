@@ -61,6 +61,7 @@ from posekit.seam.frontend.profile import (
     profile_from_dict,
     resolve_profile,
 )
+from posekit.seam.frontend.tune_filter import run_filter
 from posekit.seam.frontend.tune_fit import (
     _LAT_GRID_S,
     PINNED,
@@ -80,6 +81,7 @@ from posekit.seam.frontend.tune_intervals import (
 )
 from posekit.seam.frontend.tune_latency import latency_spread
 from posekit.seam.frontend.tune_nis import fit_nis
+from posekit.seam.frontend.tune_offset import fit_offset
 from posekit.seam.frontend.tune_truth import fit_truth
 
 __all__ = ["TuneResult", "TunedValue", "episode_arrays", "local_level_fit", "simulate_episodes", "tune_profile",
@@ -231,8 +233,12 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
     say("calibrating the integrity test: the lasers' innovations " + ("of the spread fit's particle filter" if runs else
         "of the particle filter over the episodes with the fitted profile"))
+    if not runs:
+        runs = [run_filter(log, profile_from_dict(data, "tuned profile").to_model()) for log in logs]
     data["bias_window"] = fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put,
-                                  runs or None)
+                                  runs)
+    # and the offset test's: where the same runs' estimates sat from the kinematic pose
+    fit_offset(logs, runs, data, put, say)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]
     data["fitted"] = {"method": "truth" if with_truth else "innovations", "command": command[:2000],
                       "episodes": [episode_record(log.folder) for log in logs]}

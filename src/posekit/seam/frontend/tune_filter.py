@@ -24,6 +24,8 @@ class FilterRun:
         Per step sensor k's x (column ``2k``) and z (``2k + 1``) normalised squared innovation (NaN: no reading).
     innovations : ndarray, shape (T, 2 S)
         The same signed and not squared.
+    kinematic : ndarray, shape (T, 4, 4) or None
+        The kinematic poses ``Fk(q + Cj(τ))`` per step, mm.
     """
 
     estimate: np.ndarray
@@ -32,6 +34,7 @@ class FilterRun:
     status: list
     components: np.ndarray
     innovations: np.ndarray
+    kinematic: np.ndarray | None = None
 
 
 def run_filter(log, profile) -> FilterRun:
@@ -50,4 +53,4 @@ def run_filter(log, profile) -> FilterRun:
             signed[k] = est.raw.innovations
 
     r = track_log(log, on_step=keep, profile=profile)
-    return FilterRun(r.estimate, r.nominal, r.spread, r.status, comp, signed)
+    return FilterRun(r.estimate, r.nominal, r.spread, r.status, comp, signed, r.kinematic)
