@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from posekit.seam.engine.integrity import IntegrityMonitor, kinematic_offset, offset_limits, offset_means
+from posekit.seam.engine.integrity import IntegrityMonitor
+from posekit.seam.engine.offset_test import kinematic_offset, offset_limits, offset_means
 from posekit.seam.frontend.tune_offset import calibrate_offset
 
 WINDOW, LONG = 10, 120

@@ -38,6 +38,7 @@ __all__ = [
     "laser_loglik",
     "plateau_logpdf",
     "plateau_pdf_1d",
+    "robot_consistency",
     "robot_loglik",
     "robot_measurement",
     "transition",
@@ -335,3 +336,34 @@ def angle_loglik(Ts: np.ndarray, angle_rad: float, surface_normal: np.ndarray, s
     pred = np.arctan2(R[:, :, 0] @ surface_normal, R[:, :, 2] @ surface_normal)
     e = (angle_rad - pred + np.pi) % (2.0 * np.pi) - np.pi
     return -0.5 * (e / sigma_rad) ** 2 - math.log(math.sqrt(2.0 * math.pi) * sigma_rad)
+
+
+def robot_consistency(T_est: np.ndarray, spread: np.ndarray, meas) -> tuple[float, float]:
+    """Mahalanobis distances of the estimate from the robot measurement, outside its plateau.
+
+    Parameters
+    ----------
+    T_est : ndarray, shape (4, 4)
+        Estimated tool pose ``T_base_tool``, mm.
+    spread : ndarray, shape (6,)
+        The estimate's standard deviations in its own frame: x, y, z (mm), rx, ry, rz (rad).
+    meas : RobotMeasurement
+        The step's robot density (:func:`~posekit.seam.engine.densities.robot_measurement`):
+        mean ``T_mean``, tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t_mm``,
+        ``d_r_rad``, rotation-plateau shape ``A_r``.
+
+    Returns
+    -------
+    m_t, m_r : float
+        Translation and rotation Mahalanobis distances (each χ² with 3 dof under the model;
+        0 inside the plateau). The estimate's spread (rotated into the base frame) is added to
+        the tails' covariance.
+    """
+    A = _EYE3 if meas.A_r is None else np.ascontiguousarray(meas.A_r, dtype=np.float64)
+    m_t, m_r = _k.robot_consistency_kernel(np.ascontiguousarray(T_est, dtype=np.float64),
+                                           np.ascontiguousarray(spread, dtype=np.float64),
+                                           np.ascontiguousarray(meas.T_mean, dtype=np.float64),
+                                           np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
+                                           np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A,
+                                           float(meas.d_t_mm), float(meas.d_r_rad))
+    return m_t, m_r

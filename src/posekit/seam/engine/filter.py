@@ -55,7 +55,8 @@ from posekit.seam.engine.densities import (
     robot_measurement,
     transition,
 )
-from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, kinematic_offset, robot_consistency
+from posekit.seam.engine.integrity import IntegrityMonitor, innovation_nis, robot_consistency
+from posekit.seam.engine.offset_test import kinematic_offset
 from posekit.seam.engine.particles import (
     RESAMPLERS,
     effective_sample_size,

@@ -23,15 +23,9 @@ Robot consistency
     plus the estimate's own spread: a Mahalanobis distance per block (translation, rotation),
     χ² with 3 degrees of freedom. The plateau is the largest expected positioning error; an
     estimate outside it says the robot or the lasers are not what the model assumes.
-The kinematics' offset (the offset test)
-    The estimate's offset from the kinematic pose, in the kinematic tool frame (:func:`kinematic_offset`),
-    averaged over the long window (:func:`offset_means`), against what the profile's training episodes showed
-    (``seam tune`` fits its mean, the spread of such window means and how many independent windows that spread
-    rests on). Where the robot's kinematics err otherwise than when the profile was fitted (an encoder offset, a
-    tool or mount that moved), the lasers pull the estimate to another offset along the axes they see; the
-    filter's spread along the axes they do not see (the roll about the travel) rests on the kinematics' own
-    error, which then no longer holds. Each axis is tested at ``alpha_degraded`` split over the six axes and both
-    signs, with a Student t prediction bound (the spread is estimated from a few episodes).
+The kinematics' offset (:mod:`posekit.seam.engine.offset_test`)
+    The estimate's offset from the kinematic pose over the long window, against what the profile's training
+    episodes showed: the kinematics err otherwise than when the profile was fitted.
 Effective sample size
     The ESS of the update before tempering: below ``ess_min · N`` the measurements are
     unlikely under nearly every particle (the cloud is somewhere else).
@@ -72,28 +66,17 @@ from functools import lru_cache
 import numpy as np
 
 from posekit._chi2 import chi2
-from posekit._student_t import t_isf
-from posekit.geometry import rotation_vector_from_matrix
-from posekit.seam.engine import _kernels as _k
 from posekit.seam.engine._cloud_kernels import weighted_moments_kernel
-
-_EYE3 = np.eye(3)
+from posekit.seam.engine.densities import robot_consistency
+from posekit.seam.engine.offset_test import OffsetTest
 
 __all__ = [
     "STATUSES",
     "IntegrityMonitor",
     "IntegrityReport",
     "innovation_nis",
-    "kinematic_offset",
-    "offset_limits",
-    "offset_means",
     "robot_consistency",
 ]
-
-#: The offset test's axes as a reason names them, with the unit its values are printed in and that unit per mm
-#: or rad.
-OFFSET_AXES = (("x", "mm", 1.0), ("y", "mm", 1.0), ("z", "mm", 1.0), ("rx", "deg", math.degrees(1.0)),
-               ("ry", "deg", math.degrees(1.0)), ("rz", "deg", math.degrees(1.0)))
 
 #: The three statuses, best first.
 STATUSES = ("tracking", "degraded", "lost")
@@ -192,105 +175,6 @@ def bias_series(r: np.ndarray, window: int) -> np.ndarray:
     return np.where(count >= max(1, int(window) // 2), m * m, np.nan)
 
 
-def robot_consistency(T_est: np.ndarray, spread: np.ndarray, meas) -> tuple[float, float]:
-    """Mahalanobis distances of the estimate from the robot measurement, outside its plateau.
-
-    Parameters
-    ----------
-    T_est : ndarray, shape (4, 4)
-        Estimated tool pose ``T_base_tool``, mm.
-    spread : ndarray, shape (6,)
-        The estimate's standard deviations in its own frame: x, y, z (mm), rx, ry, rz (rad).
-    meas : RobotMeasurement
-        The step's robot density (:func:`~posekit.seam.engine.densities.robot_measurement`):
-        mean ``T_mean``, tails ``Sigma_t`` (mm²), ``Sigma_r`` (rad²), radii ``d_t_mm``,
-        ``d_r_rad``, rotation-plateau shape ``A_r``.
-
-    Returns
-    -------
-    m_t, m_r : float
-        Translation and rotation Mahalanobis distances (each χ² with 3 dof under the model;
-        0 inside the plateau). The estimate's spread (rotated into the base frame) is added to
-        the tails' covariance.
-    """
-    A = _EYE3 if meas.A_r is None else np.ascontiguousarray(meas.A_r, dtype=np.float64)
-    m_t, m_r = _k.robot_consistency_kernel(np.ascontiguousarray(T_est, dtype=np.float64),
-                                           np.ascontiguousarray(spread, dtype=np.float64),
-                                           np.ascontiguousarray(meas.T_mean, dtype=np.float64),
-                                           np.ascontiguousarray(meas.Sigma_t, dtype=np.float64),
-                                           np.ascontiguousarray(meas.Sigma_r, dtype=np.float64), A,
-                                           float(meas.d_t_mm), float(meas.d_r_rad))
-    return m_t, m_r
-
-
-def kinematic_offset(T_est: np.ndarray, T_kin: np.ndarray) -> np.ndarray:
-    """The estimate's offset from the kinematic pose, in the kinematic tool frame.
-
-    Parameters
-    ----------
-    T_est, T_kin : ndarray, shape (..., 4, 4)
-        Estimated and kinematic (``Fk(q + Cj(τ))``) tool poses ``T_base_tool``, mm.
-
-    Returns
-    -------
-    ndarray, shape (..., 6)
-        ``R_kinᵀ (p_est - p_kin)`` (mm) and the rotation vector of ``R_kinᵀ R_est`` (rad); NaN where either pose
-        is not finite.
-    """
-    T_est = np.asarray(T_est, dtype=np.float64)
-    T_kin = np.asarray(T_kin, dtype=np.float64)
-    Rk = np.swapaxes(T_kin[..., :3, :3], -1, -2)
-    out = np.full(np.broadcast_shapes(T_est.shape, T_kin.shape)[:-2] + (6,), np.nan)
-    ok = np.isfinite(T_est).all(axis=(-2, -1)) & np.isfinite(T_kin).all(axis=(-2, -1))
-    if np.any(ok):
-        dp = np.einsum("...ij,...j->...i", Rk, T_est[..., :3, 3] - T_kin[..., :3, 3])
-        R = np.einsum("...ij,...jk->...ik", Rk, T_est[..., :3, :3])
-        R = np.where(ok[..., None, None], R, np.eye(3))
-        out[...] = np.where(ok[..., None], np.concatenate([dp, rotation_vector_from_matrix(R, check=False)], -1),
-                            np.nan)
-    return out
-
-
-def offset_means(offsets: np.ndarray, window_long: int, window: int) -> np.ndarray:
-    """The offset test's statistic at every step of an episode, as the monitor computes it.
-
-    Parameters
-    ----------
-    offsets : ndarray, shape (T, 6)
-        Each step's :func:`kinematic_offset` (a row with a NaN: not counted).
-    window_long : int
-        Steps averaged over (the monitor's long window).
-    window : int
-        The short window: while the long one holds ``window`` or fewer counted steps it is not tested (NaN).
-
-    Returns
-    -------
-    ndarray, shape (T, 6)
-        At step ``t`` the mean of the counted offsets of steps ``t - window_long + 1 .. t``.
-    """
-    X = np.asarray(offsets, dtype=np.float64).reshape(-1, 6)
-    seen = np.isfinite(X).all(axis=1)
-    c = np.concatenate([np.zeros((1, 6)), np.cumsum(np.where(seen[:, None], X, 0.0), axis=0)])
-    k = np.concatenate([[0], np.cumsum(seen)])
-    t = np.arange(len(X))
-    lo = np.maximum(0, t - max(1, int(window_long)) + 1)
-    n = k[t + 1] - k[lo]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        m = (c[t + 1] - c[lo]) / n[:, None]
-    m[n <= int(window)] = np.nan
-    return m
-
-
-def offset_limits(samples, alpha: float) -> np.ndarray:
-    """``(6,)``: per axis the offset test's limit in units of the spread of the training windows' means: the
-    Student t prediction bound ``t_{n-1}(α / 12) √(1 + 1/n)`` for a new window, with ``n`` the effective number
-    of independent windows the spread was estimated from (``α`` split over six axes and two signs); ``inf``
-    where ``n`` is below 2 (no test)."""
-    n = np.asarray(samples, dtype=np.float64).reshape(-1)
-    return np.array([t_isf(alpha / 12.0, v - 1.0) * math.sqrt(1.0 + 1.0 / v) if v >= 2.0 else math.inf
-                     for v in n])
-
-
 @dataclass
 class IntegrityReport:
     """The verdict of one step.
@@ -372,10 +256,8 @@ class IntegrityMonitor:
         degrees of freedom per step (``seam tune``; None: 1 / ``bias_window`` and 3 / (2 ``bias_window``), a
         white unit-variance innovation's).
     offset_mean, offset_sd, offset_samples : array_like, shape (6,), optional
-        The offset test (with ``window_long``): per tool axis (mm, rad) the mean of :func:`offset_means` on the
-        profile's training episodes, the spread of those window means, and the effective number of independent
-        windows that spread rests on (``seam tune``). The long window's mean offset is tested against
-        ``offset_mean ± offset_limits(offset_samples) · offset_sd``. None: no offset test.
+        The offset test (with ``window_long``; :class:`~posekit.seam.engine.offset_test.OffsetTest`). None: no
+        offset test.
     """
 
     def __init__(self, n_particles: int, window: int, alpha_degraded: float, alpha_lost: float, ess_min: float,
@@ -404,15 +286,12 @@ class IntegrityMonitor:
         self._nis: deque = deque(maxlen=self.window)
         self._q_cache: dict[int, tuple[float, float]] = {}
         self._q3 = self._quantiles(3)
-        self._off_test = None   # (mean, sd, limit) per axis, mm and rad
-        if self.window_long and offset_sd is not None and offset_mean is not None and offset_samples is not None:
-            sd = np.asarray(offset_sd, dtype=np.float64).reshape(6)
-            limit = np.where(sd > 0.0, offset_limits(offset_samples, self.alpha_degraded), np.inf)
-            if np.isfinite(limit).any():
-                self._off_test = (np.asarray(offset_mean, dtype=np.float64).reshape(6), sd, limit)
-        self._off: deque = deque()   # the long window's offsets (None: a step without one)
-        self._off_sum = np.zeros(6)
-        self._off_n = 0
+        self._offset = (OffsetTest(offset_mean, offset_sd, offset_samples, self.window_long, self.window,
+                                   self.alpha_degraded)
+                        if self.window_long and offset_sd is not None and offset_mean is not None
+                        and offset_samples is not None else None)
+        if self._offset is not None and not self._offset.active:
+            self._offset = None
 
     def _quantiles(self, dof: int) -> tuple[float, float]:
         q = self._q_cache.get(dof)
@@ -424,7 +303,7 @@ class IntegrityMonitor:
     @property
     def tests_offset(self) -> bool:
         """Whether the monitor has an offset test (it then wants each step's ``offset``)."""
-        return self._off_test is not None
+        return self._offset is not None
 
     @property
     def since_lost(self) -> int | None:
@@ -438,9 +317,8 @@ class IntegrityMonitor:
         self._long.clear()
         self._long_sum = None
         self._long_n = None
-        self._off.clear()
-        self._off_sum = np.zeros(6)
-        self._off_n = 0
+        if self._offset is not None:
+            self._offset.reset()
         self._since_lost = None
 
     @staticmethod
@@ -508,40 +386,6 @@ class IntegrityMonitor:
                 worst = (ratio / limit, what)
         return None if worst is None else worst[1]
 
-    def _add_offset(self, offset) -> None:
-        """Put one step's :func:`kinematic_offset` into the long window (None or a NaN: a step without one)."""
-        row = None
-        if offset is not None:
-            row = np.asarray(offset, dtype=np.float64).reshape(6)
-            if not np.isfinite(row).all():
-                row = None
-        self._off.append(row)
-        if row is not None:
-            self._off_sum += row
-            self._off_n += 1
-        if len(self._off) > self.window_long:
-            old = self._off.popleft()
-            if old is not None:
-                self._off_sum -= old
-                self._off_n -= 1
-
-    def _offset_test(self) -> str | None:
-        """The reason the offset test fails (None: it passes, or there is none; see ``offset_mean``)."""
-        if self._off_test is None or self._off_n <= self.window:
-            return None
-        mean, sd, limit = self._off_test
-        m = self._off_sum / self._off_n
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(sd > 0.0, np.abs(m - mean) / sd / limit, 0.0)
-        a = int(np.argmax(ratio))
-        if not ratio[a] > 1.0:
-            return None
-        name, unit, k = OFFSET_AXES[a]
-        return (f"the estimate's offset from the kinematic pose along {name} over the last {self._off_n} steps "
-                f"{m[a] * k:.3g} {unit}, the profile's episodes {mean[a] * k:.3g} ± {sd[a] * k:.2g} {unit} (beyond "
-                f"{limit[a]:.3g}σ): the kinematics err otherwise than when the profile was fitted (an encoder "
-                "offset? a tool or mount that moved?)")
-
     def update(self, nis: float, dof: int, robot_maha_t: float, robot_maha_r: float, ess_update: float,
                recovered: bool = False, force_norm_n: float = 0.0, components=None,
                innovations=None, offset=None) -> IntegrityReport:
@@ -566,7 +410,7 @@ class IntegrityMonitor:
             The step's signed normalised innovations (:func:`innovation_nis` with ``signed``), for the bias test
             (``bias_window``; None: not at this step).
         offset : array_like, shape (6,), optional
-            The step's :func:`kinematic_offset`, for the offset test (None: none at this step).
+            The step's :func:`~posekit.seam.engine.offset_test.kinematic_offset` (None: none at this step).
         """
         # one step's NIS enters the window capped at its own degraded quantile: a single failed step (a
         # wrong start the update then corrects) is lost at that step but does not fail the next
@@ -584,8 +428,8 @@ class IntegrityMonitor:
                 components = np.concatenate([np.asarray(components, dtype=np.float64).reshape(-1),
                                              bias_series(np.array(self._recent), self.bias_window)[-1]])
             self._add_long(components)
-        if self._off_test is not None:
-            self._add_offset(offset)
+        if self._offset is not None:
+            self._offset.add(offset)
         level = 0
         reasons = []
         if dof > 0 and nis > cap:
@@ -620,7 +464,7 @@ class IntegrityMonitor:
         # a small inconsistency that persists (a latency nobody declared, an encoder offset): degraded, but the walk
         # is not widened for it (a wider walk would absorb it, and the next window would pass)
         if self.window_long and level < 1:
-            why = self._long_test() or self._offset_test()
+            why = self._long_test() or (None if self._offset is None else self._offset.test())
             if why is not None:
                 fail(1, why)
         if self.max_force_n > 0.0 and not force_norm_n <= self.max_force_n:  # NaN is beyond too

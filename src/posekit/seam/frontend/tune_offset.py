@@ -8,7 +8,7 @@ it: the lasers pull the estimate to another offset along the axes they see, whil
 follows the kinematics and their new error (on the independent cell of the tests a 0.05° offset of joint 2 moves
 the offset along z by 0.5 mm and leaves the roll 0.05° off, beyond the 3σ the profile allows there).
 
-The integrity monitor's offset test (:mod:`posekit.seam.engine.integrity`) averages the step's offset
+The integrity monitor's offset test (:mod:`posekit.seam.engine.integrity`, :mod:`posekit.seam.engine.offset_test`) averages the step's offset
 (:func:`~posekit.seam.engine.integrity.kinematic_offset`, tool frame, mm and rad) over its long window
 (:func:`~posekit.seam.engine.integrity.offset_means`). Here that statistic is computed on the training episodes,
 run with the fitted profile, and per axis:
@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from posekit._autocorr import autocorrelation_time
-from posekit.seam.engine.integrity import OFFSET_AXES, kinematic_offset, offset_limits, offset_means
+from posekit.seam.engine.offset_test import OFFSET_AXES, kinematic_offset, offset_limits, offset_means
 
 __all__ = ["MIN_STEPS", "calibrate_offset", "fit_offset", "offset_series"]
 
