@@ -36,6 +36,9 @@ def test_kinematic_offset_is_the_relative_pose_in_the_kinematic_frame():
         est[i, :3, 3] = kin[i, :3, 3] + kin[i, :3, :3] @ d[i, :3]
         est[i, :3, :3] = kin[i, :3, :3] @ Rotation.from_rotvec(d[i, 3:]).as_matrix()
     np.testing.assert_allclose(kinematic_offset(est, kin), d, atol=1e-9)
+    # one pose at a time (the filter's step: the compiled kernel) gives the same
+    np.testing.assert_allclose([kinematic_offset(e, k) for e, k in zip(est, kin)], d, atol=1e-9)
+    assert np.isnan(kinematic_offset(np.full((4, 4), np.nan), kin[0])).all()
     est[3, 0, 0] = np.nan
     out = kinematic_offset(est, kin)
     assert np.isnan(out[3]).all() and np.isfinite(np.delete(out, 3, axis=0)).all()

@@ -22,6 +22,7 @@ __all__ = [
     "laser_loglik_kernel",
     "local_level_nll",
     "propagate",
+    "relative_offset_kernel",
     "robot_consistency_kernel",
     "robot_loglik_kernel",
     "so3_exp_coefficients",
@@ -350,3 +351,17 @@ def local_level_nll(y, ds, q2, r2):
         s += g * v
         P *= 1.0 - g
     return out
+
+
+@njit(cache=True, boundscheck=False)
+def relative_offset_kernel(T, K, out):
+    """``out (6,)``: the pose ``T (4, 4)`` relative to ``K (4, 4)`` in ``K``'s frame, ``R_Kᵀ (p_T - p_K)`` and the
+    rotation vector of ``R_Kᵀ R_T`` (the integrity monitor's offset test, one step)."""
+    for a in range(3):
+        out[a] = (K[0, a] * (T[0, 3] - K[0, 3]) + K[1, a] * (T[1, 3] - K[1, 3])
+                  + K[2, a] * (T[2, 3] - K[2, 3]))
+    q = np.empty(9)
+    for a in range(3):
+        for b in range(3):
+            q[3 * a + b] = K[0, a] * T[0, b] + K[1, a] * T[1, b] + K[2, a] * T[2, b]
+    out[3], out[4], out[5] = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])

@@ -22,6 +22,7 @@ import numpy as np
 
 from posekit._student_t import t_isf
 from posekit.geometry import rotation_vector_from_matrix
+from posekit.seam.engine import _kernels as _k
 
 __all__ = ["OFFSET_AXES", "OffsetTest", "kinematic_offset", "offset_limits", "offset_means"]
 
@@ -47,6 +48,11 @@ def kinematic_offset(T_est: np.ndarray, T_kin: np.ndarray) -> np.ndarray:
     """
     T_est = np.asarray(T_est, dtype=np.float64)
     T_kin = np.asarray(T_kin, dtype=np.float64)
+    if T_est.shape == T_kin.shape == (4, 4):     # one step (the filter's): compiled, ~1 µs instead of ~80
+        out = np.full(6, np.nan)
+        if np.isfinite(T_est).all() and np.isfinite(T_kin).all():
+            _k.relative_offset_kernel(np.ascontiguousarray(T_est), np.ascontiguousarray(T_kin), out)
+        return out
     Rk = np.swapaxes(T_kin[..., :3, :3], -1, -2)
     out = np.full(np.broadcast_shapes(T_est.shape, T_kin.shape)[:-2] + (6,), np.nan)
     ok = np.isfinite(T_est).all(axis=(-2, -1)) & np.isfinite(T_kin).all(axis=(-2, -1))
