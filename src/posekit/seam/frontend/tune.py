@@ -233,10 +233,10 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     # last, the integrity test's calibration: the innovations of the filter run with everything fitted above
     say("calibrating the integrity test: the lasers' innovations " + ("of the spread fit's particle filter" if runs else
         "of the particle filter over the episodes with the fitted profile"))
+    fitted = profile_from_dict(data, "tuned profile").to_model()
     if not runs:
-        runs = [run_filter(log, profile_from_dict(data, "tuned profile").to_model()) for log in logs]
-    data["bias_window"] = fit_nis(logs, profile_from_dict(data, "tuned profile").to_model(), share_sensors, put,
-                                  runs)
+        runs = [run_filter(log, fitted) for log in logs]
+    data["bias_window"] = fit_nis(logs, fitted, share_sensors, put, runs)
     # and the offset test's: where the same runs' estimates sat from the kinematic pose
     fit_offset(logs, runs, data, put, say)
     notes = [f"{v.key}: {v.note}" for v in values if not v.pinned and v.note]

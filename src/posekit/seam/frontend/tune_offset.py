@@ -105,7 +105,7 @@ def fit_offset(logs, runs, data: dict, put, say) -> None:
     if window_long <= 0:
         say("no offset test: filter.integrity_window_long is 0 (no long window to average the offset over)")
         return
-    if any(getattr(run, "kinematic", None) is None for run in runs):
+    if any(run.kinematic is None for run in runs):
         say("no offset test: the filter runs kept no kinematic pose")
         return
     mean, sd, samples, n = calibrate_offset(offset_series(runs, window_long, window))
