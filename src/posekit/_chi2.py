@@ -48,18 +48,23 @@ def _upper_gamma(a: float, x: float) -> float:
     d = 1.0 / b
     h = d
     for i in range(1, _MAX_TERMS):
-        an = -i * (i - a)
         b += 2.0
-        d = an * d + b
-        d = _TINY if abs(d) < _TINY else d
-        c = b + an / c
-        c = _TINY if abs(c) < _TINY else c
-        d = 1.0 / d
-        step = d * c
+        d, c, step = lentz_step(d, c, -i * (i - a), b)
         h *= step
         if abs(step - 1.0) < _EPS:
             break
     return math.exp(_log_prefactor(a, x)) * h
+
+
+def lentz_step(d: float, c: float, a: float, b: float) -> tuple[float, float, float]:
+    """One step of the modified Lentz method for a continued fraction ``... a / (b + ...)``: the new ``d`` and
+    ``c`` and the factor ``d c`` the running value is multiplied by (Numerical Recipes §5.2)."""
+    d = a * d + b
+    d = _TINY if abs(d) < _TINY else d
+    c = b + a / c
+    c = _TINY if abs(c) < _TINY else c
+    d = 1.0 / d
+    return d, c, d * c
 
 
 def _sf1(x: float, df: float) -> float:

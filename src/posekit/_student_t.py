@@ -9,6 +9,8 @@ it. The tests cross-check both against ``scipy.stats.t``.
 
 import math
 
+from posekit._chi2 import lentz_step
+
 __all__ = ["t_isf", "t_sf"]
 
 _EPS = 1e-15
@@ -26,20 +28,9 @@ def _beta_cf(a: float, b: float, x: float) -> float:
     h = d
     for m in range(1, _MAX_TERMS):
         m2 = 2 * m
-        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
-        d = 1.0 + aa * d
-        d = _TINY if abs(d) < _TINY else d
-        c = 1.0 + aa / c
-        c = _TINY if abs(c) < _TINY else c
-        d = 1.0 / d
-        h *= d * c
-        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
-        d = 1.0 + aa * d
-        d = _TINY if abs(d) < _TINY else d
-        c = 1.0 + aa / c
-        c = _TINY if abs(c) < _TINY else c
-        d = 1.0 / d
-        step = d * c
+        d, c, step = lentz_step(d, c, m * (b - m) * x / ((qam + m2) * (a + m2)), 1.0)
+        h *= step
+        d, c, step = lentz_step(d, c, -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)), 1.0)
         h *= step
         if abs(step - 1.0) < _EPS:
             break
