@@ -182,3 +182,12 @@ def test_tune_calibrates_the_offset_test_on_the_runs_and_says_what_it_flags():
     assert [p[0] for p in put] == [f"offset.{w}.{k}" for k in ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
                                    for w in ("mean", "sd")]
     assert said[0].startswith("the offset test over 120 steps flags a change of the kinematics' offset of at least: x ")
+
+
+def test_episodes_whose_offset_does_not_wander_leave_a_finite_count():
+    eps = [np.tile(np.array([0.1 * k, 0.0, -0.7 + 0.05 * k, 0.0, 1e-4 * k, 0.0]), (200, 1)) for k in range(3)]
+    mean, sd, samples, n = calibrate_offset([offset_means(x, LONG, WINDOW) for x in eps])
+    assert n == 3 * (200 - WINDOW)
+    # all of the spread is between the episodes: one value each; an axis that never moves has none (no test)
+    np.testing.assert_allclose(samples, [3.0, 0.0, 3.0, 0.0, 3.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(mean[[0, 2]], [0.1, -0.65], atol=1e-12)

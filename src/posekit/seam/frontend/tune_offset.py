@@ -90,7 +90,9 @@ def calibrate_offset(series) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
                       0.0)
         total = within + between
         samples[a] = 1.0 + total * total / (within * within / dof_w + between * between / (E - 1))
-    return mean, sd, samples, n
+    # a series without a wander (a constant offset within each episode) has no autocorrelation time: its spread
+    # then rests on nothing this can count, and the axis is not tested
+    return mean, sd, np.where(np.isfinite(samples), samples, 0.0), n
 
 
 def fit_offset(logs, runs, data: dict, put, say) -> None:
