@@ -355,13 +355,15 @@ def local_level_nll(y, ds, q2, r2):
 
 @njit(cache=True, boundscheck=False)
 def relative_offset_kernel(T, K, out):
-    """``out (6,)``: the pose ``T (4, 4)`` relative to ``K (4, 4)`` in ``K``'s frame, ``R_Kᵀ (p_T - p_K)`` and the
-    rotation vector of ``R_Kᵀ R_T`` (the integrity monitor's offset test, one step)."""
-    for a in range(3):
-        out[a] = (K[0, a] * (T[0, 3] - K[0, 3]) + K[1, a] * (T[1, 3] - K[1, 3])
-                  + K[2, a] * (T[2, 3] - K[2, 3]))
+    """``out[i] (6,)``: the pose ``T[i] (4, 4)`` relative to ``K[i] (4, 4)`` in ``K[i]``'s frame, ``R_Kᵀ (p_T -
+    p_K)`` and the rotation vector of ``R_Kᵀ R_T`` (the integrity monitor's offset test); ``T, K (m, 4, 4)``,
+    ``out (m, 6)``."""
     q = np.empty(9)
-    for a in range(3):
-        for b in range(3):
-            q[3 * a + b] = K[0, a] * T[0, b] + K[1, a] * T[1, b] + K[2, a] * T[2, b]
-    out[3], out[4], out[5] = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])
+    for i in range(T.shape[0]):
+        for a in range(3):
+            out[i, a] = (K[i, 0, a] * (T[i, 0, 3] - K[i, 0, 3]) + K[i, 1, a] * (T[i, 1, 3] - K[i, 1, 3])
+                         + K[i, 2, a] * (T[i, 2, 3] - K[i, 2, 3]))
+        for a in range(3):
+            for b in range(3):
+                q[3 * a + b] = K[i, 0, a] * T[i, 0, b] + K[i, 1, a] * T[i, 1, b] + K[i, 2, a] * T[i, 2, b]
+        out[i, 3], out[i, 4], out[i, 5] = rotvec_from_entries(q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8])

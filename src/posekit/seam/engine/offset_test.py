@@ -21,7 +21,6 @@ from collections import deque
 import numpy as np
 
 from posekit._student_t import t_isf
-from posekit.geometry import rotation_vector_from_matrix
 from posekit.seam.engine import _kernels as _k
 
 __all__ = ["OFFSET_AXES", "OffsetTest", "kinematic_offset", "offset_limits", "offset_means"]
@@ -46,23 +45,16 @@ def kinematic_offset(T_est: np.ndarray, T_kin: np.ndarray) -> np.ndarray:
         ``R_kinᵀ (p_est - p_kin)`` (mm) and the rotation vector of ``R_kinᵀ R_est`` (rad); NaN where either pose
         is not finite.
     """
-    T_est = np.asarray(T_est, dtype=np.float64)
-    T_kin = np.asarray(T_kin, dtype=np.float64)
-    if T_est.shape == T_kin.shape == (4, 4):     # one step (the filter's): compiled, ~1 µs instead of ~80
-        out = np.full(6, np.nan)
-        if np.isfinite(T_est).all() and np.isfinite(T_kin).all():
-            _k.relative_offset_kernel(np.ascontiguousarray(T_est), np.ascontiguousarray(T_kin), out)
-        return out
-    Rk = np.swapaxes(T_kin[..., :3, :3], -1, -2)
-    out = np.full(np.broadcast_shapes(T_est.shape, T_kin.shape)[:-2] + (6,), np.nan)
-    ok = np.isfinite(T_est).all(axis=(-2, -1)) & np.isfinite(T_kin).all(axis=(-2, -1))
-    if np.any(ok):
-        dp = np.einsum("...ij,...j->...i", Rk, T_est[..., :3, 3] - T_kin[..., :3, 3])
-        R = np.einsum("...ij,...jk->...ik", Rk, T_est[..., :3, :3])
-        R = np.where(ok[..., None, None], R, np.eye(3))
-        out[...] = np.where(ok[..., None], np.concatenate([dp, rotation_vector_from_matrix(R, check=False)], -1),
-                            np.nan)
-    return out
+    T = np.ascontiguousarray(T_est, dtype=np.float64)
+    K = np.ascontiguousarray(T_kin, dtype=np.float64)
+    if T.shape != K.shape:
+        T, K = (np.ascontiguousarray(x) for x in np.broadcast_arrays(T, K))
+    shape = T.shape[:-2]
+    T, K = T.reshape(-1, 4, 4), K.reshape(-1, 4, 4)
+    out = np.empty((T.shape[0], 6))
+    _k.relative_offset_kernel(T, K, out)          # compiled: ~1 µs a pose (NumPy's einsums took ~80 for one)
+    out[~(np.isfinite(T).all(axis=(1, 2)) & np.isfinite(K).all(axis=(1, 2)))] = np.nan
+    return out.reshape(shape + (6,))
 
 
 def offset_means(offsets: np.ndarray, window_long: int, window: int) -> np.ndarray:

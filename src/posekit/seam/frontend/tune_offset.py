@@ -32,12 +32,12 @@ import numpy as np
 
 from posekit._autocorr import autocorrelation_time
 from posekit.seam.engine.offset_test import OFFSET_AXES, kinematic_offset, offset_limits, offset_means
+from posekit.seam.frontend.profile import AXES
 
 __all__ = ["MIN_STEPS", "calibrate_offset", "fit_offset", "offset_series"]
 
 #: Tested steps (over every episode) the offset test needs to be calibrated.
 MIN_STEPS = 100
-_KEYS = ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
 
 
 def offset_series(runs, window_long: int, window: int) -> list:
@@ -115,15 +115,13 @@ def fit_offset(logs, runs, data: dict, put, say) -> None:
         say(f"no offset test: {n} tested steps from {len(runs)} episode(s) (at least {MIN_STEPS} from 2 episodes "
             "needed)")
         return
-    block: dict = {"mean": {}, "sd": {}, "samples": {}}
-    for a, key in enumerate(_KEYS):
-        k = 1.0 if a < 3 else math.degrees(1.0)
+    # in the profile's units (mm, deg); tune's put adds each value's 1σ to its entry
+    data["offset"] = block = {"mean": {}, "sd": {}, "samples": {name: round(float(samples[a]), 3)
+                                                               for a, (name, _, _) in enumerate(OFFSET_AXES)}}
+    for a, key in enumerate(AXES):
+        k = OFFSET_AXES[a][2]
         block["mean"][key] = {"value": float(mean[a] * k)}
         block["sd"][key] = {"value": float(sd[a] * k)}
-        block["samples"][OFFSET_AXES[a][0]] = round(float(samples[a]), 3)
-    data["offset"] = block
-    for a, key in enumerate(_KEYS):
-        k = 1.0 if a < 3 else math.degrees(1.0)
         std_mean = sd[a] * k / math.sqrt(samples[a]) if samples[a] > 0 else None
         std_sd = sd[a] * k / math.sqrt(2.0 * max(samples[a] - 1.0, 1.0))
         put(f"offset.mean.{key}", float(mean[a] * k), std_mean, True)
