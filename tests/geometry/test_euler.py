@@ -13,6 +13,7 @@ from posekit.geometry import (
     matrix_from_euler_zyx,
     matrix_from_quaternion,
 )
+from posekit.geometry.euler import GIMBAL_COS
 
 #: Reference values by hand: R = Rz(A) Ry(B) Rx(C).
 RZ90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -34,11 +35,15 @@ def test_against_scipy(q):
     R = matrix_from_quaternion(q)
     abc = euler_zyx_from_matrix(R)
     sc = Rotation.from_matrix(R)
-    # 1e-9: near gimbal lock (cos B ~ 1e-8) A and C are ill-conditioned, for scipy's angles as well
-    np.testing.assert_allclose(matrix_from_euler_zyx(abc), R, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(Rotation.from_euler("ZYX", abc).as_matrix(), R, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(Rotation.from_euler("xyz", euler_xyz_from_matrix(R)).as_matrix(), R, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(Rotation.from_euler("ZYX", sc.as_euler("ZYX")).as_matrix(), R, rtol=0, atol=1e-9)
+    # back to rounding; at gimbal lock (cos B ≤ GIMBAL_COS, C = 0) to 2 cos B, the part of R that C = 0 cannot hold
+    cb = np.hypot(R[0, 0], R[1, 0])
+    tol = 1e-13 + (2.0 * cb if cb <= GIMBAL_COS else 0.0)
+    np.testing.assert_allclose(matrix_from_euler_zyx(abc), R, rtol=0, atol=tol)
+    np.testing.assert_allclose(Rotation.from_euler("ZYX", abc).as_matrix(), R, rtol=0, atol=tol)
+    np.testing.assert_allclose(Rotation.from_euler("xyz", euler_xyz_from_matrix(R)).as_matrix(), R, rtol=0, atol=tol)
+    # scipy's lock is wider (|B ∓ π/2| < 1e-7): within it its angles give R back to 2 cos B
+    np.testing.assert_allclose(Rotation.from_euler("ZYX", sc.as_euler("ZYX")).as_matrix(), R, rtol=0,
+                               atol=1e-13 + (2.0 * cb if cb < 1e-7 else 0.0))
     # scipy's own angles (same ranges), away from gimbal lock and from the ±π wrap of A, C
     ref = sc.as_euler("ZYX")
     if abs(abs(abc[1]) - np.pi / 2) > 1e-4 and np.all(np.abs(np.abs(abc[[0, 2]]) - np.pi) > 1e-9):
@@ -78,3 +83,27 @@ def test_bad_input():
     with pytest.raises(GeometryError):
         euler_xyz_from_matrix(np.eye(4))
     np.testing.assert_allclose(euler_zyx_from_matrix(2 * np.eye(3), check=False), [0, 0, 0])
+
+
+@pytest.mark.parametrize("cb", [3e-9, 1e-8, 1e-7, 1e-5])
+def test_near_gimbal_lock_the_angles_give_the_matrix_back_to_rounding(cb):
+    """Just outside the lock, A alone is ill-conditioned (its entries are of size cos B); C is taken from A and
+    the well-sized entries, so that the pair gives R back to 1e-15 (the textbook C = atan2(R21, R22) leaves up to
+    eps / cos B: 4e-8 at cos B = 3e-9)."""
+    rng = np.random.default_rng(7)
+    for a, c, s in zip(rng.uniform(-np.pi, np.pi, 50), rng.uniform(-np.pi, np.pi, 50), rng.choice([-1, 1], 50)):
+        R = matrix_from_quaternion(Rotation.from_euler("ZYX", [a, s * (np.pi / 2 - cb), c]).as_quat()[[3, 0, 1, 2]])
+        abc = euler_zyx_from_matrix(R)
+        assert abc[2] != 0.0
+        np.testing.assert_allclose(matrix_from_euler_zyx(abc), R, rtol=0, atol=2e-15)
+
+
+def test_at_gimbal_lock_the_matrix_comes_back_to_twice_cos_b():
+    """Hypothesis's example that the former 1e-9 tolerance failed on: cos B = 1.29e-9 is inside the lock."""
+    R = matrix_from_quaternion([1.2864263455810659e-09, 1.0, 0.0, 1.0])
+    cb = np.hypot(R[0, 0], R[1, 0])
+    assert cb < GIMBAL_COS
+    abc = euler_zyx_from_matrix(R)
+    assert abc[2] == 0.0
+    err = np.abs(matrix_from_euler_zyx(abc) - R).max()
+    assert 0.5 * cb < err <= 2.0 * cb

@@ -38,6 +38,8 @@ def euler_zyx_from_matrix(R, *, check: bool = True) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
         ``[A, B, C]`` in rad: A, C in (-π, π], B in [-π/2, π/2]; at gimbal lock C = 0.
+        :func:`matrix_from_euler_zyx` of them gives ``R`` back to rounding, and at gimbal lock to
+        ``2 cos B`` (≤ ``2 GIMBAL_COS``: the part of ``R`` that C = 0 cannot hold).
 
     Raises
     ------
@@ -54,7 +56,11 @@ def euler_zyx_from_matrix(R, *, check: bool = True) -> np.ndarray:
     b = np.arctan2(-R[..., 2, 0], cb)
     lock = cb <= GIMBAL_COS
     a = np.where(lock, np.arctan2(-R[..., 0, 1], R[..., 1, 1]), np.arctan2(R[..., 1, 0], R[..., 0, 0]))
-    c = np.where(lock, 0.0, np.arctan2(R[..., 2, 1], R[..., 2, 2]))
+    # C from A and the columns 1, 2 (sin C = sA R02 - cA R12, cos C = cA R11 - sA R01 for any B), not from R21, R22:
+    # near gimbal lock those two are of size cos B and A, C each carry an error eps / cos B, while C taken this
+    # way cancels A's and the angles give R back to rounding (M. Day, Extracting Euler angles from a rotation matrix, 2014)
+    sa, ca = np.sin(a), np.cos(a)
+    c = np.where(lock, 0.0, np.arctan2(sa * R[..., 0, 2] - ca * R[..., 1, 2], ca * R[..., 1, 1] - sa * R[..., 0, 1]))
     out = np.stack([a, b, c], axis=-1) + 0.0                       # + 0.0: no -0.0
     out[..., [0, 2]] = np.where(out[..., [0, 2]] <= -np.pi, np.pi, out[..., [0, 2]])   # (-π, π]
     return out
