@@ -1,6 +1,8 @@
 """Shared fixtures: the bundled gauges and a cached simulation of each; the ``--full-corpus`` option."""
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -44,3 +46,23 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "full_corpus" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_configure(config):
+    """With a cold kernel cache (a fresh clone, as in CI) and pytest-xdist, compile the kernels once with
+    ``posekit warmup`` before the workers start: each worker would otherwise compile the same kernels at the
+    same time (on 2 cores about 70 s of CPU twice). A warm or partly warm cache is left to the workers."""
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", default=None):
+        return
+    import posekit
+    from posekit import _jit
+    where = _jit.cache_dir()
+    root = Path(posekit.__file__).parent if where.endswith("**/__pycache__") else Path(where)
+    if not root.is_dir() or next(root.rglob("*.nbi"), None) is not None:
+        return
+    proc = subprocess.run([sys.executable, "-m", "posekit.cli.main", "warmup"], capture_output=True, text=True)
+    tr = config.pluginmanager.get_plugin("terminalreporter")
+    if tr is not None:
+        tr.write_line((proc.stdout.splitlines() or ["posekit warmup: no output"])[0] +
+                      ("" if proc.returncode == 0 else f" (exit {proc.returncode}: the workers compile the rest)"))
