@@ -8,6 +8,7 @@ tests/seam/test_seam_independent_cell.py.
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -182,6 +183,31 @@ def test_tune_calibrates_the_offset_test_on_the_runs_and_says_what_it_flags():
     assert [p[0] for p in put] == [f"offset.{w}.{k}" for k in ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
                                    for w in ("mean", "sd")]
     assert said[0].startswith("the offset test over 120 steps flags a change of the kinematics' offset of at least: x ")
+    # and what 6 and 9 such episodes would flag: the same spread on three and four and a half times the samples
+    limit6 = offset_limits(samples * 2.0, 1e-3) * sd
+    assert said[1].startswith("with more episodes like these it would flag about (projected: the same spread, its "
+                              f"samples in proportion): 6 episodes: x {limit6[0]:.2g} mm, y {limit6[1]:.2g} mm, ")
+    assert f"; 9 episodes: x {(offset_limits(samples * 3.0, 1e-3) * sd)[0]:.2g} mm, " in said[1]
+    assert len(said) == 2
+
+
+def test_the_projection_from_three_episodes_comes_near_what_nine_give():
+    """The checked-in profiles of the independent cell (the generator in the tests, not posekit's simulator), fitted
+    on its episodes 0-2 and 0-8: three episodes projected to nine come within a factor 2.5 of the nine's own limit on
+    every axis, where the three's own limit is up to 19 times it."""
+    from posekit.seam.frontend.profile import load_profile
+    from posekit.seam.frontend.tune_offset import projected_limits
+
+    data = Path(__file__).parent / "data"
+    three, nine = (load_profile(data / name).to_model() for name in ("independent_cell_profile.yaml",
+                                                                     "independent_cell_profile_9.yaml"))
+    lim3 = offset_limits(three.offset_samples, 1e-3) * three.offset_sd
+    proj = projected_limits(three.offset_sd, three.offset_samples, 3, 9, 1e-3)
+    lim9 = offset_limits(nine.offset_samples, 1e-3) * nine.offset_sd
+    ratio = proj / lim9
+    assert np.all((ratio > 1 / 2.5) & (ratio < 2.5)), ratio
+    assert np.max(lim3 / lim9) > 15.0
+    np.testing.assert_allclose(projected_limits(three.offset_sd, three.offset_samples, 3, 3, 1e-3), lim3, rtol=1e-12)
 
 
 def test_episodes_whose_offset_does_not_wander_leave_a_finite_count():

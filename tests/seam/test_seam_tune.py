@@ -50,7 +50,7 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     assert rc == 0, err
     # a fit takes seconds to minutes: stderr says what it is doing, step by step, with the time since the start
     samples = sum(len((Path(e) / "log.csv").read_text().splitlines()) - 1 for e in episodes)
-    *stages, offset = [ln.split("] ", 1)[1] for ln in err.splitlines() if ln.startswith("posekit seam tune: [")]
+    *stages, offset, more = [ln.split("] ", 1)[1] for ln in err.splitlines() if ln.startswith("posekit seam tune: [")]
     assert stages == [f"{len(episodes)} episode(s), {samples} samples",
                       "fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's "
                       "spread",
@@ -58,6 +58,8 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     # and the offset test's calibration: the smallest change it flags per axis (from two episodes: wide)
     assert offset.startswith("the offset test over 300 steps flags a change of the kinematics' offset of at least: "
                              "x ") and offset.endswith(" deg (more episodes make it smaller)"), offset
+    assert more.startswith("with more episodes like these it would flag about (projected: the same spread, its "
+                           "samples in proportion): 4 episodes: x ") and "; 6 episodes: x " in more, more
     p = load_profile(out)
     lat, sig = p.sensors[0].latency_s, p.sensors[0].sigma_mm
     assert not lat.note and abs(float(lat) - 0.015) < 0.003 and 0 < lat.std < 0.003
