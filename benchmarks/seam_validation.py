@@ -18,7 +18,8 @@ perfectly honest spread would show on single episodes with these errors' autocor
   profile (nominal; an encoder offset of 0.05 deg on joint 1 or 2; a force-sensor bias of 300 N along x or z) and
   with the same profile claiming no latency (an undeclared latency); the same on the cell with its lasers on
   time (a profile fitted there); and on both cells with a profile fitted on 9 episodes (enough to pin the
-  kinematics' offset, so that the integrity monitor's offset test flags an encoder offset).
+  kinematics' offset, so that the integrity monitor's offset test flags an encoder offset; its latencies, and on
+  the late cell the same profile claiming no latency).
 
 The numbers depend on the machine only through floating point; ``--episodes`` sets the episodes per scenario
 (default 20 on the own simulator, 30 held-out on the independent cell).
@@ -165,13 +166,21 @@ def independent_cell(episodes: int, folder: Path) -> dict:
         root = folder / label.replace(" ", "_").replace("/", "-").replace(",", "")
         train = [ic.write_episode(root / f"train{s}", cell, ic.episode(cell, s), declare_latency=False)
                  for s in range(9)]
-        write_profile(root / "truth.yaml", tune_profile(train, with_truth=True).profile)
-        block = {"command": "posekit seam tune train0 ... train8 --with-truth --out truth.yaml"}
-        _score(block, label, root, cell, held, {k: v for k, v in scen.items()
-                                                if k in ("nominal", "encoder offset 0.05 deg joint 1",
+        fit = tune_profile(train, with_truth=True)
+        write_profile(root / "truth.yaml", fit.profile)
+        write_profile(root / "zero-latency.yaml", merge_profile(fit.profile, {"sensors": [{"latency_s": 0.0}] *
+                                                                             len(cell.mounts)}))
+        block = {"command": "posekit seam tune train0 ... train8 --with-truth --out truth.yaml",
+                 "tuned_latency_ms": [{"value_ms": round(v.value * 1e3, 3),
+                                       "std_ms": None if v.std is None else round(v.std * 1e3, 3)}
+                                      for v in fit.values if v.key.endswith("latency_s")]}
+        nine = {k: v for k, v in scen.items() if k in ("nominal", "encoder offset 0.05 deg joint 1",
                                                          "encoder offset 0.05 deg joint 2",
                                                          "force-sensor bias 300 N along x",
-                                                         "force-sensor bias 300 N along z")})
+                                                         "force-sensor bias 300 N along z")}
+        if cell.latency_s[0] > 0:
+            nine["latency undeclared (profile says 0)"] = ({}, "zero-latency.yaml")
+        _score(block, label, root, cell, held, nine)
         out[label] = block
     return out
 
