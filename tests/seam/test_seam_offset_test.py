@@ -183,7 +183,7 @@ def test_tune_calibrates_the_offset_test_on_the_runs_and_says_what_it_flags():
     assert [p[0] for p in put] == [f"offset.{w}.{k}" for k in ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")
                                    for w in ("mean", "sd")]
     assert said[0].startswith("the offset test over 120 steps flags a change of the kinematics' offset of at least: x ")
-    # and what 6 and 9 such episodes would flag: the same spread on three and four and a half times the samples
+    # and what 6 and 9 such episodes would flag: the same spread on twice and three times the samples
     limit6 = offset_limits(samples * 2.0, 1e-3) * sd
     assert said[1].startswith("with more episodes like these it would flag about (projected: the same spread, its "
                               f"samples in proportion): 6 episodes: x {limit6[0]:.2g} mm, y {limit6[1]:.2g} mm, ")
