@@ -314,3 +314,24 @@ def test_robot_consistency_with_a_rotation_plateau_shape_and_rotated_spread():
     meas = RobotMeasurement(np.eye(4), 0.01 * np.eye(3), 1e-6 * np.eye(3), 1.0, 10.0, None)
     m_t, _ = robot_consistency(T, np.r_[0.2, 0.0, 0.0, 0, 0, 0], meas)  # tool x = base y
     assert m_t == pytest.approx(0.5 ** 2 / (0.01 + 0.04), rel=1e-9)
+
+
+def test_window_sum_is_the_sum_over_the_last_rows():
+    """The long windows' running sums (engine.window_sum) against summing the last rows again, with unseen
+    entries and a change of row size."""
+    from posekit.seam.engine.window_sum import WindowSum
+
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(120, 4))
+    seen = rng.random((120, 4)) > 0.2
+    w = WindowSum(25)
+    for t in range(len(X)):
+        w.add(np.where(seen[t], X[t], np.nan), seen[t])
+        lo = max(0, t - 24)
+        np.testing.assert_allclose(w.sum, np.where(seen[lo:t + 1], X[lo:t + 1], 0.0).sum(axis=0), atol=1e-12)
+        np.testing.assert_array_equal(w.n, seen[lo:t + 1].sum(axis=0))
+    assert len(w) == 25
+    w.add([1.0, 2.0], [True, False])          # another size: the window starts again
+    assert len(w) == 1 and w.sum.tolist() == [1.0, 0.0] and w.n.tolist() == [1, 0]
+    w.clear()
+    assert len(w) == 0 and w.sum is None and w.n is None

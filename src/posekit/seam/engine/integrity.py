@@ -69,6 +69,7 @@ from posekit._chi2 import chi2
 from posekit.seam.engine._cloud_kernels import weighted_moments_kernel
 from posekit.seam.engine.densities import robot_consistency
 from posekit.seam.engine.offset_test import OffsetTest
+from posekit.seam.engine.window_sum import WindowSum
 
 __all__ = [
     "STATUSES",
@@ -273,9 +274,7 @@ class IntegrityMonitor:
         self.window_long = max(0, int(window_long))
         self._nis_mean = None if nis_mean is None else np.asarray(nis_mean, dtype=np.float64).reshape(-1)
         self._nis_dof = None if nis_dof is None else np.asarray(nis_dof, dtype=np.float64).reshape(-1)
-        self._long: deque = deque()
-        self._long_sum = None   # (2 S,) the capped components' sums over the long window
-        self._long_n = None     # (2 S,) readings per component in it
+        self._long = WindowSum(self.window_long)   # the capped components' sums (2 S,) and readings per component
         self.max_force_n = float(max_force_n)
         self.recovery = max(0, int(recovery))
         self._since_lost = None
@@ -315,8 +314,6 @@ class IntegrityMonitor:
         self._nis.clear()
         self._recent.clear()
         self._long.clear()
-        self._long_sum = None
-        self._long_n = None
         if self._offset is not None:
             self._offset.reset()
         self._since_lost = None
@@ -345,20 +342,19 @@ class IntegrityMonitor:
     def _add_long(self, components) -> None:
         """Put one step's per-component NIS into the long window (capped like the step's total)."""
         u = np.asarray(components, dtype=np.float64).reshape(-1)
-        if self._long_sum is None or self._long_sum.size != u.size:
-            self._long.clear()
-            self._long_sum, self._long_n = np.zeros(u.size), np.zeros(u.size, dtype=np.int64)
+        if self._long.sum is None or self._long.sum.size != u.size:
             self._c, self._rho = self._component_levels(u.size)
             self._u_cap = self._c * _chi2_isf(self.alpha_degraded, 1)
         seen = np.isfinite(u)
-        capped = np.where(seen, np.minimum(np.where(seen, u, 0.0), self._u_cap), 0.0)
-        self._long.append((capped, seen))
-        self._long_sum += capped
-        self._long_n += seen
-        if len(self._long) > self.window_long:
-            v0, k0 = self._long.popleft()
-            self._long_sum -= v0
-            self._long_n -= k0
+        self._long.add(np.minimum(np.where(seen, u, 0.0), self._u_cap), seen)
+
+    @property
+    def _long_sum(self):
+        return self._long.sum
+
+    @property
+    def _long_n(self):
+        return self._long.n
 
     def _long_test(self) -> str | None:
         """The reason the long window fails (None: it passes; see ``nis_mean``)."""

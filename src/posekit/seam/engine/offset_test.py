@@ -16,12 +16,12 @@ axis and both offsets.
 """
 
 import math
-from collections import deque
 
 import numpy as np
 
 from posekit._student_t import t_isf
 from posekit.seam.engine import _kernels as _k
+from posekit.seam.engine.window_sum import WindowSum
 
 __all__ = ["OFFSET_AXES", "OffsetTest", "kinematic_offset", "offset_limits", "offset_means"]
 
@@ -119,9 +119,7 @@ class OffsetTest:
         self.mean = np.asarray(mean, dtype=np.float64).reshape(6)
         self.sd = np.asarray(sd, dtype=np.float64).reshape(6)
         self.limit = np.where(self.sd > 0.0, offset_limits(samples, alpha), np.inf)
-        self._rows: deque = deque()   # the long window's offsets (None: a step without one)
-        self._sum = np.zeros(6)
-        self._n = 0
+        self._win = WindowSum(self.window_long)   # the long window's offsets (a step without one: not seen)
 
     @property
     def active(self) -> bool:
@@ -130,39 +128,26 @@ class OffsetTest:
 
     def reset(self) -> None:
         """Forget the window (a new episode)."""
-        self._rows.clear()
-        self._sum = np.zeros(6)
-        self._n = 0
+        self._win.clear()
 
     def add(self, offset) -> None:
         """Put one step's :func:`kinematic_offset` into the window (None or a NaN: a step without one)."""
-        row = None
-        if offset is not None:
-            row = np.asarray(offset, dtype=np.float64).reshape(6)
-            if not np.isfinite(row).all():
-                row = None
-        self._rows.append(row)
-        if row is not None:
-            self._sum += row
-            self._n += 1
-        if len(self._rows) > self.window_long:
-            old = self._rows.popleft()
-            if old is not None:
-                self._sum -= old
-                self._n -= 1
+        row = np.full(6, np.nan) if offset is None else np.asarray(offset, dtype=np.float64).reshape(6)
+        self._win.add(row, np.full(6, bool(np.isfinite(row).all())))
 
     def test(self) -> str | None:
         """The reason the test fails (None: it passes, or the window is still too short)."""
-        if self._n <= self.window:
+        n = 0 if self._win.n is None else int(self._win.n[0])
+        if n <= self.window:
             return None
-        m = self._sum / self._n
+        m = self._win.sum / n
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(self.sd > 0.0, np.abs(m - self.mean) / self.sd / self.limit, 0.0)
         a = int(np.argmax(ratio))
         if not ratio[a] > 1.0:
             return None
         name, unit, k = OFFSET_AXES[a]
-        return (f"the estimate's offset from the kinematic pose along {name} over the last {self._n} steps "
+        return (f"the estimate's offset from the kinematic pose along {name} over the last {n} steps "
                 f"{m[a] * k:.3g} {unit}, the profile's episodes {self.mean[a] * k:.3g} ± {self.sd[a] * k:.2g} {unit} "
                 f"(beyond {self.limit[a]:.3g}σ): the kinematics err otherwise than when the profile was fitted (an "
                 "encoder offset? a tool or mount that moved?)")
