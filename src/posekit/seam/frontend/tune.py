@@ -25,7 +25,9 @@ The plateau is the paper's "largest expected error": the tightest ``d0 + kd ‖f
 from ``Fk(q + Cj(τ))`` (the rotation plateau the bending ellipsoid), widened to the one-sided 99 % prediction bound
 of the next episode's largest offset; the tails are the spread of the episodes' largest offsets, ``max_force_n``
 the largest force seen. The walk per axis minimises the linearised filter's log score at the truth, then is scaled
-until the particle filter itself covers 95 % of its errors within 2σ on those episodes; last, the ``spread``
+until the particle filter itself covers 95 % of its errors within 2σ on those episodes (that filter runs with the
+walks the score does not decide at the base profile's, so a scaled walk's 1σ also takes in the range it spans with
+those e times narrower to wider); last, the ``spread``
 factor per axis (at least 1) makes its 2σ cover 90 % of the errors of every one of the episodes (the implementation
 in :mod:`.tune_truth`).
 
@@ -35,7 +37,7 @@ normalised squared innovation (``sensors[k].nis_mean_x/z``, ``nis_dof_x/z``), wh
 tests against.
 
 A value the data do not pin (its 1σ above the value itself; for a latency above the sample period (with truth) or
-as above (without); kd when the
+as above (without); with truth, a walk whose score is flat on one side, the robot plateau bounding it; kd when the
 force spans less than 20 % of its largest value; one episode for the tails) keeps the base profile's value, and the
 result says why. :func:`tune_profile` returns a :class:`TuneResult`; :func:`tune_report`
 formats it.
