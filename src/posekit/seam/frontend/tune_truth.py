@@ -225,8 +225,8 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
     # on a flat stretch the optimiser can stop while a walk e times narrower or wider is better by a unit or more:
     # from there again, until no such step is (at most six times)
     x = descend(np.log(np.clip(prof.walk, 1e-6, 10.0)))
+    f0 = total(x)
     for _ in range(6):
-        f0 = total(x)
         better = None
         for a in range(6):
             for sgn in (-1.0, 1.0):
@@ -237,7 +237,7 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
         if better is None:
             break
         x = descend(better)
-    f0 = total(x)
+        f0 = total(x)
     # the walks the score allows along each axis (the others at their best): within one unit of its best. Steep: it
     # bounds them on both sides (where it does on one side only, at the edge of a flat stretch, the optimiser's stop
     # on that stretch depends on where it started: not a walk the data pin)
@@ -275,15 +275,13 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
     for a, name in enumerate(AXES):
         k = 1.0 if a < 3 else math.degrees(1.0)
         value, sd = effective[a] * k, effective[a] * k * std_log[a]
-        if pinned[a] and dep[a] > 0.0:
-            sd = math.hypot(sd, dep[a] * k)
-            put(f"walk.{name}", value, sd, True,
-                f"1σ {effective[a] * k * std_log[a]:.2g} from these errors and {dep[a] * k:.2g} from the walks they do "
-                f"not decide ({moved} e times narrower to wider: {span[0][a] * k:.4g}-{span[1][a] * k:.4g})",
-                keep_note=True)
-            continue
         if pinned[a]:
-            put(f"walk.{name}", value, sd, True)
+            note = ""
+            if dep[a] > 0.0:
+                note = (f"1σ {sd:.2g} from these errors and {dep[a] * k:.2g} from the walks they do not decide ({moved} "
+                        f"e times narrower to wider: {span[0][a] * k:.4g}-{span[1][a] * k:.4g})")
+                sd = math.hypot(sd, dep[a] * k)
+            put(f"walk.{name}", value, sd, True, note, keep_note=bool(note))
             continue
         lo, hi = (f"{v * k:.4g}" for v in allowed[a])
         lo = "0" if not edges[a, 0] > _WALK_BOUNDS[0] + 1e-9 else lo
