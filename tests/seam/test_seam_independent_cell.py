@@ -351,3 +351,35 @@ def test_an_encoder_offset_after_the_profile_was_fitted_is_flagged_by_the_offset
             assert any(r.startswith("the estimate's offset from the kinematic pose along z ") for r in reasons)
         else:
             assert not any(by_offset) and sc["tracking"] >= 0.9 and sc["confident_wrong"] <= 0.05, sc
+
+
+@pytest.mark.slow
+def test_a_profile_from_nine_episodes_meets_the_issue_s_figures_and_flags_or_bounds_every_fault(tmp_path):
+    """Issue 26's done-when and deliverable 4 with the profile ``seam tune --with-truth`` fitted on nine training
+    episodes of this cell (four seconds each; tests/seam/data/independent_cell_profile_9.yaml, the command in its
+    header), on the held-out episodes of the tests: nominal, a 2σ coverage no lower than the issue's 0.85 allows at
+    the steps' independent samples, tracking ≥ 90 % and confident-wrong ≤ 5 %; under an encoder offset of 0.05° on
+    joint 1 or 2 or a 300 N force-sensor bias along x or z, every single episode under 5 % confidently wrong or
+    flagged (not ``tracking`` on most of its steps). Measured: nominal coverage 0.990 0.983 0.983 0.979 1.0 1.0,
+    tracking 0.999, confident-wrong 0.0004; joint 2 flagged on every episode (tracking 0.025), the others tracking
+    0.985-1.0 with the worst episode 4.3 % (force along x, seed 101). Over 30 held-out episodes
+    (benchmarks/seam_validation.py) the joint-1 offset leaves 3 of them over 5 % (worst 8.8 %), as many as a
+    perfectly honest spread leaves by chance (2.3)."""
+    p = load_profile(PROFILE_9)
+    assert len(p.fitted.episodes) == 9 and p.fitted.method == "truth"
+    cell = ic.Cell()
+    nominal = [_track(cell, tmp_path, s, PROFILE_9, "held") for s in HELD_OUT]
+    covered = np.concatenate([r["covered"] for r in nominal])
+    lo, _ = coverage_band(effective_samples(covered), 0.85)
+    assert np.all(covered.mean(axis=0) >= lo), covered.mean(axis=0)
+    assert np.mean([r["tracking"] for r in nominal]) >= 0.9
+    assert np.mean([r["confident_wrong"] for r in nominal]) <= 0.05
+    faults = {"joint 1": {"encoder_offset_deg": (0.05, 0, 0, 0, 0, 0)},
+              "joint 2": {"encoder_offset_deg": (0, 0.05, 0, 0, 0, 0)},
+              "force x": {"force_bias_n": (300.0, 0, 0)}, "force z": {"force_bias_n": (0, 0, 300.0)}}
+    for name, kw in faults.items():
+        runs = [_track(cell, tmp_path, s, PROFILE_9, name.replace(" ", ""), **kw) for s in HELD_OUT]
+        for seed, r in zip(HELD_OUT, runs):
+            assert r["confident_wrong"] <= 0.05 or r["tracking"] < 0.5, (name, seed, r["tracking"], r["confident_wrong"])
+        if name == "joint 2":   # the offset the lasers see (0.5 mm along z) is flagged, not merely bounded
+            assert max(r["tracking"] for r in runs) < 0.1, [r["tracking"] for r in runs]
