@@ -237,6 +237,61 @@ def laser_error_kernel(T, mx, mz, M, P, lo, hi, err):
 
 
 @njit(cache=True, boundscheck=False)
+def interp_columns(x, xp, fp, out):
+    """``out[j] = numpy.interp(x, xp, fp[:, j])`` for every column of ``fp (n, J)``, with NumPy's own arithmetic
+    (the same result to the bit): ``x`` finite, ``xp (n,)`` non-decreasing, ``n >= 2``. Returns False, leaving
+    ``out`` unset, where ``xp`` decreases somewhere (the caller then asks NumPy)."""
+    n = xp.shape[0]
+    for k in range(1, n):
+        if xp[k] < xp[k - 1]:
+            return False
+    J = fp.shape[1]
+    if x > xp[n - 1]:
+        j = n - 1                      # NumPy's right value: fp[-1]
+    elif x < xp[0]:
+        j = 0                          # its left value: fp[0]
+    else:
+        lo, hi = 0, n - 1              # the j with xp[j] <= x < xp[j + 1] (n - 1 where x == xp[-1])
+        if x >= xp[n - 1]:
+            lo = n - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if xp[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        j = lo
+        if j < n - 1 and xp[j] != x:
+            for c in range(J):
+                slope = (fp[j + 1, c] - fp[j, c]) / (xp[j + 1] - xp[j])
+                r = slope * (x - xp[j]) + fp[j, c]
+                if math.isnan(r):
+                    r = slope * (x - xp[j + 1]) + fp[j + 1, c]
+                    if math.isnan(r) and fp[j, c] == fp[j + 1, c]:
+                        r = fp[j, c]
+                out[c] = r
+            return True
+    for c in range(J):
+        out[c] = fp[j, c]
+    return True
+
+
+@njit(cache=True, boundscheck=False)
+def sensor_axes_levers(M, axes, lever):
+    """For mounts ``M (S, 4, 4)``: ``axes[s] = [x axis, z axis]`` of sensor ``s`` (tool frame) and ``lever[s, k] =
+    p_s × axes[s, k]`` with ``p_s`` its origin (mm), in ``numpy.cross``'s order of operations (the same bits)."""
+    for s in range(M.shape[0]):
+        p0, p1, p2 = M[s, 0, 3], M[s, 1, 3], M[s, 2, 3]
+        for k in range(2):
+            c = 2 * k
+            b0, b1, b2 = M[s, 0, c], M[s, 1, c], M[s, 2, c]
+            axes[s, k, 0], axes[s, k, 1], axes[s, k, 2] = b0, b1, b2
+            lever[s, k, 0] = p1 * b2 - p2 * b1
+            lever[s, k, 1] = p2 * b0 - p0 * b2
+            lever[s, k, 2] = p0 * b1 - p1 * b0
+
+
+@njit(cache=True, boundscheck=False)
 def window_kernel(P, px, py, pz, nx, ny, nz, window, reach):
     """Knot range ``(lo, hi)`` of the polyline ``P (K, 3)`` around a plane through ``p`` with
     normal ``n``: the first and last segment reaching within ``window`` of the plane and

@@ -40,7 +40,6 @@ noise, reset when the track is lost), with the pose jitter added. Every step car
 """
 
 import math
-from collections import deque
 
 import numpy as np
 
@@ -68,6 +67,10 @@ from posekit.seam.engine.step import FilterSettings, StepEstimate, StepInputs, j
 from posekit.seam.model import Cell, Profile
 
 __all__ = ["SeamParticleFilter"]
+
+#: Steps of ``(time_s, q_ref)`` the filter keeps to evaluate the robot at a reading's time (0.64 s at 100 Hz; a
+#: reading older than the oldest kept takes its joints).
+_HISTORY = 64
 
 
 class SeamParticleFilter:
@@ -155,7 +158,10 @@ class SeamParticleFilter:
         self.T = np.repeat(np.eye(4)[None], self.n, axis=0)
         self._noise = np.empty((self.n, 6), np.float32)
         self.logw = np.full(self.n, -math.log(self.n))
-        self._history: deque = deque(maxlen=64)  # (time_s, q_ref) of the last steps, for the readings' times
+        # time_s and q_ref of the last _HISTORY steps, oldest first (the readings' times): _hist_n of the rows used
+        self._hist_t = np.empty(_HISTORY)
+        self._hist_q = np.empty((_HISTORY, 0))
+        self._hist_n = 0
         self.reset(np.eye(4) if T_init is None else T_init)
 
     def reset(self, T_center) -> None:
@@ -164,7 +170,7 @@ class SeamParticleFilter:
         self.integrity.reset()
         self._bound.reset()
         self._prev_deflection = None
-        self._history.clear()
+        self._hist_n = 0
         self._lasers_seen = 0
         self._last_status = "tracking"
         self._init_pending = True
@@ -204,10 +210,9 @@ class SeamParticleFilter:
         if inputs.reading_lag_s is not None:  # the readings' own stamps; NaN: the sensor's latency
             given = np.asarray(inputs.reading_lag_s, dtype=np.float64)
             lag = np.where(np.isfinite(given), given, self._latency)
-        if not np.any(lag > 0.0) or len(self._history) < 2:
+        if not np.any(lag > 0.0) or self._hist_n < 2:
             return self.mounts
-        times = np.array([h[0] for h in self._history])
-        qs = np.stack([h[1] for h in self._history])
+        times, qs = self._hist_t[:self._hist_n], self._hist_q[:self._hist_n]
         t_now = times[-1]
         out = self.mounts.copy()
         T_now_inv = None
@@ -215,11 +220,27 @@ class SeamParticleFilter:
             if not (L > 0.0 and math.isfinite(L)):
                 continue
             t = t_now - L
-            q = np.array([np.interp(t, times, qs[:, j]) for j in range(qs.shape[1])])
+            q = np.empty(qs.shape[1])
+            if not (math.isfinite(t) and _k.interp_columns(t, times, qs, q)):   # NumPy's, where times go back
+                q = np.array([np.interp(t, times, qs[:, j]) for j in range(qs.shape[1])])
             if T_now_inv is None:
                 T_now_inv = invert_transform(inputs.T_nominal, check=False)
             out[i] = T_now_inv @ self.chain.forward_kinematics(q, check=False) @ self.mounts[i]
         return out
+
+    def _remember(self, t: float, q_ref) -> None:
+        """Keep ``(t, q_ref)`` as the newest row of the history (the oldest dropped once it holds _HISTORY)."""
+        q = np.asarray(q_ref, dtype=np.float64).reshape(-1)
+        if self._hist_q.shape[1] != q.shape[0]:
+            self._hist_q = np.empty((_HISTORY, q.shape[0]))
+            self._hist_n = 0
+        if self._hist_n == _HISTORY:
+            self._hist_t[:-1] = self._hist_t[1:]
+            self._hist_q[:-1] = self._hist_q[1:]
+            self._hist_n -= 1
+        self._hist_t[self._hist_n] = t
+        self._hist_q[self._hist_n] = q
+        self._hist_n += 1
 
     def _deflected_increment(self, T_increment: np.ndarray, meas) -> np.ndarray:
         """The step's increment with the change of the modelled deflection, ``D_k T+ D_{k-1}⁻¹`` (4, 4).
@@ -357,7 +378,7 @@ class SeamParticleFilter:
         """Propagate, weight, estimate and (if needed) resample; see the module docstring."""
         st = self.settings
         t = float(inputs.time_s)
-        self._history.append((t, np.asarray(inputs.q_ref, dtype=np.float64)))
+        self._remember(t, inputs.q_ref)
         force = np.asarray(inputs.force_n, dtype=np.float64)
         force_norm = math.sqrt(float(force @ force))  # N; NaN stays NaN for the integrity monitor
         # 1. state transition (eq. 3): the profile's walk over the step's travel, wider after a step not tracking

@@ -159,9 +159,11 @@ def jitter_variances(mounts: np.ndarray, jitter: np.ndarray) -> np.ndarray:
     A tool-frame offset ``δ = [t, r]`` moves the sensor's seam point ``p`` (its origin; mm, tool frame) by
     ``t + r × p``; its components along the sensor's x and z axes are what the reading sees.
     """
-    M = np.asarray(mounts, dtype=np.float64).reshape(-1, 4, 4)
+    from posekit.seam.engine import _kernels as _k  # here: reading a configuration does not load numba
+
+    M = np.ascontiguousarray(mounts, dtype=np.float64).reshape(-1, 4, 4)
     j2 = np.asarray(jitter, dtype=np.float64) ** 2
-    axes = np.stack([M[:, :3, 0], M[:, :3, 2]], axis=1)          # (S, 2, 3): the sensor's x and z axes
-    lever = np.cross(M[:, None, :3, 3], axes)                    # d(r x p)/dr along each axis: p x axis
-    out = (axes * axes) @ j2[:3] + (lever * lever) @ j2[3:]
-    return out
+    axes = np.empty((M.shape[0], 2, 3))                          # the sensor's x and z axes
+    lever = np.empty((M.shape[0], 2, 3))                         # d(r x p)/dr along each axis: p x axis
+    _k.sensor_axes_levers(M, axes, lever)
+    return (axes * axes) @ j2[:3] + (lever * lever) @ j2[3:]
