@@ -294,18 +294,19 @@ def _run(folder, profile, reasons=None):
 
 @pytest.mark.slow
 def test_cross_check_scores_each_left_out_episode_as_the_generator_does(tmp_path, capsys):
-    """``seam tune --with-truth --cross-check``: each episode tracked with a profile fitted on the others; the row
-    of a left-out episode is what the generator's own errors (``independent_cell.scores``) say of the same fold,
-    and the pooled row is the step-weighted mean."""
+    """``seam tune --with-truth --cross-check``: each episode tracked with a profile fitted on the others, the folds
+    on a local Dask cluster of two processes; the row of a left-out episode is what the generator's own errors
+    (``independent_cell.scores``) say of the same fold fitted and tracked in this process, and the pooled row is
+    the step-weighted mean."""
     cell = ic.Cell()
     eps = {s: ic.episode(cell, s, steps=100) for s in (0, 1)}
     dirs = [ic.write_episode(tmp_path / f"e{s}", cell, ep, declare_latency=False) for s, ep in eps.items()]
-    rc, out, err = run_cli(capsys, "seam", "tune", *dirs, "--with-truth", "--cross-check", "--out",
-                           tmp_path / "p.yaml")
+    rc, out, err = run_cli(capsys, "seam", "tune", *dirs, "--with-truth", "--cross-check", "--workers", "2",
+                           "--out", tmp_path / "p.yaml")
     assert rc == 0, err
     assert load_profile(tmp_path / "p.yaml").fitted.method == "truth"          # the profile itself, as without it
-    assert "cross-check 1/2: fitting on the other 1 episode(s), tracking e0" in err
-    assert "cross-check 2/2: fitting on the other 1 episode(s), tracking e1" in err
+    assert ("cross-check: 2 folds in parallel, each fitting on the other 1 episode(s) and tracking the one left "
+            "out") in err
     rows = {ln.split()[0]: ln.split() for ln in out.splitlines() if ln.startswith(("  e0 ", "  e1 ", "  pooled "))}
     assert sorted(rows) == ["e0", "e1", "pooled"], out
     assert "of 2 episode(s) more than 5 % confident-wrong" in out

@@ -120,6 +120,17 @@ def test_cli_tune_errors_are_one_line(episodes, tmp_path, capsys):
     rc, out, err = run_cli(capsys, "seam", "tune", "--simulate", "2", "--with-truth", "--cross-check", "--out",
                            tmp_path / "p.yaml")
     assert_one_line_error(rc, out, err, "--cross-check: recorded episodes only, not --simulate")
+    # where its folds run: only with --cross-check, a local cluster's size or an address, not both
+    rc, out, err = run_cli(capsys, "seam", "tune", *episodes, "--workers", "2", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--workers: only with --cross-check (its folds are what runs in parallel)")
+    rc, out, err = run_cli(capsys, "seam", "tune", *episodes, "--with-truth", "--cross-check", "--scheduler",
+                           "serial", "--workers", "2", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--workers sets the size of the local cluster; it cannot be combined with "
+                                        "--scheduler")
+    rc, out, err = run_cli(capsys, "seam", "tune", *episodes, "--with-truth", "--cross-check", "--scheduler",
+                           "cluster:99999", "--out", tmp_path / "p.yaml")
+    assert_one_line_error(rc, out, err, "--scheduler: expected 'serial' or a Dask address tcp://HOST:PORT with a "
+                                        "port in 1..65535, got 'cluster:99999'")
     from posekit.seam.frontend.tune_check import cross_check
 
     with pytest.raises(ConfigError, match=r"bare has no truth.csv; expected every episode to have one"):
@@ -146,3 +157,29 @@ def test_plateau_factor_is_the_larger_rms_of_the_kinematics_and_the_filter_at_mo
     assert sd == pytest.approx(f * abs(math.log(0.9 / 0.7)) / math.sqrt(2) / math.sqrt(2), rel=0.1)
     f, sd, kin = _plateau_factor(draw(1.5), draw(0.3))                 # one episode: no 1σ; capped at 1
     assert f == 1.0 and sd is None and kin == pytest.approx(1.5, rel=0.03)
+
+
+def test_cross_check_in_this_process_says_each_fold_as_it_starts_and_pools_by_steps(tmp_path, monkeypatch):
+    """``--scheduler serial``: the folds one after the other, each announced; the table pools the left-out
+    episodes' shares weighted by their steps (the folds' own fits are checked against a direct fit on the
+    independent cell, tests/seam/test_seam_independent_cell.py)."""
+    from posekit.seam.frontend import tune_check
+
+    dirs = []
+    for name in ("a", "b", "c"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "truth.csv").write_text("t")
+        dirs.append(tmp_path / name)
+    rows = {0: (100, [1.0] * 6, 1.0, 0.0), 1: (300, [0.8] * 6, 0.5, 0.1), 2: (100, [0.9] * 6, 0.0, 0.0)}
+    seen = []
+    monkeypatch.setattr(tune_check, "cross_check_fold", lambda task: (seen.append(task), rows[task[0]])[1])
+    said = []
+    check = tune_check.cross_check(dirs, base="base.yaml", share_sensors=True, stage=said.append, scheduler="serial")
+    assert said == [f"cross-check {i}/3: fitting on the other 2 episode(s), tracking {n}"
+                    for i, n in ((1, "a"), (2, "b"), (3, "c"))]
+    assert seen == [(i, [str(d) for d in dirs], "base.yaml", True) for i in range(3)]
+    p = check.pooled
+    assert p["tracking"] == pytest.approx((100 * 1.0 + 300 * 0.5) / 500)
+    assert p["confident_wrong"] == pytest.approx(300 * 0.1 / 500)
+    assert p["coverage_2sigma"]["x"] == pytest.approx((100 * 1.0 + 300 * 0.8 + 100 * 0.9) / 500)
+    assert p["episodes_confident_wrong_over_5_percent"] == 1

@@ -8,7 +8,7 @@ from .._numbers import parse_number
 from ..errors import ConfigError
 
 __all__ = ["overwrite_flag", "replace_own_flag", "progress", "parse_triplet", "out_folder", "add_overwrite", "OVERWRITE_HELP", "staged",
-           "add_deprecated", "add_dask_args", "check_dask_args", "check_workspace", "local_scheduler", "SCHEDULER_HELP"]
+           "add_deprecated", "add_dask_args", "check_dask_args", "check_scheduler", "check_workspace", "local_scheduler", "SCHEDULER_HELP"]
 
 #: Help of ``--scheduler`` on the verbs that run their episodes through :func:`posekit.sweep.run_tasks`.
 SCHEDULER_HELP = ("where to run: a Dask scheduler address tcp://HOST:PORT, or 'serial' (this process); default "
@@ -107,6 +107,19 @@ def check_dask_args(args) -> None:
     """One-line :class:`ConfigError` when ``--workers`` (the local cluster's size) comes with ``--scheduler``."""
     if args.workers is not None and args.scheduler is not None:
         raise ConfigError("--workers sets the size of the local cluster; it cannot be combined with --scheduler")
+
+
+def check_scheduler(text: str | None) -> None:
+    """A one-line ConfigError for a ``--scheduler`` that is not 'serial' or ``SCHEME://HOST:PORT`` with a
+    port in 1..65535 (before a 5 s connection timeout, or a connection to a port that cannot exist)."""
+    import re
+
+    if text is None or text == "serial":
+        return
+    m = re.fullmatch(r"(tcp|tls|ws|wss|ucx)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})", text)
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise ConfigError(f"--scheduler: expected 'serial' or a Dask address tcp://HOST:PORT with a port in "
+                          f"1..65535, got '{text[:80]}'")
 
 
 def local_scheduler(args):

@@ -1,11 +1,13 @@
-"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth [--cross-check]]``: fit a cell's profile
-(``--dump-config``: the cell configuration it works with)."""
+"""``posekit seam tune LOGDIR [LOGDIR ...] --out PROFILE.yaml [--with-truth [--cross-check [--scheduler ADDR |
+--workers N]]]``: fit a cell's profile (``--dump-config``: the cell configuration it works with); the cross-check's
+folds run on Dask (a local cluster by default)."""
 
 import sys
 import time
 from pathlib import Path
 
-from ._flags import bounded_int, seed
+from ._common import SCHEDULER_HELP
+from ._flags import bounded_int, seed, workers
 
 __all__ = ["add_tune_parser"]
 
@@ -29,6 +31,10 @@ def add_tune_parser(verbs):
     p.add_argument("--cross-check", action="store_true",
                    help="with --with-truth: also leave each episode out in turn, fit on the others and track it: "
                         "its 2σ coverage per axis, tracking and confident-wrong shares (one fit per episode)")
+    p.add_argument("--scheduler", default=None,
+                   help="--cross-check: where its folds run: " + SCHEDULER_HELP)
+    p.add_argument("--workers", type=workers, default=None,
+                   help="--cross-check: worker processes of the local cluster, 1..256 (default: one per core)")
     p.add_argument("--simulate", type=bounded_int(1, MAX_SIMULATED), default=None, metavar="RUNS",
                    help=f"fit on RUNS episodes simulated now (1..{MAX_SIMULATED}; with --config, --seed), "
                         "written to a temporary folder; how the shipped default profile is made")
@@ -72,9 +78,15 @@ def run_tune(args) -> int:
     if args.cross_check and args.simulate is not None:
         raise ConfigError("--cross-check: recorded episodes only, not --simulate (track held-out simulated "
                           "episodes with posekit seam simulate --profile)")
+    if (args.scheduler is not None or args.workers is not None) and not args.cross_check:
+        raise ConfigError(f"{'--scheduler' if args.scheduler is not None else '--workers'}: only with --cross-check "
+                          "(its folds are what runs in parallel)")
     if args.cross_check:
         from ..seam.frontend.tune_check import check_cross_check
+        from ._common import check_dask_args, check_scheduler
 
+        check_dask_args(args)
+        check_scheduler(args.scheduler)
         check_cross_check(args.logdirs)
     t0 = time.monotonic()
 
@@ -93,10 +105,11 @@ def run_tune(args) -> int:
                                       if unpinned else ""))
     if args.cross_check:
         from ..seam.frontend.tune_check import cross_check, cross_check_report
+        from ._common import local_scheduler
 
         sys.stdout.flush()
         print(cross_check_report(cross_check(args.logdirs, base=args.base, share_sensors=args.share_sensors,
-                                             stage=stage)))
+                                             stage=stage, scheduler=local_scheduler(args), n_workers=args.workers)))
     # a profile from a few episodes depends on which (benchmarks/seam_training_sets.py): say how to check it
     print(f"next: check it on episodes it was not fitted on: posekit seam track EPISODE --profile {args.out} --out "
           "DIR (with a truth.csv, DIR/metrics.json has the 2σ coverage per axis and confident_wrong)")

@@ -9,6 +9,10 @@ scored against its ``truth.csv`` (:func:`~.tracker.track_metrics`): the 2σ cove
 ``tracking`` steps and the confident-wrong share (``tracking`` while more than 3σ off on some axis). Pooled over
 the episodes, step-weighted, it is what a new episode of this cell may expect from a profile fitted on one
 episode fewer than given.
+
+The folds are independent fits: they run as a study on :func:`posekit.sweep.run_tasks` (a local Dask cluster, a
+scheduler address, or this process), one task per left-out episode; every fit is deterministic, so the table is
+the same wherever they run.
 """
 
 from dataclasses import dataclass
@@ -18,8 +22,9 @@ import numpy as np
 
 from posekit.errors import ConfigError
 from posekit.seam.frontend.seam_frame import AXES
+from posekit.sweep import SERIAL, run_tasks
 
-__all__ = ["CrossCheck", "check_cross_check", "cross_check", "cross_check_report"]
+__all__ = ["CrossCheck", "check_cross_check", "cross_check", "cross_check_fold", "cross_check_report"]
 
 
 @dataclass
@@ -67,7 +72,8 @@ def check_cross_check(logdirs) -> list:
     return dirs
 
 
-def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None) -> CrossCheck:
+def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None, scheduler=SERIAL,
+                n_workers: int | None = None) -> CrossCheck:
     """Leave each episode out in turn: fit on the others (``seam tune --with-truth``), track it, score it.
 
     Parameters
@@ -75,37 +81,66 @@ def cross_check(logdirs, *, base=None, share_sensors: bool = False, stage=None) 
     logdirs : sequence of path-like
         At least two recorded episodes of one cell, each with ``truth.csv``.
     base, share_sensors
-        As :func:`~.tune.tune_profile`.
+        As :func:`~.tune.tune_profile` (each fold gets them: a path or a profile model, both picklable).
     stage : callable, optional
-        ``stage(text)`` as each fold starts (progress of a long check).
+        ``stage(text)``: as each fold starts in this process (``'serial'``), else once as the folds are sent out.
+    scheduler, n_workers
+        Where the folds run, as :func:`posekit.sweep.run_tasks`: ``'serial'`` (default) this process, None a
+        local Dask cluster of ``n_workers`` processes (default one per core), or a scheduler address.
 
     Raises
     ------
     ConfigError
-        Fewer than two episodes; a left-out episode without ``truth.csv``.
+        Fewer than two episodes; a left-out episode without ``truth.csv``; a scheduler that cannot be reached.
     """
-    from posekit.seam.frontend.logs import read_episode_log
-    from posekit.seam.frontend.tracker import track_log, track_metrics
-    from posekit.seam.frontend.tune import tune_profile
-
     dirs = check_cross_check(logdirs)
-    rows = []
-    for i, d in enumerate(dirs):
+    tasks = [(i, [str(d) for d in dirs], base, bool(share_sensors)) for i in range(len(dirs))]
+    others = f"the other {len(dirs) - 1} episode(s)"
+    if scheduler == SERIAL:
+        rows = []
+        for i, d in enumerate(dirs):
+            if stage is not None:
+                stage(f"cross-check {i + 1}/{len(dirs)}: fitting on {others}, tracking {d.name}")
+            rows.append(cross_check_fold(tasks[i]))
+    else:
         if stage is not None:
-            stage(f"cross-check {i + 1}/{len(dirs)}: fitting on the other {len(dirs) - 1} episode(s), "
-                  f"tracking {d.name}")
-        fitted = tune_profile(dirs[:i] + dirs[i + 1:], with_truth=True, base=base, share_sensors=share_sensors,
-                              command=f"cross-check without {d.name}").profile
-        m = track_metrics(track_log(read_episode_log(d, profile=fitted)))
-        steps = m["steps"]
-        rows.append((steps, [m["coverage_2sigma"][a] for a in AXES],
-                     m["status_counts"].get("tracking", 0) / steps, m["confident_wrong"]))
+            stage(f"cross-check: {len(dirs)} folds in parallel, each fitting on {others} and tracking the one left "
+                  "out")
+        rows = run_tasks(cross_check_fold, tasks, scheduler=scheduler, n_workers=n_workers, desc="cross-check")
     steps, cov, trk, cw = (np.array(c) for c in zip(*rows))
     names = [d.name for d in dirs]
     if len(set(names)) < len(names):   # folders of the same name in different places: the paths as given
         names = [str(d) for d in dirs]
     return CrossCheck(names, steps.astype(int), cov.astype(float), trk.astype(float),
                       cw.astype(float))
+
+
+def cross_check_fold(task) -> tuple:
+    """One fold of :func:`cross_check` (a study task: top level, picklable in and out).
+
+    Parameters
+    ----------
+    task : tuple
+        ``(i, dirs, base, share_sensors)``: the index of the left-out episode among the folders ``dirs`` (str),
+        the base profile (a path, a profile model or None) and the sensor sharing, as ``seam tune``.
+
+    Returns
+    -------
+    steps, coverage, tracking, confident_wrong : int, list of 6 float, float, float
+        The left-out episode's steps, 2σ coverage per axis, ``tracking`` share and confident-wrong share.
+    """
+    from posekit.seam.frontend.logs import read_episode_log
+    from posekit.seam.frontend.tracker import track_log, track_metrics
+    from posekit.seam.frontend.tune import tune_profile
+
+    i, dirs, base, share = task
+    d = Path(dirs[i])
+    fitted = tune_profile([Path(x) for k, x in enumerate(dirs) if k != i], with_truth=True, base=base,
+                          share_sensors=share, command=f"cross-check without {d.name}").profile
+    m = track_metrics(track_log(read_episode_log(d, profile=fitted)))
+    steps = m["steps"]
+    return (steps, [m["coverage_2sigma"][a] for a in AXES], m["status_counts"].get("tracking", 0) / steps,
+            m["confident_wrong"])
 
 
 def cross_check_report(check: CrossCheck) -> str:
