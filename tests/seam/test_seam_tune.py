@@ -51,9 +51,16 @@ def test_cli_tune_with_truth_recovers_the_latency_and_the_noise_and_feeds_track(
     # a fit takes seconds to minutes: stderr says what it is doing, step by step, with the time since the start
     samples = sum(len((Path(e) / "log.csv").read_text().splitlines()) - 1 for e in episodes)
     *stages, offset, more = [ln.split("] ", 1)[1] for ln in err.splitlines() if ln.startswith("posekit seam tune: [")]
+    walks = [getattr(load_profile(out).walk, a) for a in ("x_mm", "y_mm", "z_mm", "rx_deg", "ry_deg", "rz_deg")]
+    kept = sum(w.std is None for w in walks)            # not pinned: the coverage loop runs twice more with them
+    passes = 3 + (6 if 0 < kept < 6 else 0) + 1
     assert stages == [f"{len(episodes)} episode(s), {samples} samples",
                       "fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's "
                       "spread",
+                      "the walk: the linearised filter's score at the truth, its best and the walks within one unit "
+                      f"of it ({len(episodes)} episode(s) per evaluation)",
+                      "the walk: scaled by the particle filter's coverage on the episodes "
+                      f"({passes} passes of the filter over {len(episodes)} episode(s))",
                       "calibrating the integrity test: the lasers' innovations of the spread fit's particle filter"]
     # and the offset test's calibration: the smallest change it flags per axis (from two episodes: wide)
     assert offset.startswith("the offset test over 300 steps flags a change of the kinematics' offset of at least: "

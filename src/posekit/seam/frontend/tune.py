@@ -224,7 +224,7 @@ def tune_profile(logdirs, *, with_truth: bool = False, base=None, share_sensors:
     runs: list = []   # the particle filter with every value fitted (the truth fit's last pass; its innovations)
     if with_truth:
         say("fitting from the errors against truth.csv: lasers, plateau, walk, then the particle filter's spread")
-        nll = fit_truth(logs, work, share_sensors, put, runs)
+        nll = fit_truth(logs, work, share_sensors, put, runs, say)
     else:
         say("fitting the walk, laser noise and latencies from the laser innovations (each latency's 95 % interval "
             "by profile likelihood)")

@@ -91,8 +91,9 @@ def _rotation_envelope(f: np.ndarray, par: np.ndarray, perp: np.ndarray, kd_fixe
     return float(grid[i]), float(kd_for(grid[i]))
 
 
-def fit_truth(logs, work: ProfileModel, share: bool, put, runs_out: list | None = None) -> float:
-    """Walk, jitter, laser noise, latency and plateau from the errors against ``truth.csv``."""
+def fit_truth(logs, work: ProfileModel, share: bool, put, runs_out: list | None = None, say=None) -> float:
+    """Walk, jitter, laser noise, latency and plateau from the errors against ``truth.csv``; ``say(text)`` as each
+    long step starts (the walk's, which runs the particle filter over the episodes up to ten times)."""
     from posekit.seam.frontend.config import cell_from_config
 
     prof = replace(work.to_model(), spread_scale=np.ones(6))  # the filter's own spread until it is fitted (below)
@@ -164,7 +165,7 @@ def fit_truth(logs, work: ProfileModel, share: bool, put, runs_out: list | None 
     # log score of its posterior at the truth, per axis)
     fitted = replace(prof, jitter=jitter, laser_sigma_mm=sig, latency_s=lat, d0_mm=d0, kd_mm_per_n=kd, d0_rad=d0r,
                      kd_rad_per_n=kdr, tail_mm=tail_t, tail_rad=tail_r, max_force_n=fmax)
-    return _fit_walk_truth(logs, cell, fitted, parts, put, runs_out)
+    return _fit_walk_truth(logs, cell, fitted, parts, put, runs_out, say or (lambda text: None))
 
 
 _WALK_BOUNDS = (math.log(1e-7), math.log(10.0))
@@ -199,7 +200,7 @@ def _log_score(eps, Ms, truths, prof):
     return score
 
 
-def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) -> float:
+def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, say=lambda text: None) -> float:
     """The walk per tool axis whose linearised filter reports spreads its errors against the truth bear out (the
     least log score, :func:`_log_score`); its 1σ from the score's curvature or, where the episodes disagree more,
     the spread of their own slopes (:func:`_curvature_std`). The walks the score allows along an axis are those
@@ -210,6 +211,8 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
     range it spans with those e times narrower to wider. ``runs_out`` (a list) receives the particle filter's runs
     with the final walk (every value fitted: the integrity test's calibration reads their innovations,
     :mod:`.tune_nis`)."""
+    say(f"the walk: the linearised filter's score at the truth, its best and the walks within one unit of it "
+        f"({len(logs)} episode(s) per evaluation)")
     eps = [LinearisedEpisode(cell, prof, episode_arrays(log), _knots(log)) for log in logs]
     lat = prof.sensor_latency_s(cell.n_sensors)
     Ms = [e.mounts(lat) for e in eps]
@@ -259,6 +262,9 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None) 
         xx[a] = math.log(max(prof.walk[a], math.exp(_WALK_BOUNDS[0])))
         excess[a] = total(xx) - f0
     kept = prof.walk
+    passes = 3 + (6 if (~pinned).any() and pinned.any() else 0) + 1
+    say(f"the walk: scaled by the particle filter's coverage on the episodes ({passes} passes of the filter over "
+        f"{len(logs)} episode(s))")
     effective = _coverage_loop(logs, prof, pinned, np.where(pinned, walk, kept))
     # that scaling runs the particle filter with the walks the score does not decide at the base profile's: a pinned
     # walk's value depends on them. The loop again with them e times narrower and wider (the range the score was
