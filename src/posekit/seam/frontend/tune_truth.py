@@ -218,8 +218,13 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, 
     Ms = [e.mounts(lat) for e in eps]
     score = _log_score(eps, Ms, [p[4] for p in parts], prof)
 
+    seen: dict = {}   # the restart's last probes are the edges' first steps: each point's score once
+
     def total(x):
-        return float(np.sum(score(x)))
+        key = np.asarray(x, dtype=np.float64).tobytes()
+        if key not in seen:
+            seen[key] = float(np.sum(score(x)))
+        return seen[key]
 
     def descend(x0):
         return minimize(total, x0, method="L-BFGS-B", bounds=[_WALK_BOUNDS] * 6,
@@ -262,7 +267,9 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, 
         xx[a] = math.log(max(prof.walk[a], math.exp(_WALK_BOUNDS[0])))
         excess[a] = total(xx) - f0
     kept = prof.walk
-    passes = 3 + (6 if (~pinned).any() and pinned.any() else 0) + 1
+    undecided = ~pinned
+    both = bool(undecided.any() and pinned.any())   # the loop runs again with the undecided walks moved
+    passes = 3 + (6 if both else 0) + 1
     say(f"the walk: scaled by the particle filter's coverage on the episodes ({passes} passes of the filter over "
         f"{len(logs)} episode(s))")
     effective = _coverage_loop(logs, prof, pinned, np.where(pinned, walk, kept))
@@ -270,9 +277,8 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, 
     # walk's value depends on them. The loop again with them e times narrower and wider (the range the score was
     # found flat over about its best), and the pinned walk's 1σ takes in the range it then spans (its rms about the
     # value, uniform)
-    undecided = ~pinned
     dep, span = np.zeros(6), None
-    if undecided.any() and pinned.any():
+    if both:
         ends = [_coverage_loop(logs, prof, pinned, np.where(pinned, walk, kept * np.where(undecided, f, 1.0)))
                 for f in (1.0 / math.e, math.e)]
         span = (np.minimum.reduce([effective, *ends]), np.maximum.reduce([effective, *ends]))
