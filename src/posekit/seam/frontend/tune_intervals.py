@@ -26,7 +26,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 __all__ = ["CHI2_1_95", "LATENCY_GRID_S", "LATENCY_HALF_WIDTH_S", "WALK_SCALE", "LatencyInterval",
-           "joint_std", "latency_interval", "reading_rate_rms", "uniform_rms"]
+           "joint_std", "latency_interval", "reading_rate_rms", "score_edge", "uniform_rms"]
 
 #: The 95 % quantile of χ² with one degree of freedom (the likelihood-ratio interval: half of it in log-likelihood).
 CHI2_1_95 = 3.841458820694124
@@ -271,6 +271,29 @@ def latency_interval(f, x: np.ndarray, i: int, lat_idx, walk_idx, grid=None, max
                 lo_j, hi_j = others.get(j, (np.inf, -np.inf))
                 others[j] = (min(lo_j, float(min(v))), max(hi_j, float(max(v))))
     return LatencyInterval(by_walk, others, float(grid[-1]))
+
+
+def score_edge(total, x: np.ndarray, a: int, side: float, level: float, bounds: tuple[float, float]) -> float:
+    """The log walk along axis ``a`` (others at ``x``), from ``x[a]`` towards ``side`` (-1 narrower, +1 wider), where
+    ``total`` first reaches ``level`` (steps of e, then bisection to 0.01 in the log); the bound ``bounds`` (low, high)
+    on that side where it never does. A slice (the others held), unlike :func:`latency_interval`'s profile."""
+    xx = x.copy()
+    inside = float(x[a])
+    while True:
+        outside = float(np.clip(inside + side, *bounds))
+        if outside == inside:
+            return inside
+        xx[a] = outside
+        if total(xx) >= level:
+            break
+        inside = outside
+    while abs(outside - inside) > 0.01:
+        xx[a] = 0.5 * (inside + outside)
+        if total(xx) >= level:
+            outside = xx[a]
+        else:
+            inside = xx[a]
+    return 0.5 * (inside + outside)
 
 
 def uniform_rms(a: float, b: float) -> float:

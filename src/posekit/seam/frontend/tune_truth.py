@@ -23,7 +23,7 @@ from posekit.seam.frontend.tune_fit import (
     episode_arrays,
     local_level_fit,
 )
-from posekit.seam.frontend.tune_intervals import uniform_rms
+from posekit.seam.frontend.tune_intervals import score_edge, uniform_rms
 
 __all__ = ["fit_truth"]
 
@@ -249,7 +249,7 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, 
     # the walks the score allows along each axis (the others at their best): within one unit of its best. Steep: it
     # bounds them on both sides (where it does on one side only, at the edge of a flat stretch, the optimiser's stop
     # on that stretch depends on where it started: not a walk the data pin)
-    edges = np.array([[_score_edge(total, x, a, side, f0 + 1.0) for side in (-1.0, 1.0)] for a in range(6)])
+    edges = np.array([[score_edge(total, x, a, side, f0 + 1.0, _WALK_BOUNDS) for side in (-1.0, 1.0)] for a in range(6)])
     steep = (edges[:, 0] > _WALK_BOUNDS[0] + 1e-9) & (edges[:, 1] < _WALK_BOUNDS[1] - 1e-9)
     allowed = np.exp(edges)
     std_log = _curvature_std(score, x, np.full(6, 0.1))
@@ -344,29 +344,6 @@ def _fit_walk_truth(logs, cell, prof, parts, put, runs_out: list | None = None, 
             "" if pinned else "one episode: the base profile's" if sd is None else
             "the episodes disagree: the base profile's")
     return f0
-
-
-def _score_edge(total, x: np.ndarray, a: int, side: float, level: float) -> float:
-    """The log walk along axis ``a`` (others at ``x``), from ``x[a]`` towards ``side`` (-1 narrower, +1 wider), where
-    ``total`` first reaches ``level`` (steps of e, then bisection to 0.01 in the log); the walk bound
-    (:data:`_WALK_BOUNDS`) where it never does."""
-    xx = x.copy()
-    inside = float(x[a])
-    while True:
-        outside = float(np.clip(inside + side, *_WALK_BOUNDS))
-        if outside == inside:
-            return inside
-        xx[a] = outside
-        if total(xx) >= level:
-            break
-        inside = outside
-    while abs(outside - inside) > 0.01:
-        xx[a] = 0.5 * (inside + outside)
-        if total(xx) >= level:
-            outside = xx[a]
-        else:
-            inside = xx[a]
-    return 0.5 * (inside + outside)
 
 
 def _coverage_loop(logs, prof, pinned: np.ndarray, walk: np.ndarray) -> np.ndarray:
